@@ -1,0 +1,103 @@
+"""Error types. Everything the toolkit raises on bad input derives from `KinematicsError`.
+
+Each subclass carries the offending value and, where there is a closed set of valid choices,
+the choices themselves, so a caller (or the CLI) can say what would have worked.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+
+def _choices(valid: Iterable[str], limit: int = 60) -> str:
+    names = list(valid)
+    shown = ", ".join(names[:limit])
+    if len(names) > limit:
+        shown += f", ... ({len(names) - limit} more)"
+    return shown
+
+
+class KinematicsError(Exception):
+    """Root of every error the toolkit raises on purpose."""
+
+
+class InvalidInputError(KinematicsError, ValueError):
+    """A numeric input is malformed: wrong length, NaN/inf, out of a declared domain."""
+
+    def __init__(self, what: str, problem: str) -> None:
+        self.what = what
+        self.problem = problem
+        super().__init__(f"{what}: {problem}")
+
+
+class UnknownNameError(KinematicsError, LookupError):
+    """A name that must come from a closed set does not (robot, frame, mode, parameter...)."""
+
+    kind = "name"
+
+    def __init__(self, name: str, valid: Sequence[str]) -> None:
+        self.name = name
+        self.valid = tuple(valid)
+        super().__init__(f"unknown {self.kind} {name!r}; valid: {_choices(self.valid)}")
+
+
+class UnknownRobotError(UnknownNameError):
+    """A robot name that is neither built in, nor in example-robot-data, nor a file."""
+
+    kind = "robot"
+
+
+class UnknownFrameError(UnknownNameError):
+    """A frame name absent from the model."""
+
+    kind = "frame"
+
+
+class UnknownJointError(UnknownNameError):
+    """A joint name absent from the model."""
+
+    kind = "joint"
+
+
+class UnknownModeError(UnknownNameError):
+    """A working/assembly mode label that does not exist for this mechanism."""
+
+    kind = "mode"
+
+
+class UnknownParameterError(UnknownNameError):
+    """A design parameter name that the generator or sweep does not know."""
+
+    kind = "parameter"
+
+
+class ModelFileError(KinematicsError, OSError):
+    """A robot description file is missing, unreadable or malformed."""
+
+    def __init__(self, path: object, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class UnsupportedRobotError(KinematicsError):
+    """The operation needs a kind of mechanism this robot is not (e.g. a planar 2R arm)."""
+
+    def __init__(self, robot: str, problem: str) -> None:
+        self.robot = robot
+        self.problem = problem
+        super().__init__(f"{robot}: {problem}")
+
+
+class ConvergenceError(KinematicsError, ArithmeticError):
+    """An iterative solver stopped without meeting its tolerance."""
+
+    def __init__(self, what: str, iterations: int, residual: float, tolerance: float) -> None:
+        self.what = what
+        self.iterations = iterations
+        self.residual = residual
+        self.tolerance = tolerance
+        super().__init__(
+            f"{what} did not converge: residual {residual:.3g} > tolerance {tolerance:.3g} "
+            f"after {iterations} iterations"
+        )

@@ -1,0 +1,74 @@
+"""Output helpers for the CLI: strict JSON and plain-text tables. No heavy imports."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+
+def jsonable(obj: Any) -> Any:
+    """Convert numpy arrays/scalars, tuples and NamedTuples into strict-JSON values.
+
+    inf and NaN become null (strict JSON has neither); -0.0 becomes 0.0.
+    """
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
+        return jsonable(obj.tolist())
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
+        return obj
+    if isinstance(obj, float):
+        return None if not math.isfinite(obj) else obj + 0.0
+    raise TypeError(f"cannot convert {type(obj).__name__} to JSON")
+
+
+def dumps(obj: Any) -> str:
+    """Strict JSON text (allow_nan=False) of `jsonable(obj)`, indented."""
+    return json.dumps(jsonable(obj), indent=2, allow_nan=False)
+
+
+def fmt(x: Any, digits: int = 6) -> str:
+    """Compact number formatting for tables; sequences are bracketed."""
+    if isinstance(x, bool) or x is None or isinstance(x, str):
+        return str(x)
+    if isinstance(x, (int,)):
+        return str(x)
+    if isinstance(x, float):
+        if math.isinf(x):
+            return "inf" if x > 0 else "-inf"
+        return f"{x + 0.0:.{digits}g}"
+    if hasattr(x, "tolist"):
+        return fmt(x.tolist(), digits)
+    if isinstance(x, Sequence):
+        return "[" + ", ".join(fmt(v, digits) for v in x) + "]"
+    return str(x)
+
+
+def table(headers: Sequence[str], rows: Iterable[Sequence[Any]], digits: int = 6) -> str:
+    """A plain-text table with a header rule; cells go through `fmt`."""
+    cells = [[fmt(c, digits) for c in row] for row in rows]
+    widths = [len(h) for h in headers]
+    for row in cells:
+        widths = [max(w, len(c)) for w, c in zip(widths, row, strict=True)]
+    line = "  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True))
+    rule = "  ".join("-" * w for w in widths)
+    body = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in cells]
+    return "\n".join([line.rstrip(), rule, *[b.rstrip() for b in body]])
+
+
+def key_values(pairs: Iterable[tuple[str, Any]], digits: int = 6) -> str:
+    """Aligned `key: value` lines."""
+    items = [(k, fmt(v, digits)) for k, v in pairs]
+    width = max((len(k) for k, _ in items), default=0)
+    return "\n".join(f"{k.ljust(width)} : {v}" for k, v in items)
+
+
+def matrix(rows: Any, digits: int = 6) -> str:
+    """A matrix as aligned rows."""
+    values = [[fmt(float(v), digits) for v in row] for row in rows]
+    width = max((len(v) for row in values for v in row), default=0)
+    return "\n".join("  [" + "  ".join(v.rjust(width) for v in row) + "]" for row in values)

@@ -1,0 +1,145 @@
+"""The command line through `main([...])` and as a real subprocess."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kinematics.cli import build_parser, main
+
+from .conftest import write_2r_urdf
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def run_json(capsys, *argv):
+    code, out, err = run(capsys, *argv, "--json")
+    return code, json.loads(out), err
+
+
+def test_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    for name in sub.choices:
+        assert name in out
+
+
+def test_info(capsys):
+    code, data, _ = run_json(capsys, "info", "scara")
+    assert code == 0
+    assert data["parameters"] == {"l1": 0.4, "l2": 0.3}
+    assert [j["name"] for j in data["joints"]] == ["joint1", "joint2"]
+    assert data["planar"] and data["plane_axes"] == ["x", "y"]
+    assert data["parsers_agree"]["max_position_error"] <= 1e-12
+    code, out, _ = run(capsys, "info", "scara")
+    assert "l1" in out and "joint2" in out
+
+
+def test_fk_planar_and_spatial(capsys):
+    code, data, _ = run_json(capsys, "fk", "scara", "--q", "0", "0")
+    assert code == 0 and data["position"] == pytest.approx([0.7, 0.0])
+    code, deg, _ = run_json(capsys, "fk", "scara", "--q", "90", "0", "--degrees")
+    assert deg["position"] == pytest.approx([0.0, 0.7], abs=1e-15)
+    code, data, _ = run_json(capsys, "fk", "ur5", "--q", "0", "0", "0", "0", "0", "0")
+    assert len(data["position"]) == 3 and len(data["rotation"]) == 3
+
+
+def test_ik_json_and_exit_codes(capsys):
+    code, data, _ = run_json(capsys, "ik", "scara", "--position", "0.4", "0.3")
+    assert code == 0 and data["reachable"] is True
+    assert {s["elbow"] for s in data["solutions"]} == {"up", "down"}
+    assert all(set(s) >= {"q", "elbow", "within_limits"} for s in data["solutions"])
+    code, data, _ = run_json(capsys, "ik", "scara", "--position", "0.9", "0")
+    assert code == 1 and data["reachable"] is False and "outer radius" in data["reason"]
+    code, out, _ = run(capsys, "ik", "scara", "--position", "0.9", "0")
+    assert code == 1 and "NOT reachable" in out
+
+
+def test_jacobian_and_manipulability(capsys):
+    code, data, _ = run_json(capsys, "jacobian", "scara", "--q", "0", "0")
+    assert code == 0
+    np.testing.assert_allclose(data["jacobian"], [[0, 0], [0.7, 0.3]], atol=1e-15)
+    code, data, _ = run_json(capsys, "manipulability", "scara", "--q", "0", "0")
+    assert set(data) >= {"jacobian", "radii", "directions", "yoshikawa", "condition_number", "singular"}
+    assert data["radii"][0] == pytest.approx(0, abs=1e-15) and round(data["radii"][1], 4) == 0.7616
+    assert data["singular"] is True and data["condition_number"] is None
+    code, data, _ = run_json(capsys, "manipulability", "ur5", "--q", "0.1", "-1.2", "1", "0.3", "0.2", "0.1")
+    assert len(data["radii"]) == 3 and set(data["rotational"]) >= {"radii", "directions", "singular"}
+    code, data, _ = run_json(capsys, "manipulability", "ur5", "--q", "0", "-1", "1", "0", "0", "0",
+                             "--frame", "wrist_1_link")
+    assert data["frame"] == "wrist_1_link"
+
+
+def test_human_reports(capsys):
+    for argv in (["manipulability", "scara", "--q", "0.3", "1.2"], ["jacobian", "ur5", "--q", *["0.1"] * 6],
+                 ["fk", "ur5", "--q", *["0.1"] * 6]):
+        code, out, err = run(capsys, *argv)
+        assert code == 0 and out.strip() and not err
+
+
+def bad_inputs(tmp_path):
+    missing = tmp_path / "missing.urdf"
+    malformed = tmp_path / "malformed.urdf"
+    malformed.write_text("<robot><link name='a'>")
+    return [
+        (["fk", "scara", "--q", "0.1"], "2 degrees of freedom"),
+        (["fk", "scara", "--q", "0.1", "nan"], "finite"),
+        (["manipulability", "scara", "--q", "inf", "0"], "finite"),
+        (["fk", str(missing), "--q", "0"], "no such file"),
+        (["info", str(malformed)], "malformed XML"),
+        (["fk", "nosuchbot", "--q", "0"], "unknown robot"),
+        (["fk", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
+        (["ik", "scara", "--position", "0.1", "nan"], "finite"),
+        (["ik", "scara", "--position", "0.1"], "give X Y"),
+        (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "closed-form IK"),
+        (["jacobian", "scara"], "needs joint values"),
+        (["fk", "scara", "--q", "zero", "1"], "invalid float"),
+        (["nosuchcommand"], "invalid choice"),
+    ]
+
+
+def test_bad_input_in_process(capsys, tmp_path):
+    for argv, needle in bad_inputs(tmp_path):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse-level errors
+            code = exc.code
+        out, err = capsys.readouterr()
+        assert code == 2, argv
+        assert err.count("\n") == 1 and needle in err, (argv, err)
+        assert "Traceback" not in err and out == ""
+
+
+@pytest.mark.parametrize("case", range(4))
+def test_subprocess_exit_codes(tmp_path, case):
+    argv, needle = bad_inputs(tmp_path)[[0, 3, 5, 11][case]]
+    proc = subprocess.run([sys.executable, "-m", "kinematics", *argv], capture_output=True, text=True)
+    assert proc.returncode == 2 and needle in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_subprocess_console_script_ok_and_unreachable():
+    ok = subprocess.run([sys.executable, "-m", "kinematics", "ik", "scara", "--position", "0.4", "0.3", "--json"],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0 and json.loads(ok.stdout)["reachable"] is True
+    no = subprocess.run([sys.executable, "-m", "kinematics", "ik", "scara", "--position", "0", "0.05", "--json"],
+                        capture_output=True, text=True)
+    assert no.returncode == 1 and json.loads(no.stdout)["reachable"] is False and no.stderr == ""
+
+
+def test_any_urdf_path(capsys, tmp_path):
+    path = tmp_path / "arm.urdf"
+    write_2r_urdf(path, 1.0, 0.5)
+    code, data, _ = run_json(capsys, "ik", str(path), "--position", "1.5", "0")
+    assert code == 0 and data["solutions"][0]["q"] == pytest.approx([0, 0], abs=1e-12)

@@ -1,0 +1,127 @@
+"""Model loading, validation errors and the two-parser agreement."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinematics.errors import (
+    InvalidInputError,
+    KinematicsError,
+    ModelFileError,
+    UnknownFrameError,
+    UnknownRobotError,
+)
+from kinematics.model import load_robot, parser_agreement, robot_names
+
+
+def test_builtin_scara_joints_and_limits(scara):
+    assert scara.joint_names == ("joint1", "joint2")
+    assert scara.tool_frame == "tool"
+    assert scara.lower == pytest.approx([-math.radians(110), -math.radians(130)], abs=1e-15)
+    assert scara.upper == pytest.approx([math.radians(110), math.radians(130)], abs=1e-15)
+
+
+def test_load_by_path_and_example_robot_data(scara, ur5):
+    by_path = load_robot(scara.urdf_path)
+    assert by_path.joint_names == scara.joint_names
+    assert ur5.nv == 6 and ur5.tool_frame == "tool0"
+    assert "ur5" in robot_names() and "scara" in robot_names()
+
+
+def test_unknown_robot_lists_valid_names():
+    with pytest.raises(UnknownRobotError) as info:
+        load_robot("no_such_robot")
+    assert "scara" in info.value.valid and "ur5" in info.value.valid
+    assert "scara" in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ModelFileError, match="no such file"):
+        load_robot(tmp_path / "absent.urdf")
+
+
+def test_malformed_xml(tmp_path):
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'></robot>")
+    with pytest.raises(ModelFileError, match="malformed XML"):
+        load_robot(bad)
+
+
+def test_not_a_urdf(tmp_path):
+    bad = tmp_path / "notrobot.urdf"
+    bad.write_text("<sdf version='1.6'/>")
+    with pytest.raises(ModelFileError, match="root element is <sdf>"):
+        load_robot(bad)
+
+
+def test_urdf_pinocchio_rejects(tmp_path, capfd):
+    bad = tmp_path / "dangling.urdf"
+    bad.write_text(
+        "<robot name='x'><link name='a'/><joint name='j' type='revolute'><parent link='a'/>"
+        "<child link='missing'/><axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'/>"
+        "</joint></robot>"
+    )
+    with pytest.raises(ModelFileError, match="Pinocchio cannot parse"):
+        load_robot(bad)
+    assert capfd.readouterr().err == ""  # urdfdom's own stderr output is captured into the error
+
+
+def test_unknown_frame_lists_frames(scara):
+    with pytest.raises(UnknownFrameError) as info:
+        scara.frame_id("nope")
+    assert "tool" in info.value.valid
+    with pytest.raises(UnknownFrameError):
+        load_robot("scara", tool_frame="nope")
+
+
+@pytest.mark.parametrize("values", [[0.1], [0.1, 0.2, 0.3], []])
+def test_wrong_number_of_joint_values(scara, values):
+    with pytest.raises(InvalidInputError, match="2 degrees of freedom"):
+        scara.joint_values(values)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_joint_values(scara, bad):
+    with pytest.raises(InvalidInputError, match="finite"):
+        scara.configuration([0.1, bad])
+
+
+def test_errors_share_one_root():
+    for cls in (InvalidInputError, ModelFileError, UnknownFrameError, UnknownRobotError):
+        assert issubclass(cls, KinematicsError)
+
+
+def test_degrees_convert_revolute_only(tmp_path):
+    urdf = tmp_path / "rp.urdf"
+    urdf.write_text(
+        "<robot name='rp'><link name='a'/><link name='b'/><link name='c'/>"
+        "<joint name='r' type='revolute'><parent link='a'/><child link='b'/><axis xyz='0 0 1'/>"
+        "<limit lower='-3' upper='3' effort='1' velocity='1'/></joint>"
+        "<joint name='p' type='prismatic'><parent link='b'/><child link='c'/><axis xyz='1 0 0'/>"
+        "<limit lower='0' upper='1' effort='1' velocity='1'/></joint></robot>"
+    )
+    robot = load_robot(urdf)
+    assert [d.kind for d in robot.dofs] == ["revolute", "prismatic"]
+    assert robot.joint_values([90.0, 0.5], degrees=True) == pytest.approx([math.pi / 2, 0.5])
+
+
+def test_continuous_joints_round_trip(rng):
+    kinova = load_robot("kinova")
+    assert any(d.kind == "continuous" for d in kinova.dofs)
+    v = rng.uniform(-3, 3, kinova.nv)
+    assert kinova.values_from_configuration(kinova.configuration(v)) == pytest.approx(v, abs=1e-14)
+
+
+@pytest.mark.parametrize("name", ["scara", "ur5", "panda", "kinova"])
+def test_pinocchio_and_yourdfpy_agree(name, rng):
+    robot = load_robot(name)
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
+    for values in (None, rng.uniform(lo, hi)):
+        agree = parser_agreement(robot, values)
+        assert agree.frames >= 4
+        assert agree.max_position_error <= 1e-12
+        assert agree.max_rotation_error <= 1e-12

@@ -1,0 +1,44 @@
+"""The set-up contract: CI runs the README's test command, and the docs match the code."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from kinematics.cli import reference_markdown
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def readme_test_command() -> str:
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"<!-- test-command -->\s*```sh\n(.+?)\n```", text, re.S)
+    assert block, "README lost its marked test command"
+    return block.group(1).strip()
+
+
+def test_ci_runs_the_readme_test_command():
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    commands = [ln for ln in ci if ln.strip() and not ln.startswith("#") and not ln.startswith(("set ", "cd "))]
+    assert readme_test_command() in commands
+
+
+def test_cli_reference_is_current():
+    assert (ROOT / "docs" / "cli.md").read_text() == reference_markdown(), (
+        "docs/cli.md is stale: run `python -m kinematics.cli --reference > docs/cli.md`"
+    )
+
+
+def test_help_is_instant():
+    # `kinematics --help` must not import Pinocchio, NumPy or matplotlib.
+    code = "import sys; from kinematics.cli import main\ntry:\n main(['--help'])\nexcept SystemExit: pass\n" \
+           "print(sorted(m for m in ('pinocchio','numpy','matplotlib','meshcat','dask') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"
+
+
+def test_package_ships_py_typed_and_urdfs():
+    assert (ROOT / "kinematics" / "py.typed").exists()
+    assert (ROOT / "urdf" / "scara.urdf").exists()
