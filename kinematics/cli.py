@@ -95,7 +95,7 @@ def cmd_info(args: argparse.Namespace) -> int:
             ),
         ]
         if params:
-            parts += ["", "parameters (read from the URDF):", key_values(params.items(), 17)]
+            parts += ["", "parameters (read from the URDF):", key_values(params.items(), None)]
         if payload["loops"]:
             lp = payload["loops"]
             parts += ["", f"loop closures: {len(lp['constraints'])} point constraints; actuated: {', '.join(lp['actuated'])}"]
@@ -119,9 +119,11 @@ def _loops_payload(robot: Any) -> dict[str, Any] | None:
 
 
 def _parallel_parameters(robot: Any) -> dict[str, Any]:
-    from .parallel import P2USParams
+    from .p2us_urdf import MECHANISM, read_params
 
-    return P2USParams.from_robot(robot).as_dict()
+    if robot.loops.mechanism != MECHANISM:
+        return {}
+    return read_params(robot.urdf_path, robot.name).as_dict()
 
 
 def _values(args: argparse.Namespace, robot: Any) -> Any:
@@ -291,6 +293,13 @@ def cmd_manipulability(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_urdf(args: argparse.Namespace) -> int:
+    """Write the URDF and loop sidecar of a 3-[P2(US)] design."""
+    from .parallel_cli import cmd_urdf as run
+
+    return run(args)
+
+
 # Parallel-robot handlers live with the parallel module's CLI helpers.
 def _parallel_fk(args: argparse.Namespace, robot: Any) -> int:
     from .parallel_cli import fk
@@ -360,6 +369,25 @@ def build_parser() -> argparse.ArgumentParser:
     robot_arg(p)
     q_args(p)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
+
+    p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
+    p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")
+    p.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="URDF to write; the sidecar goes beside it as NAME.loops.yaml")
+    p.add_argument("--b", type=float, metavar="M", help="base radius [m] (default 0.325)")
+    p.add_argument("--d", type=float, metavar="M", help="platform radius [m] (default 0.028)")
+    p.add_argument("--L", type=float, metavar="M", help="rod length [m] (default 0.34)")
+    p.add_argument("--beta", type=float, metavar="A", help="rail angle below horizontal [rad] (default 40 deg)")
+    p.add_argument("--alpha", type=float, nargs=3, metavar="A", help="limb angles [rad] (default 0, 120, 240 deg)")
+    p.add_argument("--stroke", type=float, nargs=2, metavar=("MIN", "MAX"), help="actuator range [m] (default 0.1 0.6)")
+    p.add_argument("--theta", type=float, nargs=2, metavar=("MIN", "MAX"),
+                   help="universal joint theta range [rad] (default -10 100 deg)")
+    p.add_argument("--phi", type=float, nargs=2, metavar=("MIN", "MAX"),
+                   help="universal joint phi range [rad] (default -70 70 deg)")
+    p.add_argument("--theta-zero", type=float, metavar="A",
+                   help="rod elevation below the inward horizontal at theta = 0 [rad] (default 0)")
+    p.add_argument("--rod-spacing", type=float, metavar="M", help="parallelogram rod spacing [m] (default 0.05)")
+    p.add_argument("--degrees", action="store_true", help="angles (beta, alpha, theta, phi, theta-zero) in degrees")
     return parser
 
 

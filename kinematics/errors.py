@@ -101,3 +101,12 @@ class ConvergenceError(KinematicsError, ArithmeticError):
             f"{what} did not converge: residual {residual:.3g} > tolerance {tolerance:.3g} "
             f"after {iterations} iterations"
         )
+
+
+class SingularConfigurationError(KinematicsError, ArithmeticError):
+    """The requested quantity does not exist at a singular configuration."""
+
+    def __init__(self, what: str, detail: str) -> None:
+        self.what = what
+        self.detail = detail
+        super().__init__(f"{what}: {detail}")

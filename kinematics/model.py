@@ -110,9 +110,12 @@ class Robot:
     def frame_id(self, name: str | None = None) -> int:
         """Index of frame `name` (default: the tool frame); raises `UnknownFrameError`."""
         name = self.tool_frame if name is None else name
-        if not self.model.existFrame(name):
+        ids = [i for i, f in enumerate(self.model.frames) if f.name == name]
+        if not ids:
             raise UnknownFrameError(name, self.frame_names)
-        return int(self.model.getFrameId(name))
+        # A joint and a link may share a name: the link (BODY) frame is the one meant.
+        body = [i for i in ids if self.model.frames[i].type == pin.FrameType.BODY]
+        return (body or ids)[0]
 
     @property
     def lower(self) -> np.ndarray:
@@ -308,7 +311,7 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -
     from .loops import find_loop_spec
 
     loops = find_loop_spec(path, model)
-    frame = tool_frame or _default_tool_frame(model)
+    frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
     robot = Robot(name, Path(path), model, frame, package_dirs, loops)
     robot.frame_id(frame)  # validate
     return robot

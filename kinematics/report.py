@@ -31,8 +31,8 @@ def dumps(obj: Any) -> str:
     return json.dumps(jsonable(obj), indent=2, allow_nan=False)
 
 
-def fmt(x: Any, digits: int = 6) -> str:
-    """Compact number formatting for tables; sequences are bracketed."""
+def fmt(x: Any, digits: int | None = 6) -> str:
+    """Compact number formatting for tables; sequences are bracketed. digits=None: shortest repr."""
     if isinstance(x, bool) or x is None or isinstance(x, str):
         return str(x)
     if isinstance(x, (int,)):
@@ -40,7 +40,7 @@ def fmt(x: Any, digits: int = 6) -> str:
     if isinstance(x, float):
         if math.isinf(x):
             return "inf" if x > 0 else "-inf"
-        return f"{x + 0.0:.{digits}g}"
+        return repr(x + 0.0) if digits is None else f"{x + 0.0:.{digits}g}"
     if hasattr(x, "tolist"):
         return fmt(x.tolist(), digits)
     if isinstance(x, Sequence):
@@ -60,7 +60,7 @@ def table(headers: Sequence[str], rows: Iterable[Sequence[Any]], digits: int = 6
     return "\n".join([line.rstrip(), rule, *[b.rstrip() for b in body]])
 
 
-def key_values(pairs: Iterable[tuple[str, Any]], digits: int = 6) -> str:
+def key_values(pairs: Iterable[tuple[str, Any]], digits: int | None = 6) -> str:
     """Aligned `key: value` lines."""
     items = [(k, fmt(v, digits)) for k, v in pairs]
     width = max((len(k) for k, _ in items), default=0)

@@ -36,3 +36,26 @@ def write_2r_urdf(path, l1: float, l2: float, lim1: float = 2.0, lim2: float = 2
 </robot>
 """
     )
+
+
+@pytest.fixture(scope="session")
+def p2us() -> Robot:
+    return load_robot("p2us")
+
+
+@pytest.fixture(scope="session")
+def p2us_params(p2us):
+    from kinematics.p2us_urdf import read_params
+
+    return read_params(p2us.urdf_path)
+
+
+def sample_actuators(params, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Actuator values within the strokes at which the robot assembles (rejection sampling)."""
+    from kinematics.parallel import fk
+
+    out = []
+    while sum(len(o) for o in out) < n:
+        q = rng.uniform(params.stroke[0], params.stroke[1], (4 * n, 3))
+        out.append(q[fk(params, q).exists])
+    return np.concatenate(out)[:n]

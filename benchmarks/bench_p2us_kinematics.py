@@ -1,0 +1,78 @@
+"""3-[P2(US)] kinematics: vectorised closed-form IK (8 modes + limits) and FK against the
+per-point Pinocchio closed-loop solve, measured side by side in one run.
+
+Run: python benchmarks/bench_p2us_kinematics.py [--points 1000000] [--loop 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from kinematics import parallel as par
+from kinematics.chunks import default_workers, map_chunks
+from kinematics.closedloop import ClosedLoop
+from kinematics.model import load_robot
+from kinematics.p2us_urdf import read_params
+
+
+def best_of(repeats: int, fn) -> float:
+    best = np.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=1_000_000)
+    ap.add_argument("--loop", type=int, default=200, help="points for the per-point Pinocchio solve")
+    args = ap.parse_args()
+    robot = load_robot("p2us")
+    P = read_params(robot.urdf_path)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-0.4, -0.4, -0.7], [0.4, 0.4, -0.1], (args.points, 3))
+    q = rng.uniform(0.1, 0.6, (args.points, 3))
+    within = np.empty((args.points, 8), dtype=bool)
+    fk_p = np.empty((args.points, 2, 3))
+
+    def ik_all(s: slice) -> None:
+        within[s] = par.ik(P, pts[s]).within_limits
+
+    def fk_all(s: slice) -> None:
+        fk_p[s] = par.fk(P, q[s]).p
+
+    workers = default_workers()
+    t_ik = best_of(3, lambda: map_chunks(ik_all, args.points, workers=workers, progress=False))
+    t_fk = best_of(3, lambda: map_chunks(fk_all, args.points, workers=workers, progress=False))
+
+    loop = ClosedLoop(robot)
+    res = par.ik(P, pts[: 50 * args.loop])
+    ok = res.within_limits[:, -1]
+    sample_q, sample_p = res.q[ok, -1][: args.loop], pts[: 50 * args.loop][ok][: args.loop]
+    t = time.perf_counter()
+    err = max(np.linalg.norm(loop.solve(qi).pose.translation - pi) for qi, pi in zip(sample_q, sample_p, strict=True))
+    t_cold = (time.perf_counter() - t) / len(sample_q)
+    sol = loop.solve(sample_q[0])
+    t = time.perf_counter()
+    for qi in sample_q[:50]:
+        loop.solve(qi + 1e-3, q0=sol.q)
+    t_warm = (time.perf_counter() - t) / 50
+
+    rate_ik, rate_fk = args.points / t_ik, args.points / t_fk
+    print(f"3-[P2(US)] kinematics, {args.points:,} points, {workers} threads")
+    print(f"  closed-form IK, 8 modes + all limits : {rate_ik:14,.0f} points/s")
+    print(f"  closed-form FK, both assembly modes  : {rate_fk:14,.0f} points/s")
+    print(f"  Pinocchio closed-loop solve (cold)   : {1 / t_cold:14,.0f} points/s  ({t_cold * 1e3:.2f} ms each)")
+    print(f"  Pinocchio closed-loop solve (warm)   : {1 / t_warm:14,.0f} points/s  ({t_warm * 1e3:.2f} ms each)")
+    print(f"  ratio FK / closed-loop solve (cold)  : {rate_fk * t_cold:14,.0f} x")
+    print(f"  ratio FK / closed-loop solve (warm)  : {rate_fk * t_warm:14,.0f} x")
+    print(f"  closed loop vs closed form, max |dp| : {err:.2e} m over {len(sample_q)} poses")
+
+
+if __name__ == "__main__":
+    main()

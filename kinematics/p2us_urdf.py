@@ -1,0 +1,367 @@
+"""Write and read the URDF + loop sidecar of a 3-[P2(US)] design.
+
+Tree (limb i = 1..3, rod k = 1, 2; see docs/p2us.md for the figure):
+
+    base
+     +- limb_i_joint     fixed      rpy (0, 0, alpha_i)                    frame x = e_i
+         +- slider_i     prismatic  xyz (b, 0, 0) rpy (0, beta, pi), axis x   x = w_i (inward, down)
+             +- mount_i_k_joint  fixed  xyz (0, -/+ s/2, 0) rpy (0, -beta, 0)  x = -e_i, y = -t_i
+                 +- u_theta_i_k   revolute  rpy (0, theta_zero, 0), axis y  (rod elevation)
+                     +- u_phi_i_k     revolute  axis z                      (out of plane)
+                         +- tip_i_k_joint  fixed  xyz (L, 0, 0)             link tip_i_k (sphere centre)
+    tip_1_1 -> s_1 (z) -> s_2 (y) -> s_3 (x) -> platform_joint (fixed) -> platform
+    platform -> pmount_i_joint (rpy (0, 0, alpha_i)) -> anchor_i_k_joint (xyz (d, +/- s/2, 0))
+
+(Fixed joints carry a `_joint` suffix: Pinocchio makes a frame for each joint and each link.)
+
+The platform hangs from rod (1, 1) through a spherical joint modelled as three revolute joints
+(so the tree is the physical mechanism and every joint is a real one); their axes are ordered and
+the fixed `platform_mount` rotation chosen so that the gimbal lock (s_2 = +/-90 deg) falls at
+theta = mid-range -/+ 90 deg, outside the universal joint's range. The other five rod tips are
+closed onto their anchors by point constraints in the sidecar. Every design number appears
+verbatim in exactly one place, written with 17 significant digits, so generate -> read
+round-trips exactly.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InvalidInputError, ModelFileError, UnsupportedRobotError
+from .parallel import MODES as MODES_BY_INDEX
+from .parallel import P2USParams, limb_ik, passive_angles
+
+MECHANISM = "3-[P2(US)]"
+LIMBS = (1, 2, 3)
+RODS = (1, 2)
+SPHERICAL = ("s_1", "s_2", "s_3")
+
+
+def _f(x: float) -> str:
+    """A float with 17 significant digits (exact round trip through text)."""
+    return format(float(x) + 0.0, ".17g")  # + 0.0: no "-0"
+
+
+def _v(*xs: float) -> str:
+    return " ".join(_f(x) for x in xs)
+
+
+def _rod_offset(k: int, s: float) -> float:
+    """Lateral offset of rod k along the mount frame's y = -t_i: rod 1 sits on the +t_i side."""
+    return -0.5 * s if k == 1 else 0.5 * s
+
+
+def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw (R = Rz(y) Ry(p) Rx(r)) of a rotation matrix."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    roll = math.atan2(R[2, 1], R[2, 2])
+    yaw = math.atan2(R[1, 0], R[0, 0])
+    return roll, pitch, yaw
+
+
+def _rot_y(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def theta_centre(params: P2USParams) -> float:
+    """Mid-range of theta: where the platform's spherical joint is farthest from gimbal lock."""
+    return 0.5 * (params.theta_limits[0] + params.theta_limits[1])
+
+
+def _platform_mount(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
+    """Fixed placement (translation, rotation) from the s_3 body to the platform frame."""
+    psi = params.theta_zero + theta_centre(params)
+    R_s3 = _rot_z(params.alpha[0] + math.pi) @ _rot_y(psi)  # world orientation of the s_3 body
+    e, t = params.e[0], params.t[0]
+    anchor = params.d * e + 0.5 * params.rod_spacing * t  # anchor_1_1 in platform (= world) axes
+    return R_s3.T @ (-anchor), R_s3.T
+
+
+def _joint(name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
+           axis: tuple[float, float, float] | None = None, limit: tuple[float, float] | None = None) -> str:
+    lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>',
+             f'    <child link="{child}"/>', f'    <origin xyz="{_v(*xyz)}" rpy="{_v(*rpy)}"/>']
+    if axis is not None:
+        lines.append(f'    <axis xyz="{_v(*axis)}"/>')
+    if limit is not None:
+        lines.append(f'    <limit lower="{_f(limit[0])}" upper="{_f(limit[1])}" effort="1000" velocity="10"/>')
+    lines.append("  </joint>")
+    return "\n".join(lines)
+
+
+def _link(name: str, *visuals: str) -> str:
+    if not visuals:
+        return f'  <link name="{name}"/>'
+    return "\n".join([f'  <link name="{name}">', *visuals, "  </link>"])
+
+
+def _visual(geometry: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0)) -> str:
+    return (f'    <visual><origin xyz="{_v(*xyz)}" rpy="{_v(*rpy)}"/>'
+            f"<geometry>{geometry}</geometry><material name=\"{material}\"/></visual>")
+
+
+def urdf_text(params: P2USParams, name: str = "p2us") -> str:
+    """The URDF of a 3-[P2(US)] design."""
+    p = params
+    L, s = p.L, p.rod_spacing
+    rail = p.stroke[1] + 0.05
+    out = [
+        '<?xml version="1.0"?>',
+        f"<!-- {MECHANISM} translational parallel robot (paper B, Mazare et al. 2016), generated by",
+        "     `kinematics urdf p2us`. Loop closures and actuated joints: the .loops.yaml sidecar.",
+        f"     b={_f(p.b)} d={_f(p.d)} L={_f(p.L)} beta={_f(p.beta)} rad, rod spacing {_f(p.rod_spacing)} m. -->",
+        f'<robot name="{name}">',
+        '  <material name="frame"><color rgba="0.6 0.6 0.65 1"/></material>',
+        '  <material name="rail"><color rgba="0.3 0.3 0.35 1"/></material>',
+        '  <material name="carriage"><color rgba="0.95 0.55 0.1 1"/></material>',
+        '  <material name="rod"><color rgba="0.2 0.45 0.85 1"/></material>',
+        '  <material name="joint"><color rgba="0.15 0.15 0.15 1"/></material>',
+        '  <material name="platform"><color rgba="0.85 0.2 0.2 1"/></material>',
+        _link("base", _visual(f'<cylinder radius="{_f(p.b + 0.03)}" length="0.02"/>', "frame", xyz=(0, 0, 0.03))),
+    ]
+    for i, alpha in zip(LIMBS, p.alpha, strict=True):
+        out.append(_joint(f"limb_{i}_joint", "fixed", "base", f"limb_{i}", rpy=(0, 0, alpha)))
+        c, sn = math.cos(p.beta), math.sin(p.beta)
+        out.append(_link(f"limb_{i}", _visual(
+            f'<box size="{_v(rail, 0.03, 0.02)}"/>', "rail",
+            xyz=(p.b - 0.5 * rail * c, 0, -0.5 * rail * sn + 0.02), rpy=(0, p.beta, math.pi))))
+        out.append(_joint(f"slider_{i}", "prismatic", f"limb_{i}", f"carriage_{i}", xyz=(p.b, 0, 0),
+                          rpy=(0, p.beta, math.pi), axis=(1, 0, 0), limit=p.stroke))
+        out.append(_link(f"carriage_{i}", _visual(f'<box size="{_v(0.06, s + 0.04, 0.03)}"/>', "carriage")))
+        for k in RODS:
+            y = _rod_offset(k, s)
+            out.append(_joint(f"mount_{i}_{k}_joint", "fixed", f"carriage_{i}", f"mount_{i}_{k}", xyz=(0, y, 0),
+                              rpy=(0, -p.beta, 0)))
+            out.append(_link(f"mount_{i}_{k}", _visual('<sphere radius="0.012"/>', "joint")))
+            out.append(_joint(f"u_theta_{i}_{k}", "revolute", f"mount_{i}_{k}", f"ucross_{i}_{k}",
+                              rpy=(0, p.theta_zero, 0), axis=(0, 1, 0), limit=p.theta_limits))
+            out.append(_link(f"ucross_{i}_{k}"))
+            out.append(_joint(f"u_phi_{i}_{k}", "revolute", f"ucross_{i}_{k}", f"rod_{i}_{k}",
+                              axis=(0, 0, 1), limit=p.phi_limits))
+            out.append(_link(f"rod_{i}_{k}", _visual(f'<cylinder radius="0.006" length="{_f(L)}"/>', "rod",
+                                                     xyz=(0.5 * L, 0, 0), rpy=(0, 0.5 * math.pi, 0))))
+            out.append(_joint(f"tip_{i}_{k}_joint", "fixed", f"rod_{i}_{k}", f"tip_{i}_{k}", xyz=(L, 0, 0)))
+            out.append(_link(f"tip_{i}_{k}", _visual('<sphere radius="0.01"/>', "joint")))
+    chain = ["tip_1_1", "sphere_a", "sphere_b", "sphere_c"]
+    for jname, parent, child, axis in zip(SPHERICAL, chain[:-1], chain[1:], ((0, 0, 1), (0, 1, 0), (1, 0, 0)), strict=True):
+        out.append(_joint(jname, "revolute", parent, child, axis=axis, limit=(-math.pi, math.pi)))
+        out.append(_link(child))
+    xyz, R = _platform_mount(p)
+    out.append(_joint("platform_joint", "fixed", "sphere_c", "platform", xyz=tuple(xyz), rpy=_rpy(R)))
+    out.append(_link("platform", _visual(f'<cylinder radius="{_f(p.d + 0.02)}" length="0.01"/>', "platform"),
+                     _visual('<sphere radius="0.008"/>', "joint")))
+    for i, alpha in zip(LIMBS, p.alpha, strict=True):
+        out.append(_joint(f"pmount_{i}_joint", "fixed", "platform", f"pmount_{i}", rpy=(0, 0, alpha)))
+        out.append(_link(f"pmount_{i}"))
+        for k in RODS:
+            out.append(_joint(f"anchor_{i}_{k}_joint", "fixed", f"pmount_{i}", f"anchor_{i}_{k}",
+                              xyz=(p.d, -_rod_offset(k, s), 0)))
+            out.append(_link(f"anchor_{i}_{k}"))
+    out.append("</robot>")
+    return "\n".join(out) + "\n"
+
+
+def reference_pose(params: P2USParams) -> tuple[np.ndarray, str]:
+    """A platform position on the z axis where the robot is assembled in mode '---' with every
+    limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
+    from .parallel import ik, mode_index
+
+    z = np.linspace(-3 * (params.b + params.L), 3 * (params.b + params.L), 6001)
+    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
+    res = ik(params, pts)
+    m = mode_index("---")
+    for ok in (res.within_limits[:, m], res.reachable[:, m]):
+        if ok.any():
+            idx = np.flatnonzero(ok)
+            return pts[idx[len(idx) // 2]], "---"
+    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
+
+
+def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:
+    """Every joint value of the URDF tree with the platform at `p` [m] in working mode `mode`
+    (loops closed), from the closed forms. Raises InvalidInputError where a limb cannot reach."""
+    from .parallel import mode_index
+
+    m = mode_index(mode)
+    pos = np.asarray(p, dtype=float).reshape(3)
+    limbs = limb_ik(params, pos)
+    if not limbs.reach.all():
+        bad = [str(i + 1) for i in range(3) if not limbs.reach[i]]
+        raise InvalidInputError("position", f"limb(s) {', '.join(bad)} cannot reach {pos.tolist()}")
+    roots = [0 if c == "+" else 1 for c in MODES_BY_INDEX[m]]
+    q = limbs.q[np.arange(3), roots]
+    theta, phi = passive_angles(params, limbs.n[np.arange(3), roots])
+    values: dict[str, float] = {}
+    for i in LIMBS:
+        values[f"slider_{i}"] = float(q[i - 1])
+        for k in RODS:
+            values[f"u_theta_{i}_{k}"] = float(theta[i - 1])
+            values[f"u_phi_{i}_{k}"] = float(phi[i - 1])
+    values["s_1"] = -values["u_phi_1_1"]
+    values["s_2"] = theta_centre(params) - values["u_theta_1_1"]
+    values["s_3"] = 0.0
+    return values
+
+
+def reference_configuration(params: P2USParams) -> dict[str, float]:
+    """Joint values of an assembled configuration (loops closed), for the sidecar."""
+    pos, mode = reference_pose(params)
+    return joint_values_at(params, pos, mode)
+
+
+def sidecar_text(params: P2USParams, urdf_name: str) -> str:
+    """The loop-closure sidecar (YAML) of the URDF written by `urdf_text`."""
+    ref = reference_configuration(params)
+    lines = [
+        f"# Loop closures of {urdf_name} ({MECHANISM}). Generated by `kinematics urdf p2us`.",
+        "# closures: each pair of frames must coincide (a 3D point constraint = a spherical joint).",
+        "# reference: an assembled configuration (loops closed), the closed-loop solver's start.",
+        "format: kinematics-loops/1",
+        f"mechanism: {MECHANISM}",
+        f"urdf: {urdf_name}",
+        "end_effector: platform",
+        "actuated: [" + ", ".join(f"slider_{i}" for i in LIMBS) + "]",
+        "closures:",
+    ]
+    for i in LIMBS:
+        for k in RODS:
+            if (i, k) == (1, 1):
+                continue  # rod (1, 1) carries the platform in the tree
+            lines.append(f"  - {{name: S_{i}_{k}, type: point, frame1: tip_{i}_{k}, frame2: anchor_{i}_{k}}}")
+    lines.append("reference:")
+    lines += [f"  {name}: {_f(value)}" for name, value in ref.items()]
+    return "\n".join(lines) + "\n"
+
+
+def sidecar_path(urdf_path: str | os.PathLike[str]) -> Path:
+    """`robot.urdf` -> `robot.loops.yaml`."""
+    p = Path(urdf_path)
+    return p.with_name(p.stem + ".loops.yaml")
+
+
+def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
+    """Write the URDF to `path` and its sidecar beside it; returns both paths.
+
+    Both texts are built before anything is written, so a failure leaves no half-written pair.
+    """
+    urdf_path = Path(path)
+    side = sidecar_path(urdf_path)
+    robot_name = name or urdf_path.stem
+    urdf = urdf_text(params, robot_name)
+    loops = sidecar_text(params, urdf_path.name)
+    if not urdf_path.parent.is_dir():
+        raise ModelFileError(urdf_path.parent, "output directory does not exist")
+    urdf_path.write_text(urdf)
+    side.write_text(loops)
+    return urdf_path, side
+
+
+# -- reader -------------------------------------------------------------------------------------
+def _origin(joint: ET.Element) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    o = joint.find("origin")
+    xyz = tuple(float(x) for x in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split())
+    rpy = tuple(float(x) for x in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split())
+    return xyz, rpy
+
+
+def _axis(joint: ET.Element) -> tuple[float, ...]:
+    a = joint.find("axis")
+    return tuple(float(x) for x in (a.get("xyz", "1 0 0") if a is not None else "1 0 0").split())
+
+
+def _limit(joint: ET.Element) -> tuple[float, float]:
+    lim = joint.find("limit")
+    if lim is None:
+        return (-math.inf, math.inf)
+    return float(lim.get("lower", "0")), float(lim.get("upper", "0"))
+
+
+def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> P2USParams:
+    """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes).
+
+    Raises:
+        UnsupportedRobotError: naming the missing or inconsistent joint when the URDF does not
+            have that layout.
+    """
+    from .model import check_urdf_file
+
+    root = check_urdf_file(urdf_path)
+    who = robot or Path(urdf_path).stem
+    joints = {j.get("name"): j for j in root.findall("joint")}
+
+    def need(name: str, kind: str) -> ET.Element:
+        j = joints.get(name)
+        if j is None:
+            raise UnsupportedRobotError(who, f"not a {MECHANISM}: missing joint {name!r} ({_layout_hint()})")
+        if j.get("type") != kind:
+            raise UnsupportedRobotError(who, f"not a {MECHANISM}: joint {name!r} is {j.get('type')}, expected {kind}")
+        return j
+
+    def same(what: str, values: list) -> object:
+        if any(v != values[0] for v in values[1:]):
+            raise UnsupportedRobotError(who, f"the closed forms need identical limbs/rods, but {what} differs: {values}")
+        return values[0]
+
+    alpha, b, beta, stroke, spacing, theta0, th_lim, ph_lim, L, d = ([] for _ in range(10))
+    for i in LIMBS:
+        xyz, rpy = _origin(need(f"limb_{i}_joint", "fixed"))
+        if xyz != (0, 0, 0) or rpy[:2] != (0, 0):
+            raise UnsupportedRobotError(who, f"joint 'limb_{i}_joint' must be a pure rotation about z")
+        alpha.append(rpy[2])
+        slider = need(f"slider_{i}", "prismatic")
+        xyz, rpy = _origin(slider)
+        if xyz[1:] != (0, 0) or rpy[0] != 0 or rpy[2] != math.pi or _axis(slider) != (1, 0, 0):
+            raise UnsupportedRobotError(who, f"joint 'slider_{i}' must sit at (b, 0, 0), rpy (0, beta, pi), axis x")
+        b.append(xyz[0])
+        beta.append(rpy[1])
+        stroke.append(_limit(slider))
+        for k in RODS:
+            xyz, rpy = _origin(need(f"mount_{i}_{k}_joint", "fixed"))
+            if xyz[0] != 0 or xyz[2] != 0 or rpy != (0, -beta[-1], 0):
+                raise UnsupportedRobotError(who, f"joint 'mount_{i}_{k}_joint' must be (0, -/+s/2, 0), rpy (0, -beta, 0)")
+            spacing.append(2 * xyz[1] if k == 2 else -2 * xyz[1])
+            ut = need(f"u_theta_{i}_{k}", "revolute")
+            xyz, rpy = _origin(ut)
+            if xyz != (0, 0, 0) or rpy[0] != 0 or rpy[2] != 0 or _axis(ut) != (0, 1, 0):
+                raise UnsupportedRobotError(who, f"joint 'u_theta_{i}_{k}' must be rpy (0, theta_zero, 0), axis y")
+            theta0.append(rpy[1])
+            th_lim.append(_limit(ut))
+            up = need(f"u_phi_{i}_{k}", "revolute")
+            if _origin(up) != ((0, 0, 0), (0, 0, 0)) or _axis(up) != (0, 0, 1):
+                raise UnsupportedRobotError(who, f"joint 'u_phi_{i}_{k}' must have no offset and axis z")
+            ph_lim.append(_limit(up))
+            xyz, rpy = _origin(need(f"tip_{i}_{k}_joint", "fixed"))
+            if xyz[1:] != (0, 0) or rpy != (0, 0, 0):
+                raise UnsupportedRobotError(who, f"joint 'tip_{i}_{k}_joint' must be (L, 0, 0)")
+            L.append(xyz[0])
+            xyz, _ = _origin(need(f"anchor_{i}_{k}_joint", "fixed"))
+            d.append(xyz[0])
+            if xyz[1] != (0.5 if k == 1 else -0.5) * spacing[-1]:
+                raise UnsupportedRobotError(who, f"anchor_{i}_{k} is not on the same side as rod {i}_{k}'s joint")
+        _, rpy = _origin(need(f"pmount_{i}_joint", "fixed"))
+        if rpy != (0, 0, alpha[-1]):
+            raise UnsupportedRobotError(who, f"joint 'pmount_{i}_joint' must turn by alpha_{i} about z like 'limb_{i}_joint'")
+    for name in SPHERICAL:
+        need(name, "revolute")
+    return P2USParams(
+        b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta),  # type: ignore[arg-type]
+        alpha=tuple(alpha), stroke=same("stroke", stroke), theta_limits=same("theta limits", th_lim),  # type: ignore[arg-type]
+        phi_limits=same("phi limits", ph_lim), theta_zero=same("theta_zero", theta0),  # type: ignore[arg-type]
+        rod_spacing=same("rod spacing", spacing),  # type: ignore[arg-type]
+    )
+
+
+def _layout_hint() -> str:
+    return ("expected joints limb_i_joint, slider_i, mount_i_k_joint, u_theta_i_k, u_phi_i_k, tip_i_k_joint, "
+            "s_1..s_3, pmount_i_joint, anchor_i_k_joint")

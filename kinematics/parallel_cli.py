@@ -1,0 +1,269 @@
+"""CLI handlers for closed-loop robots: the 3-[P2(US)] closed forms, and the generic Pinocchio
+closed-loop solver for any other URDF + loop sidecar. Called from `kinematics.cli`."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .errors import InvalidInputError, UnsupportedRobotError
+from .model import Robot
+from .p2us_urdf import MECHANISM, read_params
+from .parallel import (
+    ASSEMBLY_MODES,
+    MODES,
+    SINGULAR_TOL,
+    SINGULARITY_TYPES,
+    P2USParams,
+    classify,
+    fk as p2us_fk,
+    ik as p2us_ik,
+    jacobians,
+    mode_index,
+    rod_vectors,
+    violations,
+)
+from .report import key_values, matrix, table
+
+Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+EXIT_OK, EXIT_NO = 0, 1
+
+
+def _is_p2us(robot: Robot) -> bool:
+    return robot.loops is not None and robot.loops.mechanism == MECHANISM
+
+
+def params_of(robot: Robot) -> P2USParams:
+    """The closed-form parameters of a 3-[P2(US)] robot, read from its URDF."""
+    if not _is_p2us(robot):
+        raise UnsupportedRobotError(robot.name, f"not a {MECHANISM} (its sidecar declares mechanism "
+                                    f"{robot.loops.mechanism if robot.loops else None!r})")
+    return read_params(robot.urdf_path, robot.name)
+
+
+def _position(args: argparse.Namespace) -> np.ndarray:
+    if args.position is None or len(args.position) != 3:
+        got = 0 if args.position is None else len(args.position)
+        raise InvalidInputError("--position", f"give X Y Z of the platform [m], got {got} value(s)")
+    p = np.array(args.position, dtype=float)
+    if not np.all(np.isfinite(p)):
+        raise InvalidInputError("--position", f"must be finite, got {p.tolist()}")
+    return p
+
+
+def limb_reasons(params: P2USParams, limbs: Any) -> list[dict[str, Any]]:
+    """Per-limb reachability with the reason when a limb cannot reach."""
+    out = []
+    for i in range(3):
+        ok = bool(limbs.reach[i])
+        reason = None if ok else (
+            f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the rail's "
+            f"axis, farther than the rod length L = {params.L:g} m")
+        out.append({"limb": i + 1, "reachable": ok, "reason": reason})
+    return out
+
+
+def _violation_lines(solutions: list[dict[str, Any]]) -> list[str]:
+    lines = []
+    for s in solutions:
+        if s["violations"]:
+            lines.append(f"  {s['mode']}: " + "; ".join(s["violations"]))
+    return (["limit violations:"] + lines) if lines else []
+
+
+def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics ik p2us --position X Y Z`: all working modes, limits, reasons."""
+    params = params_of(robot)
+    p = _position(args)
+    res = p2us_ik(params, p)
+    limbs = limb_reasons(params, res.limbs)
+    solutions = []
+    for m, mode in enumerate(MODES):
+        if not res.reachable[m]:
+            continue
+        roots = [0 if c == "+" else 1 for c in mode]
+        n = res.limbs.n[np.arange(3), roots]
+        viol = violations(params, res.q[m], n)
+        solutions.append({"q": res.q[m], "mode": mode, "within_limits": not viol, "violations": viol})
+    reachable = any(s["within_limits"] for s in solutions)
+    if reachable:
+        reason = None
+    elif not solutions:
+        reason = "; ".join(lb["reason"] for lb in limbs if lb["reason"])
+    else:
+        reason = f"every working mode breaks a limit ({len(solutions)} modes assemble; see violations)"
+    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": limbs}
+
+    def human() -> str:
+        parts = [f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")]
+        if solutions:
+            parts.append(table(["mode", "q1 [m]", "q2 [m]", "q3 [m]", "within limits"],
+                               [(s["mode"], *s["q"], s["within_limits"]) for s in solutions], 9))
+            parts += _violation_lines(solutions)
+        if reason:
+            parts.append(f"reason: {reason}")
+        return "\n".join(parts)
+
+    out(args, payload, human)
+    return EXIT_OK if reachable else EXIT_NO
+
+
+def _actuated(args: argparse.Namespace, robot: Robot) -> np.ndarray:
+    n = len(robot.loops.actuated)  # type: ignore[union-attr]
+    if args.q is None or len(args.q) != n:
+        got = 0 if args.q is None else len(args.q)
+        raise InvalidInputError("--q", f"{robot.name} has {n} actuated joints "
+                                f"({', '.join(robot.loops.actuated)}), got {got} value(s)")  # type: ignore[union-attr]
+    q = np.array(args.q, dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise InvalidInputError("--q", f"must be finite, got {q.tolist()}")
+    if args.degrees:
+        kinds = {d.name: d.kind for d in robot.dofs}
+        angular = np.array([kinds[a] != "prismatic" for a in robot.loops.actuated])  # type: ignore[union-attr]
+        q[angular] = np.radians(q[angular])
+    return q
+
+
+def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics fk p2us --q Q1 Q2 Q3`: both assembly modes (closed form); other loop robots
+    through the Pinocchio closed-loop solver."""
+    q = _actuated(args, robot)
+    if not _is_p2us(robot):
+        return _generic_fk(args, robot, q, out)
+    params = params_of(robot)
+    res = p2us_fk(params, q)
+    solutions = []
+    if res.exists:
+        for k, mode in enumerate(ASSEMBLY_MODES):
+            pos = res.p[k]
+            n = rod_vectors(params, pos, q) / params.L
+            viol = violations(params, q, n)
+            solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
+    reason = None if res.exists else (
+        f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
+        f"(short by {math.sqrt(res.gap):.6g} m)")
+    payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
+
+    def human() -> str:
+        parts = [f"actuators q = {q.tolist()} m"]
+        if solutions:
+            parts.append(table(["mode", "x [m]", "y [m]", "z [m]", "within limits"],
+                               [(s["mode"], *s["position"], s["within_limits"]) for s in solutions], 12))
+            parts += _violation_lines(solutions)
+        if reason:
+            parts.append(f"reason: {reason}")
+        return "\n".join(parts)
+
+    out(args, payload, human)
+    return EXIT_OK if res.exists else EXIT_NO
+
+
+def _generic_fk(args: argparse.Namespace, robot: Robot, q: np.ndarray, out: Out) -> int:
+    from .closedloop import ClosedLoop
+
+    sol = ClosedLoop(robot).solve(q)
+    payload = {"q": q, "position": sol.pose.translation, "rotation": sol.pose.rotation,
+               "residual": sol.residual, "joint_values": dict(zip(robot.joint_names, sol.values.tolist(), strict=True))}
+
+    def human() -> str:
+        return "\n".join([key_values([("actuators", q), ("position [m]", sol.pose.translation),
+                                      ("loop residual [m]", sol.residual)], 12), "rotation:", matrix(sol.pose.rotation)])
+
+    out(args, payload, human)
+    return EXIT_OK
+
+
+def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics jacobian p2us --position X Y Z [--mode M]`: J, J_x, J_q and the singularity type."""
+    if not _is_p2us(robot):
+        return _generic_jacobian(args, robot, out)
+    params = params_of(robot)
+    p = _position(args)
+    res = p2us_ik(params, p)
+    if args.mode is not None:
+        m = mode_index(args.mode)
+    else:  # the first mode within limits, else the first that assembles
+        ok = np.flatnonzero(res.within_limits) if res.within_limits.any() else np.flatnonzero(res.reachable)
+        m = int(ok[0]) if ok.size else 0
+    limbs = limb_reasons(params, res.limbs)
+    if not res.reachable[m]:
+        payload = {"position": p, "mode": MODES[m], "reachable": False,
+                   "reason": "; ".join(lb["reason"] for lb in limbs if lb["reason"])}
+        out(args, payload, lambda: f"platform at {p.tolist()} m is NOT reachable: {payload['reason']}")
+        return EXIT_NO
+    q = res.q[m]
+    jac = jacobians(params, p, q)
+    kind = SINGULARITY_TYPES[int(classify(jac.iota_I, jac.iota_II))]
+    J = jac.J if np.all(np.isfinite(jac.J)) else None
+    payload = {
+        "position": p, "mode": MODES[m], "reachable": True, "within_limits": bool(res.within_limits[m]),
+        "q": q, "J": J, "Jx": jac.Jx, "Jq": np.diag(jac.Jq), "det_Jx": float(np.linalg.det(jac.Jx)),
+        "det_Jq": float(np.prod(jac.Jq)), "singularity": kind,
+        "measures": {"iota_I": float(jac.iota_I), "iota_II": float(jac.iota_II), "tolerance": SINGULAR_TOL},
+    }
+
+    def human() -> str:
+        return "\n".join([
+            f"platform at {p.tolist()} m, mode {MODES[m]}, q = {np.round(q, 9).tolist()} m",
+            "J = Jq^-1 Jx (qdot = J pdot):", matrix(jac.J, 9) if J is not None else "  (infinite: type I)",
+            "Jx:", matrix(jac.Jx, 9), "Jq (diagonal):", matrix(np.diag(jac.Jq), 9),
+            key_values([("det Jx", payload["det_Jx"]), ("det Jq", payload["det_Jq"]),
+                        ("iota_I = min |n.w|", jac.iota_I), ("iota_II = |det n|", jac.iota_II),
+                        ("singularity", f"{kind} (tolerance {SINGULAR_TOL:g})")], 9),
+        ])
+
+    out(args, payload, human)
+    return EXIT_OK
+
+
+def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from .closedloop import ClosedLoop
+
+    q = _actuated(args, robot)
+    cl = ClosedLoop(robot)
+    sol = cl.solve(q)
+    G = cl.constrained_jacobian(sol.q)
+    payload = {"q": q, "position": sol.pose.translation, "jacobian": G, "rows": ["x", "y", "z", "wx", "wy", "wz"]}
+    out(args, payload, lambda: "end-effector twist per actuated rate (world axes):\n" + matrix(G, 9))
+    return EXIT_OK
+
+
+def cmd_urdf(args: argparse.Namespace) -> int:
+    """`kinematics urdf p2us [design flags] -o FILE`: write the URDF and its loop sidecar."""
+    from .p2us_urdf import write
+
+    conv = math.radians if args.degrees else float
+    base = P2USParams()
+    changes: dict[str, Any] = {}
+    for flag in ("b", "d", "L", "rod_spacing"):
+        if getattr(args, flag) is not None:
+            changes[flag] = float(getattr(args, flag))
+    for flag in ("beta", "theta_zero"):
+        if getattr(args, flag) is not None:
+            changes[flag] = conv(getattr(args, flag))
+    if args.alpha is not None:
+        changes["alpha"] = tuple(conv(a) for a in args.alpha)
+    if args.stroke is not None:
+        changes["stroke"] = tuple(float(x) for x in args.stroke)
+    for flag, key in (("theta", "theta_limits"), ("phi", "phi_limits")):
+        if getattr(args, flag) is not None:
+            changes[key] = tuple(conv(x) for x in getattr(args, flag))
+    params = base.replace(**changes)  # validates every value
+    urdf_path, side = write(params, args.output)
+    back = read_params(urdf_path)
+    payload = {"urdf": str(urdf_path), "sidecar": str(side), "parameters": params.as_dict(),
+               "round_trip": back == params}
+
+    def human() -> str:
+        return "\n".join([f"wrote {urdf_path}", f"wrote {side}", "parameters (SI; read back "
+                          + ("identical" if back == params else "DIFFERENT") + "):",
+                          key_values(params.as_dict().items(), None)])
+
+    from .cli import _out
+
+    _out(args, payload, human)
+    return EXIT_OK

@@ -1,0 +1,137 @@
+"""The generic Pinocchio closed-loop solver, cross-checked against the 3-[P2(US)] closed forms."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from kinematics import parallel as par
+from kinematics.closedloop import ClosedLoop
+from kinematics.errors import ConvergenceError, InvalidInputError, SingularConfigurationError, UnsupportedRobotError
+from kinematics.model import load_robot
+from kinematics.p2us_urdf import joint_values_at
+
+from .conftest import sample_actuators
+from .test_parallel import type_two_pose
+
+MODELS = Path(__file__).parent / "models"
+
+
+@pytest.fixture(scope="module")
+def loop(p2us):
+    return ClosedLoop(p2us)
+
+
+def test_fk_matches_closed_loop_solve(loop, p2us_params, rng):
+    P = p2us_params
+    qs = sample_actuators(P, 120, rng)
+    worst_pos = worst_rot = 0.0
+    for q in qs:
+        sol = loop.solve(q)
+        assert sol.residual <= 1e-12
+        fk = par.fk(P, q)
+        worst_pos = max(worst_pos, np.min(np.linalg.norm(fk.p - sol.pose.translation, axis=-1)))
+        worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
+    assert worst_pos <= 1e-9  # closed-form FK vs Pinocchio's closed loop [m]
+    assert worst_rot <= 1e-9  # the platform does not rotate [rad]
+
+
+def workspace_poses(P, n, rng):
+    """Platform positions inside the joint-limited workspace (mode '---') and their actuators."""
+    p = rng.uniform([-0.4, -0.4, -0.7], [0.4, 0.4, -0.1], (200 * n, 3))
+    res = par.ik(P, p)
+    ok = res.within_limits[:, -1]
+    return p[ok][:n], res.q[ok, -1][:n]
+
+
+def test_passive_joints_match_closed_form_angles(loop, p2us, p2us_params, rng):
+    # Inside the workspace the continuation from the (in-workspace) reference stays on the
+    # hanging-rod branch, so the solved joints equal the closed-form angles themselves.
+    P = p2us_params
+    for p_expected, q in zip(*workspace_poses(P, 40, rng), strict=True):
+        sol = loop.solve(q)
+        p = sol.pose.translation
+        assert np.linalg.norm(p - p_expected) <= 1e-9
+        n = par.rod_vectors(P, p, q) / P.L
+        theta, phi = par.passive_angles(P, n)
+        values = dict(zip(p2us.joint_names, sol.values, strict=True))
+        for i in range(3):
+            for k in (1, 2):  # both rods of a parallelogram share the angles
+                assert abs(values[f"u_theta_{i + 1}_{k}"] - theta[i]) <= 1e-9
+                assert abs(values[f"u_phi_{i + 1}_{k}"] - phi[i]) <= 1e-9
+
+
+def test_constrained_jacobian_matches_closed_form(loop, p2us_params, rng):
+    P = p2us_params
+    worst = 0.0
+    for q in sample_actuators(P, 100, rng):
+        sol = loop.solve(q)
+        G = loop.constrained_jacobian(sol.q)  # platform twist per actuator rate
+        jac = par.jacobians(P, sol.pose.translation, q)
+        if jac.iota_II < 1e-3 or jac.iota_I < 1e-3:
+            continue
+        inv = np.linalg.solve(jac.Jx, np.diag(jac.Jq))  # pdot = J^-1 qdot
+        worst = max(worst, np.abs(G[:3] - inv).max() / np.abs(inv).max())
+        assert np.abs(G[3:]).max() <= 1e-9  # no angular velocity
+    assert worst <= 1e-9
+
+
+def test_warm_start_and_errors(loop, p2us_params):
+    sol = loop.solve([0.3, 0.25, 0.2])
+    warm = loop.solve([0.31, 0.25, 0.2], q0=sol.q)
+    cold = loop.solve([0.31, 0.25, 0.2])
+    assert warm.iterations < cold.iterations
+    np.testing.assert_allclose(warm.pose.translation, cold.pose.translation, atol=1e-10)
+    with pytest.raises(ConvergenceError, match="no assembly"):
+        loop.solve([0.1, 1.5, 1.5])  # spheres cannot meet
+    with pytest.raises(InvalidInputError):
+        loop.solve([0.3, 0.2])
+    with pytest.raises(InvalidInputError):
+        loop.solve([0.3, np.nan, 0.2])
+
+
+def test_type_two_leaves_passive_joints_free(loop, p2us, p2us_params):
+    P = p2us_params
+    p, _ = type_two_pose(P)
+    values = joint_values_at(P, p, "---")
+    q = p2us.configuration([values[n] for n in p2us.joint_names])
+    assert np.abs(loop.residual(q)[0]).max() <= 1e-12
+    with pytest.raises(SingularConfigurationError):
+        loop.constrained_jacobian(q)
+    # continuation cannot walk onto the singularity either: a clear error, not a wrong pose
+    with pytest.raises(ConvergenceError, match="singularity"):
+        loop.solve([values["slider_1"], values["slider_2"], values["slider_3"]])
+
+
+def test_joint_values_at_close_the_loops(loop, p2us, p2us_params, rng):
+    for p, _ in zip(*workspace_poses(p2us_params, 10, rng), strict=True):
+        values = joint_values_at(p2us_params, p)
+        q = p2us.configuration([values[n] for n in p2us.joint_names])
+        assert np.abs(loop.residual(q)[0]).max() <= 1e-12
+
+
+def test_requires_a_sidecar(scara):
+    with pytest.raises(UnsupportedRobotError, match="sidecar"):
+        ClosedLoop(scara)
+
+
+def test_generic_four_bar():
+    robot = load_robot(MODELS / "fourbar.urdf")
+    assert robot.loops is not None and robot.loops.mechanism is None
+    cl = ClosedLoop(robot)
+    g, a, c, r = 0.4, 0.1, 0.35, 0.3
+    for crank in np.linspace(-np.pi, np.pi, 37):
+        sol = cl.solve([crank])
+        assert sol.residual <= 1e-12
+        end = sol.pose.translation
+        crank_tip = np.array([a * np.cos(crank), a * np.sin(crank), 0])
+        assert abs(np.linalg.norm(end - crank_tip) - c) <= 1e-12
+        assert abs(np.linalg.norm(end - np.array([g, 0, 0])) - r) <= 1e-12
+        G = cl.constrained_jacobian(sol.q)
+        h = 1e-6
+        plus = cl.solve([crank + h], q0=sol.q).pose.translation
+        minus = cl.solve([crank - h], q0=sol.q).pose.translation
+        np.testing.assert_allclose(G[:3, 0], (plus - minus) / (2 * h), atol=1e-8)

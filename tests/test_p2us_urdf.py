@@ -1,0 +1,120 @@
+"""The 3-[P2(US)] URDF, its generator/reader and the loop sidecar."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinematics.closedloop import ClosedLoop
+from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError, UnsupportedRobotError
+from kinematics.model import URDF_DIR, load_robot, parser_agreement
+from kinematics.p2us_urdf import read_params, urdf_text, sidecar_text, write
+from kinematics.parallel import P2USParams
+
+
+def test_builtin_urdf_is_the_generated_default(p2us_params):
+    # The committed files are exactly what the generator writes for paper B's Table 2 design.
+    assert (URDF_DIR / "p2us.urdf").read_text() == urdf_text(P2USParams(), "p2us")
+    assert (URDF_DIR / "p2us.loops.yaml").read_text() == sidecar_text(P2USParams(), "p2us.urdf")
+    assert p2us_params == P2USParams()
+
+
+def test_table2_values_read_from_urdf(p2us_params):
+    p = p2us_params
+    assert (p.b, p.d, p.L) == (0.325, 0.028, 0.340)
+    assert p.beta == math.radians(40)
+    assert p.alpha == (0.0, math.radians(120), math.radians(240))
+    assert p.stroke == (0.1, 0.6)
+    assert p.theta_limits == (math.radians(-10), math.radians(100))
+    assert p.phi_limits == (math.radians(-70), math.radians(70))
+
+
+def test_structure(p2us):
+    kinds = [d.kind for d in p2us.dofs]
+    assert kinds.count("prismatic") == 3 and kinds.count("revolute") == 15
+    assert p2us.tool_frame == "platform"
+    assert p2us.loops.actuated == ("slider_1", "slider_2", "slider_3")
+    assert len(p2us.loops.closures) == 5 and all(c.type == "point" for c in p2us.loops.closures)
+
+
+def test_parsers_agree(p2us, rng):
+    cl = ClosedLoop(p2us)
+    for values in (None, p2us.values_from_configuration(cl.reference), rng.uniform(-0.5, 0.5, p2us.nv)):
+        agree = parser_agreement(p2us, values)
+        assert agree.frames >= 40
+        assert agree.max_position_error <= 1e-12 and agree.max_rotation_error <= 1e-12
+
+
+def test_reference_configuration_is_assembled(p2us):
+    cl = ClosedLoop(p2us)
+    e, K = cl.residual(cl.reference)
+    assert np.abs(e).max() <= 1e-12 and K.shape == (15, 18)
+
+
+def random_design(rng):
+    return P2USParams(
+        b=float(rng.uniform(0.2, 0.5)), d=float(rng.uniform(0.01, 0.08)), L=float(rng.uniform(0.25, 0.6)),
+        beta=float(rng.uniform(0.3, 1.0)), alpha=tuple(float(a) for a in np.sort(rng.uniform(0, 6.2, 3))),
+        stroke=(float(rng.uniform(0.0, 0.2)), float(rng.uniform(0.5, 0.9))),
+        theta_limits=(float(rng.uniform(-0.5, 0.0)), float(rng.uniform(1.2, 2.0))),
+        phi_limits=(float(rng.uniform(-1.4, -0.5)), float(rng.uniform(0.5, 1.4))),
+        theta_zero=float(rng.uniform(-0.3, 0.3)), rod_spacing=float(rng.uniform(0.02, 0.1)),
+    )
+
+
+def test_generate_read_round_trip_is_exact(tmp_path, rng):
+    for k in range(10):
+        design = random_design(rng)
+        urdf, side = write(design, tmp_path / f"d{k}.urdf")
+        assert read_params(urdf) == design
+        robot = load_robot(urdf)
+        assert robot.loops is not None and robot.loops.mechanism == "3-[P2(US)]"
+        cl = ClosedLoop(robot)
+        assert np.abs(cl.residual(cl.reference)[0]).max() <= 1e-12  # 17 digits: assembled to 1e-12
+
+
+def test_reader_names_what_is_missing(tmp_path):
+    with pytest.raises(UnsupportedRobotError, match="missing joint 'limb_1_joint'"):
+        read_params(URDF_DIR / "scara.urdf")
+    text = (URDF_DIR / "p2us.urdf").read_text()
+    broken = tmp_path / "broken.urdf"
+    broken.write_text(text.replace('name="u_phi_2_1"', 'name="u_phi_2_1x"'))
+    with pytest.raises(UnsupportedRobotError, match="u_phi_2_1"):
+        read_params(broken)
+    uneven = tmp_path / "uneven.urdf"
+    start = text.index('<joint name="slider_2"')
+    seg = text[start:text.index("</joint>", start)]
+    uneven.write_text(text.replace(seg, seg.replace('xyz="0.32500000000000001 0 0"', 'xyz="0.30000000000000001 0 0"')))
+    with pytest.raises(UnsupportedRobotError, match="b differs"):
+        read_params(uneven)
+
+
+def _copy_with_sidecar(tmp_path, sidecar: str):
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text((URDF_DIR / "p2us.urdf").read_text())
+    (tmp_path / "robot.loops.yaml").write_text(sidecar)
+    return urdf
+
+
+def test_sidecar_errors(tmp_path):
+    good = (URDF_DIR / "p2us.loops.yaml").read_text()
+    with pytest.raises(UnknownFrameError, match="tip_9_9"):
+        load_robot(_copy_with_sidecar(tmp_path, good.replace("frame1: tip_2_1", "frame1: tip_9_9")))
+    with pytest.raises(UnknownJointError, match="slider_7"):
+        load_robot(_copy_with_sidecar(tmp_path, good.replace("slider_3]", "slider_7]")))
+    with pytest.raises(ModelFileError, match="malformed YAML"):
+        load_robot(_copy_with_sidecar(tmp_path, good + "\n  - {unclosed: [\n"))
+    with pytest.raises(ModelFileError, match="missing key 'actuated'"):
+        load_robot(_copy_with_sidecar(tmp_path, good.replace("actuated:", "actuators:")))
+    with pytest.raises(ModelFileError, match="unknown type"):
+        load_robot(_copy_with_sidecar(tmp_path, good.replace("type: point", "type: hinge", 1)))
+
+
+def test_invalid_designs_rejected():
+    from kinematics.errors import InvalidInputError
+
+    for bad in ({"L": -1.0}, {"b": float("nan")}, {"stroke": (0.6, 0.1)}, {"phi_limits": (-2.0, 2.0)}):
+        with pytest.raises(InvalidInputError):
+            P2USParams().replace(**bad)
