@@ -293,6 +293,13 @@ def cmd_manipulability(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_mobility(args: argparse.Namespace) -> int:
+    """Grübler–Kutzbach, screw-theory and numeric mobility at a configuration."""
+    from .mobility_cli import run
+
+    return run(args, _load(args), _out)
+
+
 def cmd_urdf(args: argparse.Namespace) -> int:
     """Write the URDF and loop sidecar of a 3-[P2(US)] design."""
     from .parallel_cli import cmd_urdf as run
@@ -340,7 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     def q_args(p: argparse.ArgumentParser, required: bool = True) -> None:
         p.add_argument("--q", nargs="+", type=float, required=required, metavar="Q",
-                       help="joint values, one per degree of freedom [rad or m]")
+                       help="joint values, one per degree of freedom [rad or m]; for a closed-loop "
+                            "robot, one per actuated joint")
         p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
     p = command("info", cmd_info, "joints, limits, frames and parameters of a robot")
@@ -369,6 +377,13 @@ def build_parser() -> argparse.ArgumentParser:
     robot_arg(p)
     q_args(p)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
+
+    p = command("mobility", cmd_mobility, "mobility three ways: Grübler-Kutzbach, screw theory, constraint rank")
+    robot_arg(p)
+    q_args(p, required=False)
+    p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                   help="p2us: platform position [m] (default: the sidecar's reference configuration)")
+    p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
 
     p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")

@@ -30,26 +30,35 @@ class Pose(NamedTuple):
     rotation: np.ndarray
 
 
+def common_axis(model: pin.Model, q: np.ndarray | None = None) -> np.ndarray | None:
+    """Unit axis to which every revolute joint is parallel (and every prismatic one
+    perpendicular) at configuration q (default neutral), or None: the mechanism is planar
+    iff such an axis exists."""
+    data = model.createData()
+    pin.computeJointJacobians(model, data, pin.neutral(model) if q is None else q)
+    axes, slides = [], []
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        J = pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED)
+        for col in J[:, joint.idx_v : joint.idx_v + joint.nv].T:  # this joint's own motion
+            lin, ang = col[:3], col[3:]
+            if np.linalg.norm(ang) < _PARALLEL_TOL:
+                slides.append(lin / np.linalg.norm(lin))
+            else:
+                axes.append(ang / np.linalg.norm(ang))
+    if not axes:
+        return None
+    normal = axes[0]
+    if any(np.linalg.norm(np.cross(a, normal)) > _PARALLEL_TOL for a in axes):
+        return None
+    if any(abs(d @ normal) > _PARALLEL_TOL for d in slides):
+        return None
+    return normal
+
+
 @functools.lru_cache(maxsize=64)
 def _plane_of(robot: Robot) -> tuple[int, int] | None:
-    model = robot.model
-    data = model.createData()
-    q = pin.neutral(model)
-    pin.computeJointJacobians(model, data, q)
-    normal = None
-    for jid in range(1, model.njoints):
-        J = pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED)
-        for col in J.T:
-            lin, ang = col[:3], col[3:]
-            if np.linalg.norm(ang) < _PARALLEL_TOL:  # prismatic: must stay in the plane
-                if normal is not None and abs(lin @ normal) > _PARALLEL_TOL:
-                    return None
-                continue
-            axis = ang / np.linalg.norm(ang)
-            if normal is None:
-                normal = axis
-            elif np.linalg.norm(np.cross(axis, normal)) > _PARALLEL_TOL:
-                return None
+    normal = common_axis(robot.model)
     if normal is None:
         return None
     k = int(np.argmax(np.abs(normal)))

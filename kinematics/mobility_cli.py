@@ -1,0 +1,85 @@
+"""`kinematics mobility`: the three mobility analyses at one configuration, as a report."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .model import Robot
+from .report import fmt, key_values, table
+
+
+def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, str]:
+    """The configuration to analyse and a description of where it came from.
+
+    Loop robots: --position (3-[P2(US)] closed forms), --q (actuated values, closed-loop solve)
+    or the sidecar's reference; serial robots: --q (every joint) or the middle of the ranges.
+    """
+    if robot.loops is None:
+        if args.position is not None:
+            raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
+        if args.q is None:
+            lo, hi = robot.lower, robot.upper
+            mid = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+            return robot.configuration(mid), "the middle of the joint ranges"
+        return robot.configuration(args.q, degrees=args.degrees), f"q = {list(args.q)}"
+    from .closedloop import ClosedLoop
+
+    loop = ClosedLoop(robot)
+    if args.position is not None and args.q is not None:
+        raise InvalidInputError("--position/--q", "give one of them, not both")
+    if args.position is not None:
+        from .p2us_urdf import joint_values_at
+        from .parallel_cli import _position, params_of
+
+        p = _position(args)
+        values = joint_values_at(params_of(robot), p, args.mode or "---")
+        q = robot.configuration([values[n] for n in robot.joint_names])
+        return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
+    if args.q is not None:
+        from .parallel_cli import _actuated
+
+        return loop.solve(_actuated(args, robot)).q, f"actuators at {list(args.q)}"
+    return loop.reference, "the sidecar's reference configuration"
+
+
+def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
+    from .mobility import analyse
+
+    q, where = configuration(args, robot)
+    rep = analyse(robot, q)
+    payload = {"robot": robot.name, "configuration": where, **rep.as_dict()}
+
+    def human() -> str:
+        g, n, s = rep.grubler, rep.numeric, rep.screw
+        kinds = ", ".join(f"{v} {k}" for k, v in g.as_dict()["joint_types"].items())
+        parts = [
+            f"{robot.name} at {where}",
+            "",
+            f"Grübler-Kutzbach ({'planar' if g.planar else 'spatial'}, lambda = {g.lam}):",
+            f"  {g.links} links, {g.joints} joints ({kinds}), {g.freedoms} joint freedoms",
+            f"  M = {g.lam} ({g.links} - {g.joints} - 1) + {g.freedoms} = {g.mobility}",
+            "",
+            "numeric (loop-constraint Jacobian K):",
+            key_values([("nv", n.nv), ("constraint rows", n.constraints), ("rank K", n.rank),
+                        ("mobility nv - rank", n.mobility), ("platform freedoms", n.platform_freedoms),
+                        ("idle freedoms", n.idle), ("platform, actuators locked", n.locked_platform_freedoms),
+                        ("rank tolerance (relative)", n.tolerance), ("smallest kept sigma", n.smallest_kept),
+                        ("largest dropped sigma", n.largest_dropped)]),
+            "",
+            f"screw theory: {s.translations} translation(s), {s.rotations} rotation(s); "
+            f"{s.constraint_rank} independent constraint wrench(es)",
+            table(["limb", "sub-chains", "twist rank", "constraint wrenches"],
+                  [(lb.name, lb.paths, lb.twist_rank,
+                    "; ".join(f"{w.type} {fmt(w.axis, 3)}" for w in lb.wrenches) or "-") for lb in s.limbs]),
+            "platform freedoms: " + ("; ".join(f"{f.type} {fmt(f.axis, 3)}" for f in s.freedoms) or "none"),
+        ]
+        if rep.notes:
+            parts += ["", "notes:"] + [f"  - {note}" for note in rep.notes]
+        return "\n".join(parts)
+
+    out(args, payload, human)
+    return 0
