@@ -72,14 +72,94 @@ def p2us_conventions() -> plt.Figure:
     return fig
 
 
-FIGURES = {"p2us_conventions": p2us_conventions}
+def _p2us_params():
+    return read_params(load_robot("p2us").urdf_path)
+
+
+def p2us_workspace() -> plt.Figure:
+    """Slices and a 3D view of the joint-limited workspace with its singular loci."""
+    from kinematics import plots
+    from kinematics.singularities import p2us_singularities
+
+    P = _p2us_params()
+    return plots.p2us_workspace(P, "all", 0.01, singular=p2us_singularities(P, step=0.01, progress=False).locus)
+
+
+def p2us_workspace_actuators() -> plt.Figure:
+    """The same with the actuator strokes only (every working mode)."""
+    from kinematics import plots
+
+    return plots.p2us_workspace(_p2us_params(), "actuators", 0.01)
+
+
+def p2us_singular_loci() -> plt.Figure:
+    """Type I/II/III loci over the strokes-only grid, the joint-limited workspace's points marked."""
+    from kinematics import plots
+    from kinematics.singularities import p2us_singularities
+
+    return plots.p2us_singular_loci(p2us_singularities(_p2us_params(), step=0.01, limits="actuators", progress=False))
+
+
+def volume_convergence() -> plt.Figure:
+    """Adaptive estimate and bounds per level against uniform grids (same estimator)."""
+    from kinematics import plots
+    from kinematics.p2us_scan import bounding_box
+    from kinematics.volume import adaptive_volume
+    from kinematics.workspace import p2us_margin, p2us_workspace
+
+    P = _p2us_params()
+    ws = p2us_workspace(P, step=0.02, rtol=1e-4, progress=False)
+    lo, hi = bounding_box(P)
+    uniform = [(h, adaptive_volume(p2us_margin(P), lo, hi, h, None, progress=False).estimate[-1])
+               for h in (0.02, 0.01, 0.005)]
+    return plots.volume_convergence(ws, uniform)
+
+
+def volume_vs_theta_zero() -> plt.Figure:
+    """Union volume (every limit) against the theta reference: how much the paper's number hinges
+    on an angle convention it does not state."""
+    from kinematics.p2us_scan import PAPER_VOLUME_M3
+    from kinematics.workspace import p2us_workspace
+
+    P = _p2us_params()
+    zeros = np.radians(np.arange(-60, 61, 10))
+    vols = [p2us_workspace(P.replace(theta_zero=float(z)), step=0.02, rtol=1e-2, progress=False,
+                           max_points=20_000_000).total for z in zeros]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(np.degrees(zeros), vols, "o-", label="ours, every limit, union of modes")
+    ax.axhline(PAPER_VOLUME_M3, color="tab:red", ls="--", label="paper B: 0.13397 m^3")
+    ax.set_xlabel("theta reference: rod elevation at theta = 0 [deg]")
+    ax.set_ylabel("volume [m^3]")
+    ax.legend()
+    return fig
+
+
+def scara_workspace() -> plt.Figure:
+    """SCARA: smallest radius over the joint grid and the plane, with the theta2 = 0 arc."""
+    from kinematics import plots
+    from kinematics.scara import ScaraParams
+    from kinematics.singularities import scara_singularities
+
+    sp = ScaraParams.from_robot(load_robot("scara"))
+    return plots.scara_workspace(sp, scara_singularities(sp))
+
+
+FIGURES = {
+    "p2us_conventions": p2us_conventions,
+    "p2us_workspace": p2us_workspace,
+    "p2us_workspace_actuators": p2us_workspace_actuators,
+    "p2us_singular_loci": p2us_singular_loci,
+    "volume_convergence": volume_convergence,
+    "volume_vs_theta_zero": volume_vs_theta_zero,
+    "scara_workspace": scara_workspace,
+}
 
 
 def main(names: list[str]) -> None:
     OUT.mkdir(exist_ok=True)
     for name in names or list(FIGURES):
         fig = FIGURES[name]()
-        fig.savefig(OUT / f"{name}.png", dpi=110)
+        fig.savefig(OUT / f"{name}.png", dpi=90, bbox_inches="tight")
         plt.close(fig)
         print(f"wrote {OUT / (name + '.png')}")
 

@@ -307,6 +307,27 @@ def cmd_urdf(args: argparse.Namespace) -> int:
     return run(args)
 
 
+def cmd_workspace_volume(args: argparse.Namespace) -> int:
+    """Workspace volume (area) with bounds, per mode and union, and the singular points in it."""
+    from .workspace_cli import workspace_volume
+
+    return workspace_volume(args, _load(args), _out)
+
+
+def cmd_singularities(args: argparse.Namespace) -> int:
+    """Singular loci over a grid (p2us) or the joint grid (planar arm)."""
+    from .workspace_cli import singularities
+
+    return singularities(args, _load(args), _out)
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Design sweep of the 3-[P2(US)] on Dask."""
+    from .workspace_cli import sweep
+
+    return sweep(args, _load(args), _out)
+
+
 # Parallel-robot handlers live with the parallel module's CLI helpers.
 def _parallel_fk(args: argparse.Namespace, robot: Any) -> int:
     from .parallel_cli import fk
@@ -327,6 +348,22 @@ def _parallel_jacobian(args: argparse.Namespace, robot: Any) -> int:
 
 
 # -- parser ---------------------------------------------------------------------------------------
+def _positive(text: str) -> float:
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be positive and finite, got {text}")
+    return v
+
+
+def _non_negative(text: str) -> float:
+    return 0.0 if text.strip() in ("0", "0.0") else _positive(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (exposed for the CLI-reference check in the tests)."""
     parser = _Parser(
@@ -384,6 +421,45 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"),
                    help="p2us: platform position [m] (default: the sidecar's reference configuration)")
     p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
+
+    def scan_args(p: argparse.ArgumentParser, step: float) -> None:
+        p.add_argument("--step", type=_positive, default=step, metavar="M",
+                       help=f"grid step [m] (default {step:g}; the volume refines boundary cells below it)")
+        p.add_argument("--modes", nargs="+", metavar="MODE",
+                       help="p2us working modes such as --- +-+ (default all 8); planar arm: elbows up/down")
+        p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                       help="all limits (default), or the actuator strokes only")
+        p.add_argument("--plot", metavar="FILE.png", help="write a figure")
+
+    p = command("workspace-volume", cmd_workspace_volume,
+                "workspace volume (p2us) or area (planar arm) with bounds, per mode, with singular points")
+    robot_arg(p)
+    scan_args(p, 0.01)
+    p.add_argument("--rtol", type=_non_negative, default=1e-3, metavar="R",
+                   help="relative tolerance of the estimate; boundary cells are refined until it is met "
+                        "(default 1e-3; 0: the plain grid, no refinement)")
+    p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
+
+    p = command("singularities", cmd_singularities,
+                "type I/II/III singular loci over a grid (p2us); theta2 = 0 boundary (planar arm)")
+    robot_arg(p)
+    scan_args(p, 0.01)
+    p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")
+    p.add_argument("--angle-step-deg", type=_positive, default=1.0, metavar="DEG",
+                   help="planar arm: joint-grid step in degrees (default 1)")
+
+    p = command("sweep", cmd_sweep, "design sweep of the 3-[P2(US)] on Dask: volume, singularity-free "
+                                     "fraction, conditioning")
+    robot_arg(p)
+    p.add_argument("--param", action="append", metavar="NAME=START:STOP:COUNT",
+                   help="a swept parameter (repeatable): b, d, L, beta, theta_zero, rod_spacing, stroke_min, "
+                        "stroke_max [m, rad]")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
+                                                            "local cluster)")
+    p.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster (default: cores)")
+    p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
+    p.add_argument("--rtol", type=_positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
 
     p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")

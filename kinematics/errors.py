@@ -65,6 +65,12 @@ class UnknownModeError(UnknownNameError):
     kind = "mode"
 
 
+class UnknownChoiceError(UnknownNameError):
+    """An option value outside its closed set (e.g. --limits)."""
+
+    kind = "choice"
+
+
 class UnknownParameterError(UnknownNameError):
     """A design parameter name that the generator or sweep does not know."""
 

@@ -1,0 +1,300 @@
+"""CLI handlers of `kinematics workspace-volume`, `singularities` and `sweep` (called from `cli`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .errors import InvalidInputError, UnsupportedRobotError
+from .model import Robot
+from .report import fmt, key_values, table
+
+Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+
+
+def _kind(robot: Robot) -> str:
+    """'p2us' or 'scara' (any planar 2R URDF); anything else is unsupported."""
+    from .parallel_cli import _is_p2us
+
+    if _is_p2us(robot):
+        return "p2us"
+    if robot.loops is None:
+        from .scara import ScaraParams
+
+        ScaraParams.from_robot(robot)  # raises UnsupportedRobotError with the reason
+        return "scara"
+    raise UnsupportedRobotError(robot.name, "workspace scans support the 3-[P2(US)] and planar 2R arms")
+
+
+def _scara(robot: Robot) -> Any:
+    from .scara import ScaraParams
+
+    return ScaraParams.from_robot(robot)
+
+
+def _write_points(path: str, points: np.ndarray, header: str) -> None:
+    """Write points as .npy or CSV (by suffix), atomically (temp file + rename)."""
+    root, ext = os.path.splitext(path)
+    tmp = f"{root}.tmp{os.getpid()}{ext}"
+    try:
+        if ext == ".npy":
+            np.save(tmp, points)
+        else:
+            np.savetxt(tmp, points, delimiter=",", header=header, comments="", fmt="%.17g")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InvalidInputError("--points", f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any) -> np.ndarray:
+    """Grid points (cell centres at `step`) inside the union, for --points."""
+    if kind == "p2us":
+        from .p2us_scan import bounding_box
+        from .workspace import p2us_margin
+
+        lo, hi = bounding_box(params)
+        margin = p2us_margin(params, modes, limits)
+    else:
+        from .workspace import scara_margin
+
+        outer = params.reach[1]
+        lo, hi = np.full(2, -outer), np.full(2, outer)
+        margin = scara_margin(params, modes)
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
+    n = int(np.prod([len(a) for a in axes]))
+    if n > 50_000_000:
+        raise InvalidInputError("--points", f"{n:,} grid points at step {step:g} m; use a larger --step")
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+    return pts[margin(pts)[:, -1] >= 0]
+
+
+def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from .workspace import p2us_workspace, scara_workspace
+
+    kind = _kind(robot)
+    rtol = None if args.rtol == 0 else args.rtol
+    t0 = time.perf_counter()
+    sing_summary: dict[str, Any]
+    if kind == "p2us":
+        from .p2us_scan import PAPER_VOLUME_M3
+        from .parallel import MODES
+        from .parallel_cli import params_of
+        from .singularities import p2us_singularities
+
+        params = params_of(robot)
+        modes = tuple(args.modes or MODES)
+        ws = p2us_workspace(params, step=args.step, rtol=rtol, modes=modes, limits=args.limits, name=robot.name,
+                            progress=not args.json)
+        sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=not args.json)
+        sing_summary = sing.summary()
+        singular_points = sing.locus.as_list()
+        paper = {"paper_volume_m3": PAPER_VOLUME_M3, "ratio_to_paper": ws.total / PAPER_VOLUME_M3,
+                 "note": paper_volume_note(args.limits)}
+    else:
+        from .scara import ELBOWS
+        from .singularities import scara_singularities
+
+        params = _scara(robot)
+        modes = tuple(args.modes or ELBOWS)
+        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=not args.json)
+        s = scara_singularities(params)
+        singular_points = [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
+                           for p, q in zip(s["singular_points"], s["singular_q"], strict=True)]
+        sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
+                                        "within_limits": s["theta2_zero_within_limits"]}}
+        paper = {}
+    if args.points:
+        pts = _inside_points(kind, params, args.limits, args.step, modes)
+        _write_points(args.points, pts, "x,y,z" if kind == "p2us" else "x,y")
+    if args.plot:
+        from . import plots
+
+        fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01)) if kind == "p2us"
+               else plots.scara_workspace(params, scara_singularities(params)))
+        plots.save(fig, args.plot)
+    payload = ws.as_dict()
+    payload.update(singular_points=singular_points, singularities=sing_summary, seconds=time.perf_counter() - t0,
+                   volume_seconds=ws.seconds, **paper)
+
+    def human() -> str:
+        return _report(ws, payload, paper)
+
+    out(args, payload, human)
+    return 0
+
+
+def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
+    unit = "m^2" if ws.planar else "m^3"
+    key = "area" if ws.planar else "volume"
+    r = ws.result
+    rows = [
+        (name, r.estimate[k], r.lower[k], r.upper[k], r.error[k])
+        for k, name in enumerate(ws.targets)
+    ]
+    lines = [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
+    lines.append(key_values([(k, v) for k, v in ws.parameters.items()]))
+    lines += ["", table([("elbow" if ws.planar else "mode"), f"{key} [{unit}]", "lower", "upper", "error est."], rows),
+              ""]
+    lo, hi = payload["bbox"]
+    lines.append(key_values([
+        (f"{key} [{unit}]", f"{fmt(ws.total)}  (bounds {fmt(r.lower[-1])} .. {fmt(r.upper[-1])}, "
+                            f"estimated error {fmt(r.error[-1], 2)}, rtol {fmt(r.rtol, 2)}, "
+                            f"{'converged' if r.converged else 'NOT converged'})"),
+        ("bounding box [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
+        ("grid step [m]", f"{fmt(r.step)} refined to {fmt(r.finest_step)} on the boundary"),
+        ("points evaluated", f"{r.points_evaluated:,}"),
+        ("singular points inside", len(payload["singular_points"])),
+        ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())
+                                    for k, v in payload["singularities"].items())),
+        ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
+    ], digits=None))
+    if paper:
+        lines += ["", f"paper B: {paper['paper_volume_m3']} m^3 (ours / paper = {paper['ratio_to_paper']:.3f})",
+                  paper["note"]]
+    return "\n".join(lines)
+
+
+def paper_volume_note(limits: str) -> str:
+    """Why our volume differs from paper B's 0.13397 m^3."""
+    common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
+              "joints' zero references nor which working modes it counts. ")
+    if limits == "all":
+        return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "
+                         "limb's vertical plane) only working mode '---' respects the theta range, so every mode "
+                         "but '---' is empty and the union is that one mode. See docs/workspace.md.")
+    return common + ("With the actuator strokes alone, every working mode has a workspace and their union is "
+                     "close to the paper's figure; the passive-joint limits are what shrink ours. See "
+                     "docs/workspace.md.")
+
+
+def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    kind = _kind(robot)
+    if kind == "scara":
+        from .singularities import scara_singularities
+
+        params = _scara(robot)
+        s = scara_singularities(params, math.radians(args.angle_step_deg))
+        pts = [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
+               for p, q in zip(s["singular_points"], s["singular_q"], strict=True)]
+        payload = {
+            "robot": robot.name,
+            "singular_points": pts,
+            "theta2_zero_within_limits": s["theta2_zero_within_limits"],
+            "theta2_pi_within_limits": s["theta2_pi_within_limits"],
+            "min_radius": {"min": float(s["min_radius"].min()), "max": float(s["min_radius"].max())},
+            "grid": [len(s["theta1"]), len(s["theta2"])],
+        }
+        if args.plot:
+            from . import plots
+
+            plots.save(plots.scara_workspace(params, s), args.plot)
+
+        def human() -> str:
+            return "\n".join([
+                f"{robot.name}: det J = l1 l2 sin(theta2) = 0 at theta2 = 0 (stretched) and theta2 = +/-pi (folded)",
+                key_values([
+                    ("theta2 = 0 within limits", payload["theta2_zero_within_limits"]),
+                    ("theta2 = pi within limits", payload["theta2_pi_within_limits"]),
+                    ("singular points found", len(pts)),
+                    ("joint grid", f"{payload['grid'][0]} x {payload['grid'][1]}"),
+                    ("smallest radius [m]", f"{fmt(payload['min_radius']['min'])} .. {fmt(payload['min_radius']['max'])}"),
+                ], digits=None),
+            ])
+
+        out(args, payload, human)
+        return 0
+    from .parallel import MODES
+    from .parallel_cli import params_of
+    from .singularities import p2us_singularities
+
+    params = params_of(robot)
+    modes = tuple(args.modes or MODES)
+    res = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=not args.json)
+    payload = {
+        "robot": robot.name,
+        "limits": args.limits,
+        "step_m": args.step,
+        "points_evaluated": res.points_evaluated,
+        "singularities": res.summary(),
+        "singular_points": res.locus.as_list(),
+        "any_inside_workspace": res.any_inside,
+        "seconds": res.seconds,
+    }
+    if args.paper_scan:
+        from .singularities import paper_scan
+
+        ps = paper_scan(params)
+        payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
+        payload["paper_scan"]["rows"] = ps["rows"]
+    if args.plot:
+        from . import plots
+
+        plots.save(plots.p2us_singular_loci(res), args.plot)
+
+    def human() -> str:
+        rows = [(k, *v.values()) for k, v in payload["singularities"].items()]
+        lines = [
+            f"{robot.name}: singular loci on a {args.step:g} m grid ({args.limits} limits), "
+            f"{res.points_evaluated:,} points in {res.seconds:.2f} s",
+            "",
+            table(["type", "locus points", "in the workspace (type I: on its boundary)"], rows),
+            "",
+            "Type I points lie on reach boundaries, so at best on the workspace's boundary; type II/III"
+            " count as inside only with both grid neighbours inside the workspace.",
+            f"any singular point in the workspace: {res.any_inside}",
+        ]
+        if args.paper_scan:
+            ps = payload["paper_scan"]
+            lines += ["", f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
+                          f"(both assembly modes), tolerance {ps['tolerance']:g}",
+                      table(["type", "poses", "within limits"],
+                            [(k, v["all"], v["within_limits"]) for k, v in ps["counts"].items()]),
+                      f"smallest iota_I {fmt(ps['min_iota_I'])}, iota_II {fmt(ps['min_iota_II'])}"]
+        return "\n".join(lines)
+
+    out(args, payload, human)
+    return 0
+
+
+def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from . import sweep as sw
+    from .parallel_cli import params_of
+
+    if _kind(robot) != "p2us":
+        raise UnsupportedRobotError(robot.name, "design sweeps are for the 3-[P2(US)]")
+    if not args.param:
+        raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
+    axes = [sw.Axis.parse(p) for p in args.param]
+    t0 = time.perf_counter()
+    rows = sw.run(axes, params_of(robot), step=args.step, rtol=args.rtol, scheduler=args.scheduler,
+                  workers=args.workers, progress=not args.json)
+    seconds = time.perf_counter() - t0
+    text = sw.to_csv(rows)
+    if args.out:
+        tmp = f"{args.out}.tmp{os.getpid()}"
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
+            os.replace(tmp, args.out)
+        except OSError as exc:
+            raise InvalidInputError("--out", f"cannot write {args.out}: {exc.strerror or exc}") from None
+    payload = {"designs": rows, "columns": list(sw.COLUMNS), "seconds": seconds,
+               "scheduler": args.scheduler or "local"}
+
+    def human() -> str:
+        shown = [c for c in sw.COLUMNS if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
+        return "\n".join([
+            f"{len(rows)} designs on {payload['scheduler']} in {seconds:.1f} s"
+            + (f"; table written to {args.out}" if args.out else ""),
+            "",
+            table(shown, [[r[c] for c in shown] for r in rows]),
+        ])
+
+    out(args, payload, human)
+    return 0

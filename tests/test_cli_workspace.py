@@ -1,0 +1,163 @@
+"""`workspace-volume`, `singularities` and `sweep` through main(); the sweep on a real Dask cluster."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinematics import sweep as sw
+from kinematics.errors import InvalidInputError, UnknownParameterError
+
+from .test_cli import run, run_json
+
+KEYS = {"modes", "bbox", "points_evaluated", "singular_points", "step_m", "seconds"}
+
+
+def test_workspace_volume_p2us(capsys, tmp_path):
+    pts, png = tmp_path / "inside.npy", tmp_path / "ws.png"
+    code, d, _ = run_json(capsys, "workspace-volume", "p2us", "--step", "0.03", "--rtol", "0.01",
+                          "--points", str(pts), "--plot", str(png))
+    assert code == 0 and KEYS | {"volume_m3", "bounds_m3"} <= set(d)
+    lo, hi = d["bounds_m3"]
+    assert lo <= d["volume_m3"] <= hi
+    assert set(d["modes"]) == set(__import__("kinematics.parallel", fromlist=["MODES"]).MODES)
+    assert d["singular_points"] == [] and d["paper_volume_m3"] == 0.13397
+    inside = np.load(pts)
+    assert inside.shape[1] == 3 and len(inside) > 100
+    assert np.all(inside >= np.array(d["bbox"][0]) - 0.03) and np.all(inside <= np.array(d["bbox"][1]) + 0.03)
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    code, out, _ = run(capsys, "workspace-volume", "p2us", "--step", "0.03", "--rtol", "0", "--limits", "actuators")
+    assert code == 0 and "union" in out and "paper B: 0.13397" in out and "bounding box" in out
+
+
+def test_workspace_volume_scara(capsys, tmp_path):
+    csv = tmp_path / "pts.csv"
+    code, d, _ = run_json(capsys, "workspace-volume", "scara", "--step", "0.02", "--points", str(csv))
+    assert code == 0 and KEYS - {"modes"} | {"area_m2", "bounds_m2", "elbows"} <= set(d)
+    assert d["bounds_m2"][0] <= d["area_m2"] <= d["bounds_m2"][1]
+    assert all(abs(np.hypot(*p["position"]) - 0.7) < 1e-9 for p in d["singular_points"])
+    assert csv.read_text().startswith("x,y\n")
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--limits", "none"], "invalid choice"),
+    (["--modes", "+*+"], "unknown mode"),
+    (["--step", "-1"], "positive"),
+    (["--step", "nan"], "positive"),
+    (["--step", "1e-6"], "limit"),
+])
+def test_workspace_volume_bad_input(capsys, argv, needle):
+    try:
+        code, out, err = run(capsys, "workspace-volume", "p2us", *argv)
+    except SystemExit as exc:  # argparse's own checks exit through _Parser.error
+        code = exc.code
+        out, err = capsys.readouterr()
+    assert code == 2 and out == "" and needle in err and len(err.strip().splitlines()) == 1
+
+
+def test_workspace_volume_rejects_other_robots(capsys):
+    code, _, err = run(capsys, "workspace-volume", "ur5")
+    assert code == 2 and "ur5" in err
+
+
+def test_singularities_p2us(capsys, tmp_path):
+    png = tmp_path / "loci.png"
+    code, d, _ = run_json(capsys, "singularities", "p2us", "--step", "0.03", "--paper-scan", "--plot", str(png))
+    assert code == 0 and {"singularities", "singular_points", "any_inside_workspace", "paper_scan"} <= set(d)
+    assert d["paper_scan"]["actuator_triples"] == 512 and png.exists()
+    code, out, _ = run(capsys, "singularities", "p2us", "--step", "0.03", "--limits", "actuators")
+    assert code == 0 and "type_II" in out
+
+
+def test_singularities_scara(capsys):
+    code, d, _ = run_json(capsys, "singularities", "scara", "--angle-step-deg", "5")
+    assert code == 0 and d["theta2_zero_within_limits"] is True and d["singular_points"]
+
+
+def test_sweep_parsing():
+    a = sw.Axis.parse("b=0.25:0.40:16")
+    assert (a.name, a.start, a.stop, a.count) == ("b", 0.25, 0.40, 16)
+    assert sw.Axis.parse("L=0.3").values().tolist() == [0.3]
+    with pytest.raises(UnknownParameterError, match="stroke_max"):
+        sw.Axis.parse("q=1:2:3")
+    with pytest.raises(InvalidInputError):
+        sw.Axis.parse("b=1:2")
+    with pytest.raises(InvalidInputError):
+        sw.Axis.parse("b=0.3:0.2:x")
+
+
+def test_sweep_cli_errors(capsys):
+    code, _, err = run(capsys, "sweep", "p2us")
+    assert code == 2 and "--param" in err
+    code, _, err = run(capsys, "sweep", "p2us", "--param", "L=-0.3")
+    assert code == 2 and "L" in err
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory):
+    """A real dask scheduler and two single-threaded worker processes on loopback."""
+    bin_dir = Path(sys.executable).parent
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    log = tmp_path_factory.mktemp("dask")
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    procs = [subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=open(log / "s.log", "w"), stderr=subprocess.STDOUT, env=env)]
+    for k in range(2):
+        procs.append(subprocess.Popen([str(bin_dir / "dask"), "worker", address, "--nworkers", "1", "--nthreads", "1",
+                                       "--no-dashboard", "--name", f"w{k}"],
+                                      stdout=open(log / f"w{k}.log", "w"), stderr=subprocess.STDOUT, env=env))
+    try:
+        from distributed import Client
+
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                with Client(address, timeout="2s") as c:
+                    c.wait_for_workers(2, timeout=max(1.0, deadline - time.monotonic()))
+                break
+            except (OSError, TimeoutError):
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
+        yield address
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_sweep_on_a_real_cluster_equals_in_process(capsys, tmp_path, dask_cluster):
+    from distributed import Client
+
+    axes = [sw.Axis.parse("b=0.30:0.35:2"), sw.Axis.parse("L=0.32:0.36:2")]
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as local:
+        rows = sw.run(axes, client=local, step=0.03, progress=False)
+    expected = sw.to_csv(rows)
+    out = tmp_path / "sweep.csv"
+    code, d, _ = run_json(capsys, "sweep", "p2us", "--param", "b=0.30:0.35:2", "--param", "L=0.32:0.36:2",
+                          "--step", "0.03", "--scheduler", dask_cluster, "--out", str(out))
+    assert code == 0 and d["scheduler"] == dask_cluster
+    assert out.read_text() == expected
+    assert [r["design"] for r in d["designs"]] == [0, 1, 2, 3]
+    vols = [r["volume_m3"] for r in rows]
+    assert vols[2] > vols[0]  # a larger base gives a larger workspace here
+    assert all(0 <= r["singularity_free_fraction"] <= 1 and 0 < r["conditioning_index"] <= 1 for r in rows)
+    assert "seconds" not in expected

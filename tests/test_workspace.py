@@ -1,0 +1,193 @@
+"""Scan kernel vs the NumPy closed forms, the adaptive volume estimator, workspaces, singular loci."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from kinematics import volume
+from kinematics.errors import InvalidInputError, UnknownChoiceError, UnknownModeError
+from kinematics.p2us_scan import bounding_box, scan
+from kinematics.parallel import MODES, ik, jacobians, limb_ik
+from kinematics.scara import ScaraParams
+from kinematics.singularities import p2us_singularities, paper_scan, scara_singularities
+from kinematics.volume import adaptive_volume, simplex_fraction
+from kinematics.workspace import (
+    p2us_volume_monte_carlo,
+    p2us_workspace,
+    scara_area_quadrature,
+    scara_workspace,
+)
+
+
+def _box_points(params, n, rng):
+    lo, hi = bounding_box(params)
+    return lo + (hi - lo) * rng.random((n, 3))
+
+
+# -- the fused kernel ------------------------------------------------------------------------------
+@pytest.mark.parametrize("limits", ["all", "actuators"])
+def test_kernel_matches_numpy_closed_forms(p2us_params, rng, limits):
+    P = p2us_params
+    p = _box_points(P, 200_000, rng)
+    r = scan(P, p, limits)
+    sol = ik(P, p, limits=limits == "all")
+    clear = np.abs(r.margin) > 1e-9  # rounding may flip points exactly on a boundary
+    assert clear.mean() > 0.999
+    assert np.array_equal((r.margin >= 0)[clear], sol.within_limits[clear])
+    assert sol.within_limits.any(), "the sample must contain workspace points"
+    limbs = limb_ik(P, p)
+    disc = (limbs.axis_distance**2 - P.L**2) * -1  # A^2 - G = L^2 - dist^2
+    np.testing.assert_allclose(r.disc, disc, atol=1e-12)
+    reach = sol.reachable[:, 0]
+    for m, mode in enumerate(MODES):
+        jac = jacobians(P, p[reach], sol.q[reach, m])
+        n = jac.Jx / P.L  # rows r_i = L n_i
+        np.testing.assert_allclose(r.det[reach, m], np.linalg.det(n), atol=1e-12)
+        np.testing.assert_allclose(np.abs(r.det[reach, m]), jac.iota_II, atol=1e-12)
+
+
+def test_kernel_margin_is_continuous(p2us_params, rng):
+    P = p2us_params
+    p = _box_points(P, 20_000, rng)
+    dp = rng.normal(size=p.shape)
+    dp *= 1e-7 / np.linalg.norm(dp, axis=1, keepdims=True)
+    a, b = scan(P, p).margin, scan(P, p + dp).margin
+    assert np.max(np.abs(a - b)) < 1e-5  # Lipschitz-like: no jumps at wrap-arounds or root swaps
+
+
+def test_kernel_rejects_unknown_limits(p2us_params):
+    with pytest.raises(UnknownChoiceError, match="actuators"):
+        scan(p2us_params, np.zeros((1, 3)), "some")
+
+
+# -- the simplex fraction and the adaptive estimator ---------------------------------------------------
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_simplex_fraction_against_monte_carlo(d, rng):
+    values = rng.normal(size=(6, d + 1))
+    bary = rng.dirichlet(np.ones(d + 1), size=400_000)
+    mc = (bary @ values.T >= 0).mean(axis=0)
+    np.testing.assert_allclose(simplex_fraction(values), mc, atol=4e-3)
+    # permutation invariance, exact one-signed answers, and ties (repeated values)
+    for perm in itertools.permutations(range(d + 1)):
+        np.testing.assert_allclose(simplex_fraction(values[:, perm]), simplex_fraction(values), atol=1e-14)
+    assert simplex_fraction(np.ones(d + 1)) == 1.0 and simplex_fraction(-np.ones(d + 1)) == 0.0
+    tied = np.array([1.0] * d + [-1.0])  # fraction (1/2)^d... of the corner cut off near the negative vertex
+    assert simplex_fraction(tied) == pytest.approx(1 - 0.5**d, abs=1e-14)
+
+
+def _sphere(points):
+    return np.stack([1 - np.sum(points**2, axis=1), 0.25 - np.sum((points - 0.3) ** 2, axis=1)], axis=1)
+
+
+def test_adaptive_volume_of_spheres():
+    res = adaptive_volume(_sphere, -np.full(3, 1.1), np.full(3, 1.1), 0.1, 1e-3, progress=False)
+    exact = np.array([4 / 3 * math.pi, 4 / 3 * math.pi * 0.125])
+    assert res.converged
+    assert np.all(res.lower <= exact) and np.all(exact <= res.upper)
+    assert np.all(np.abs(res.estimate - exact) <= 2e-3 * exact)
+    # the Richardson error estimate is honest here (second-order convergence)
+    assert np.all(np.abs(res.estimate - exact) <= 3 * res.error + 1e-12)
+    errs = [abs(lv.estimate[0] - exact[0]) for lv in res.levels]
+    assert all(e1 < 0.35 * e0 for e0, e1 in zip(errs, errs[1:]))
+    assert res.levels[-1].points < (2.2 / res.finest_step) ** 3 / 3  # surface work, not volume work
+
+
+def test_adaptive_volume_is_chunk_independent(monkeypatch):
+    args = (_sphere, -np.full(3, 1.1), np.full(3, 1.1), 0.2, 1e-3)
+    a = adaptive_volume(*args, progress=False)
+    monkeypatch.setattr(volume, "CELL_CHUNK", 37)
+    b = adaptive_volume(*args, progress=False)
+    assert np.array_equal(a.estimate, b.estimate) and np.array_equal(a.lower, b.lower)
+    assert a.points_evaluated == b.points_evaluated
+
+
+def test_adaptive_volume_validates():
+    with pytest.raises(InvalidInputError, match="step"):
+        adaptive_volume(_sphere, -np.ones(3), np.ones(3), 0.0)
+    with pytest.raises(InvalidInputError, match="limit"):
+        adaptive_volume(_sphere, -np.ones(3), np.ones(3), 1e-4, max_points=1000)
+    with pytest.raises(InvalidInputError, match="NaN"):
+        adaptive_volume(lambda p: np.full((len(p), 1), np.nan), -np.ones(2), np.ones(2), 0.5)
+    uniform = adaptive_volume(_sphere, -np.full(3, 1.1), np.full(3, 1.1), 0.1, None, progress=False)
+    assert len(uniform.levels) == 1 and not uniform.converged
+
+
+# -- workspaces ------------------------------------------------------------------------------------------
+def test_scara_area_two_ways(scara):
+    sp = ScaraParams.from_robot(scara)
+    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False)
+    exact = scara_area_quadrature(sp)
+    assert ws.result.converged
+    assert ws.total == pytest.approx(exact, rel=3e-4)  # kinks where limits meet the annulus: ~1st order
+    assert ws.result.lower[-1] <= exact <= ws.result.upper[-1]
+    free = ScaraParams(sp.l1, sp.l2, (-math.pi, -math.pi), (math.pi, math.pi))
+    ring = math.pi * ((sp.l1 + sp.l2) ** 2 - (sp.l1 - sp.l2) ** 2)
+    assert scara_area_quadrature(free) == pytest.approx(ring, rel=1e-6)
+    assert scara_workspace(free, step=0.01, rtol=1e-4, progress=False).total == pytest.approx(ring, rel=1e-4)
+
+
+@pytest.mark.parametrize("limits", ["all", "actuators"])
+def test_p2us_volume_against_monte_carlo(p2us_params, limits):
+    ws = p2us_workspace(p2us_params, step=0.02, rtol=2e-3, limits=limits, progress=False)
+    mc, se = p2us_volume_monte_carlo(p2us_params, 1_000_000, np.random.default_rng(5), limits)
+    assert abs(ws.total - mc) < 4 * se + 2e-3 * mc
+    r = ws.result
+    assert r.lower[-1] <= ws.total <= r.upper[-1]
+    assert ws.total >= max(r.estimate[:-1]) - 1e-12  # the union contains every mode
+    assert ws.total <= sum(r.estimate[:-1]) + 1e-12
+
+
+def test_p2us_workspace_modes_and_keys(p2us_params):
+    ws = p2us_workspace(p2us_params, step=0.03, rtol=None, modes=["---", "+++"], progress=False)
+    d = ws.as_dict()
+    assert set(d["modes"]) == {"---", "+++"}
+    assert {"volume_m3", "bounds_m3", "modes", "bbox", "points_evaluated", "step_m", "seconds"} <= set(d)
+    with pytest.raises(UnknownModeError, match=r"\+\+\+"):
+        p2us_workspace(p2us_params, modes=["+*+"], progress=False)
+
+
+# -- singularities -------------------------------------------------------------------------------------------
+def test_singular_loci_lie_on_singularities(p2us_params):
+    P = p2us_params
+    step = 0.02
+    res = p2us_singularities(P, step=step, limits="actuators", progress=False)
+    loc = res.locus
+    assert loc.count(1) and loc.count(2) and loc.count(3)
+    r = scan(P, loc.points, "actuators")
+    t2 = loc.kind >= 2
+    det_at = np.abs(r.det[t2, loc.which[t2]])
+    assert np.median(det_at) < 0.02  # interpolated onto the locus: |det| ~ step^2 curvature
+    t1 = loc.kind == 1
+    iota_I = np.sqrt(np.abs(r.disc[t1, loc.which[t1]])) / P.L
+    assert np.median(iota_I) < 0.05
+    assert loc.interior.any()  # with only strokes, type II surfaces cross the workspace
+
+
+def test_no_type_II_inside_the_limited_workspace(p2us_params):
+    """Paper B: no singularity inside its joint-limited workspace (a finding, checked at 1 cm)."""
+    res = p2us_singularities(p2us_params, step=0.01, progress=False)
+    assert not res.any_inside
+    assert res.summary()["type_II"]["inside_workspace"] == 0
+
+
+def test_paper_scan_counts(p2us_params):
+    ps = paper_scan(p2us_params)
+    assert ps["actuator_triples"] == 512
+    assert sum(c["all"] for c in ps["counts"].values()) == ps["poses"] == len(ps["rows"])
+    loose = paper_scan(p2us_params, tol=0.05)
+    assert sum(c["all"] for k, c in loose["counts"].items() if k != "none") > 0
+
+
+def test_scara_singular_arc(scara):
+    sp = ScaraParams.from_robot(scara)
+    s = scara_singularities(sp, math.radians(2.0))
+    assert s["theta2_zero_within_limits"] and not s["theta2_pi_within_limits"]
+    r = np.hypot(*s["singular_points"].T)
+    np.testing.assert_allclose(r, sp.l1 + sp.l2, atol=1e-12)
+    np.testing.assert_allclose(s["singular_q"][:, 1], 0.0, atol=1e-12)
+    assert len(r) == len(s["theta1"])
+    assert s["min_radius"].min() == pytest.approx(0.0, abs=1e-12)
