@@ -144,6 +144,18 @@ def scara_workspace() -> plt.Figure:
     return plots.scara_workspace(sp, scara_singularities(sp))
 
 
+def _guidance(number: int, virtual: bool) -> plt.Figure:
+    from kinematics import plots
+    from kinematics.guidance import GuidanceParams
+    from kinematics.guidance_sim import EXPERIMENTS, run_experiment
+    from kinematics.scara import ScaraParams
+
+    sp = ScaraParams.from_robot(load_robot("scara"))
+    run = run_experiment(number, sp, GuidanceParams(virtual_impedance=virtual))
+    vi = "with" if virtual else "WITHOUT"
+    return plots.guidance_run(run, f"experiment {number}: {EXPERIMENTS[number].title} ({vi} virtual impedance)")
+
+
 FIGURES = {
     "p2us_conventions": p2us_conventions,
     "p2us_workspace": p2us_workspace,
@@ -152,6 +164,10 @@ FIGURES = {
     "volume_convergence": volume_convergence,
     "volume_vs_theta_zero": volume_vs_theta_zero,
     "scara_workspace": scara_workspace,
+    "guidance_exp1": lambda: _guidance(1, True),
+    "guidance_exp2": lambda: _guidance(2, True),
+    "guidance_exp3": lambda: _guidance(3, True),
+    "guidance_exp3_baseline": lambda: _guidance(3, False),
 }
 
 

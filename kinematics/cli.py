@@ -328,6 +328,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep(args, _load(args), _out)
 
 
+def cmd_guide(args: argparse.Namespace) -> int:
+    """Paper A's manual-guidance experiments, simulated."""
+    from .guidance_cli import run
+
+    return run(args, _out)
+
+
 # Parallel-robot handlers live with the parallel module's CLI helpers.
 def _parallel_fk(args: argparse.Namespace, robot: Any) -> int:
     from .parallel_cli import fk
@@ -460,6 +467,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
     p.add_argument("--rtol", type=_positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
+
+    p = command("guide", cmd_guide, "simulate paper A's manual-guidance experiments (admittance + virtual impedance)")
+    p.add_argument("--experiment", type=int, required=True, choices=[1, 2, 3],
+                   help="1: hard short push (saturation); 2: push to (0.7, 0), operator stops; 3: keeps pushing")
+    p.add_argument("--robot", default="scara", metavar="ROBOT", help="a planar 2R arm (default scara)")
+    p.add_argument("--no-virtual-impedance", action="store_true", help="the baseline: plain admittance control")
+    p.add_argument("--force", type=float, metavar="N", help="operator push [N] (default 30 for 1, 6 for 2 and 3)")
+    p.add_argument("--mass", type=float, metavar="KG", help="admittance mass per axis [kg] (default 5)")
+    p.add_argument("--damping", type=float, metavar="NS/M", help="admittance damping [N s/m] (default 40)")
+    p.add_argument("--v-max", type=float, metavar="M/S", help="velocity saturation [m/s] (default 0.25)")
+    p.add_argument("--saturation", choices=["norm", "axis"], help="saturate the speed (default) or each axis")
+    p.add_argument("--threshold", type=float, metavar="M", help="radius threshold [m] (default 0.1)")
+    p.add_argument("--k-max", type=float, metavar="N/M", help="eq. 16 step height (default 250)")
+    p.add_argument("--gain", type=float, metavar="1/M", help="eq. 16 arctan slope (default 1e4)")
+    p.add_argument("--dt", type=float, metavar="S", help="control period [s] (default 0.001)")
+    p.add_argument("--plot", metavar="FILE.png", help="write the time histories (paper A's Figs. 14-30)")
+    p.add_argument("--csv", metavar="FILE", help="write every step: force, position, velocities, radii, K_v, joints")
 
     p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")

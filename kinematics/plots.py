@@ -144,3 +144,41 @@ def scara_workspace(sp: Any, sing: dict[str, Any]) -> Any:
     ax[1].set_xlabel("x [m]")
     ax[1].set_ylabel("y [m]")
     return fig
+
+
+def guidance_run(run: Any, title: str = "") -> Any:
+    """Paper A's Figs. 14-30 in one sheet: force, position, velocity before/after saturation,
+    radii with the threshold, K_v = B_v, joint angles and joint speeds against time."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(4, 2, figsize=(11, 10), sharex=True)
+    t = run.t
+    axes = "xyz"[: run.x.shape[1]]
+    panels = [
+        (ax[0, 0], run.force, "force [N]", axes),
+        (ax[0, 1], run.x, "position [m]", axes),
+        (ax[1, 0], run.v_raw, "velocity before saturation [m/s]", axes),
+        (ax[1, 1], run.v, "velocity (saturated) [m/s]", axes),
+        (ax[2, 0], run.radii, "ellipse radii [m]", [f"r{k + 1}" for k in range(run.radii.shape[1])]),
+        (ax[3, 0], run.q, "joint angles [rad]", [f"q{k + 1}" for k in range(run.q.shape[1])]),
+        (ax[3, 1], run.qdot, "joint speeds [rad/s]", [f"q{k + 1}" for k in range(run.q.shape[1])]),
+    ]
+    for a, data, label, names in panels:
+        for k, name in enumerate(names):
+            a.plot(t, data[:, k], label=name, lw=1)
+        a.set_ylabel(label, fontsize=8)
+        a.legend(fontsize=7, loc="best")
+    for a in (ax[1, 0], ax[1, 1]):
+        for s in (-1, 1):
+            a.axhline(s * run.params.v_max, color="0.6", ls=":", lw=1)
+    ax[2, 0].axhline(run.params.threshold, color="tab:red", ls="--", lw=1, label="threshold")
+    ax[2, 1].plot(t, run.k_v, color="tab:purple")
+    ax[2, 1].set_ylabel("K_v = B_v [N/m, N s/m]", fontsize=8)
+    for a in ax[-1]:
+        a.set_xlabel("t [s]")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

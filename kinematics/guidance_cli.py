@@ -1,0 +1,74 @@
+"""`kinematics guide`: paper A's guidance experiments, simulated, as a report, JSON, CSV or plot."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Callable
+from typing import Any
+
+from .errors import UnsupportedRobotError
+from .report import fmt, key_values
+
+Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+
+
+def run(args: argparse.Namespace, out: Out) -> int:
+    from .guidance import GuidanceParams
+    from .guidance_sim import EXPERIMENTS, run_experiment
+    from .model import load_robot
+    from .scara import ScaraParams
+
+    robot = load_robot(args.robot)
+    if robot.loops is not None:
+        raise UnsupportedRobotError(robot.name, "the guidance experiments need a planar 2R arm")
+    sp = ScaraParams.from_robot(robot)
+    overrides = {k: getattr(args, k) for k in ("mass", "damping", "v_max", "threshold", "k_max", "gain", "dt",
+                                               "saturation") if getattr(args, k) is not None}
+    params = GuidanceParams(virtual_impedance=not args.no_virtual_impedance, **overrides)
+    res = run_experiment(args.experiment, sp, params, args.force)
+    ex = EXPERIMENTS[args.experiment]
+    summary = res.summary()
+    if args.csv:
+        _write(args.csv, res.to_csv())
+    if args.plot:
+        from . import plots
+
+        vi = "with" if params.virtual_impedance else "WITHOUT"
+        plots.save(plots.guidance_run(res, f"experiment {ex.number}: {ex.title} ({vi} virtual impedance)"),
+                   args.plot)
+    payload = {"experiment": ex.number, "title": ex.title, "robot": robot.name, "start": list(ex.start),
+               "params": {k: getattr(params, k) for k in params.__dataclass_fields__}, **summary}
+
+    def human() -> str:
+        s = summary
+        return "\n".join([
+            f"experiment {ex.number} on {robot.name}: {ex.title}",
+            f"virtual impedance {'on' if params.virtual_impedance else 'OFF (baseline)'}; start {list(ex.start)} m",
+            "",
+            key_values([
+                ("max speed [m/s]", f"{fmt(s['max_speed'])} (limit {params.v_max:g})"),
+                ("saturated [s]", f"{fmt(s['saturated_seconds'])} {s['saturated_intervals']}"),
+                ("smallest radius [m]", f"{fmt(s['min_radius'])} (threshold {params.threshold:g})"),
+                ("final position [m]", [round(v, 5) for v in s["final_position"]]),
+                ("min |theta2| [rad]", fmt(s["min_abs_theta2"])),
+                ("peak joint speed [rad/s]", fmt(s["peak_joint_speed"])),
+                ("max K_v [N/m]", fmt(s["max_k_v"])),
+                ("reached the singularity", s["reached_singularity"]),
+            ], digits=None),
+        ])
+
+    out(args, payload, human)
+    return 0
+
+
+def _write(path: str, text: str) -> None:
+    from .errors import InvalidInputError
+
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InvalidInputError("--csv", f"cannot write {path}: {exc.strerror or exc}") from None

@@ -1,0 +1,215 @@
+"""The guidance controller: eq. 16, the cos^2 projection, saturation, IK with limits, paper A's
+three experiments and their baselines, any serial robot, and the `guide` CLI."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinematics.errors import InvalidInputError
+from kinematics.guidance import Controller, GuidanceParams, ScaraKinematics, SerialKinematics, virtual_gain
+from kinematics.guidance_sim import (
+    SINGULAR_RADIUS,
+    Profile,
+    ReactiveOperator,
+    StubbornOperator,
+    run_experiment,
+    simulate,
+)
+from kinematics.manipulability import ellipsoid
+from kinematics.scara import ScaraParams, fk, jacobian
+
+from .test_cli import run, run_json
+
+
+@pytest.fixture(scope="module")
+def sp(scara):
+    return ScaraParams.from_robot(scara)
+
+
+@pytest.fixture(scope="module")
+def runs(sp):
+    return {(n, vi): run_experiment(n, sp, GuidanceParams(virtual_impedance=vi)) for n in (1, 2, 3) for vi in (True, False)}
+
+
+def test_eq16_step():
+    p = GuidanceParams()
+    assert virtual_gain(p, 0.1) == pytest.approx(125.0)
+    assert virtual_gain(p, 0.0) == pytest.approx(250 / math.pi * math.atan(1e3) + 125)
+    assert virtual_gain(p, 0.2) < 0.3 and virtual_gain(p, 0.05) > 249
+    r = np.linspace(0, 0.3, 301)
+    k = np.array([virtual_gain(p, x) for x in r])
+    assert np.all(np.diff(k) <= 0) and np.all((k >= 0) & (k <= 250))
+    assert virtual_gain(p, -0.05) == virtual_gain(p, 0.05)  # |r|
+
+
+def test_scalar_ellipse_matches_manipulability(sp, rng):
+    kin = ScaraKinematics(sp)
+    for q in rng.uniform(sp.lower, sp.upper, (200, 2)):
+        radii, u = kin.ellipse(q)
+        ref = ellipsoid(jacobian(sp, q))
+        np.testing.assert_allclose(radii, ref.radii, atol=1e-9)
+        assert abs(abs(np.dot(u, ref.directions[0])) - 1) < 1e-9 or ref.radii[1] - ref.radii[0] < 1e-9
+        np.testing.assert_allclose(kin.fk(q), fk(sp, q), atol=1e-15)
+
+
+def test_ik_respects_limits_and_branch(sp, rng):
+    kin = ScaraKinematics(sp)
+    for q in rng.uniform(sp.lower, sp.upper, (200, 2)):
+        back = kin.ik(fk(sp, q), q)
+        np.testing.assert_allclose(back, q, atol=1e-9)
+    assert kin.ik(np.array([0.75, 0.0]), np.zeros(2)) is None  # out of reach
+    assert kin.ik(np.array([-0.5, -0.05]), np.array([0.0, 0.5])) is None  # joint 1 beyond 110 deg
+
+
+def test_cos2_projection(sp):
+    """One step from rest inside the threshold: the spring is zero at the rest point, so the
+    velocity change per axis is dt (F - 0) / M and the damping enters as (B + K_v u_j^2)."""
+    kin = ScaraKinematics(sp)
+    p = GuidanceParams()
+    q = kin.ik(np.array([0.68, 0.02]), np.array([0.0, -1.0]))
+    ctrl = Controller(kin, p, q)
+    ctrl.v = np.array([0.1, 0.05])
+    radii, u = kin.ellipse(q)
+    assert radii[0] < p.threshold
+    f = np.array([3.0, -2.0])
+    s = ctrl.step(f)
+    k = virtual_gain(p, radii[0])
+    ctrl_v = np.array([0.1, 0.05])
+    expect = ctrl_v + p.dt * (f - (p.damping + k * np.square(u)) * ctrl_v) / p.mass
+    np.testing.assert_allclose(s.v_raw, expect, atol=1e-15)
+    assert s.k_v == pytest.approx(k)
+    # second step: the spring acts along each axis with K_v u_j^2 (x_j - rest_j)
+    x_rest = ctrl.rest.copy()
+    v1, x1 = s.v.copy(), s.x.copy()
+    s2 = ctrl.step(f)
+    radii2, u2 = kin.ellipse(s.q)
+    k2 = virtual_gain(p, radii2[0])
+    c2 = np.square(u2)
+    expect2 = v1 + p.dt * (f - k2 * c2 * (x1 - x_rest) - (p.damping + k2 * c2) * v1) / p.mass
+    np.testing.assert_allclose(s2.v_raw, expect2, atol=1e-15)
+
+
+@pytest.mark.parametrize("mode", ["norm", "axis"])
+def test_saturation_is_integrated(sp, mode):
+    kin = ScaraKinematics(sp)
+    p = GuidanceParams(saturation=mode)
+    q0 = kin.ik(np.array([0.45, 0.1]), np.array([0.0, -1.0]))
+    ctrl = Controller(kin, p, q0)
+    x_prev = ctrl.x.copy()
+    for _ in range(400):
+        s = ctrl.step(np.array([-40.0, -40.0]))
+        assert not s.blocked
+        np.testing.assert_allclose(s.x, x_prev + p.dt * s.v, atol=1e-15)  # the saturated v moves the tip
+        x_prev = s.x
+    if mode == "norm":
+        assert np.linalg.norm(s.v) == pytest.approx(p.v_max)
+    else:
+        np.testing.assert_allclose(np.abs(s.v), p.v_max)
+    assert s.saturated and np.linalg.norm(s.v_raw) > np.linalg.norm(s.v)
+
+
+def test_experiment_1_saturation(runs):
+    r = runs[1, True]
+    s = r.summary()
+    assert s["max_speed"] <= 0.25 + 1e-12
+    assert len(s["saturated_intervals"]) == 1 and s["saturated_seconds"] > 1.0  # one contiguous interval
+    a, b = s["saturated_intervals"][0]
+    assert r.saturated[(r.t >= a) & (r.t <= b)].all()
+    assert s["min_radius"] > 0.1 and s["max_raw_speed"] > 0.25
+
+
+def test_experiment_2_stops_short(runs):
+    s, base = runs[2, True].summary(), runs[2, False].summary()
+    x_final = s["final_position"][0]
+    assert x_final < 0.7 - 0.02 and not s["reached_singularity"]
+    r = runs[2, True]
+    crossed = np.flatnonzero(r.radii[:, 0] < 0.1)[0]
+    assert r.x[crossed, 0] < x_final + 0.01  # it stops near where the radius crossed the threshold
+    assert abs(r.v[-1]).max() < 1e-3
+    assert base["reached_singularity"] and base["final_position"][0] > 0.7 - 1e-4
+
+
+def test_experiment_3_never_singular(runs):
+    r = runs[3, True]
+    s = r.summary()
+    assert not s["reached_singularity"] and s["min_abs_theta2"] > 0.2
+    assert s["min_radius"] > SINGULAR_RADIUS
+    on = r.k_v > 1.0
+    first = np.flatnonzero(on)[0]
+    early = slice(first, first + 1000)
+    late = slice(-1000, None)
+    assert np.ptp(r.v[late, 0]) < 0.1 * np.ptp(r.v[early, 0])  # velocity transients die out
+    assert np.ptp(r.k_v[late]) < 0.1 * np.ptp(r.k_v[early])
+    base = runs[3, False].summary()
+    assert base["reached_singularity"] and base["min_abs_theta2"] < 0.01
+    assert base["peak_joint_speed"] > 5 * s["peak_joint_speed"]  # what the method buys
+
+
+def test_operators():
+    p = Profile("ramp", (1.0, 0.0), 10.0, 1.0, 2.0)
+    assert p(0.5, None) == 0 and p(1.5, None) == pytest.approx(5) and p(3, None) == 10
+    assert Profile("pulse", (1.0,), 4.0, 1.0, 2.0)(2.5, None) == 0
+    with pytest.raises(InvalidInputError, match="force"):
+        Profile("step", (1.0,), -1.0, 0.0)
+    with pytest.raises(InvalidInputError, match="force"):
+        StubbornOperator((1.0, 0.0), math.nan)
+    op = ReactiveOperator((1.0, 0.0), 5.0, t0=0.0, rise=0.1, feel=10.0, delay=0.2)
+
+    class S:
+        k_v = 20.0
+
+    assert op(1.0, None) == 5.0
+    op(1.0, S())
+    assert op(1.1, S()) == 5.0  # still within the reaction delay
+    op(1.25, S())
+    assert op(1.4, S()) == 0.0
+
+
+def test_bad_parameters():
+    for bad in ({"mass": -1.0}, {"damping": math.nan}, {"v_max": 0.0}, {"dt": math.inf}, {"saturation": "x"}):
+        with pytest.raises(InvalidInputError):
+            GuidanceParams(**bad)
+
+
+def test_any_serial_robot(ur5):
+    """The controller on UR5's translational ellipsoid: guided into the stretched singularity."""
+    kin = SerialKinematics(ur5)
+    q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])
+    x0 = kin.fk(q0)
+    radii, u = kin.ellipse(q0)
+    J = __import__("kinematics.serial", fromlist=["task_jacobian"]).task_jacobian(ur5, q0)
+    np.testing.assert_allclose(radii, ellipsoid(J).radii, atol=1e-9)
+    away = x0 / np.linalg.norm(x0)
+    away[2] = 0.0
+    for vi in (True, False):
+        p = GuidanceParams(virtual_impedance=vi, threshold=0.15)
+        r = simulate(kin, p, q0, Profile("step", tuple(away), 6.0, 0.2), away, 6.0)
+        s = r.summary()
+        assert np.all(np.linalg.norm(r.v, axis=1) <= 0.25 + 1e-12)
+        assert np.all(r.q >= ur5.lower - 1e-12) and np.all(r.q <= ur5.upper + 1e-12)
+        assert s["min_abs_theta2"] is None
+        if vi:
+            assert s["min_radius"] > 0.05 and s["max_k_v"] > 200
+        else:
+            assert s["min_radius"] < 0.05
+
+
+def test_guide_cli(capsys, tmp_path):
+    png, csv = tmp_path / "g.png", tmp_path / "g.csv"
+    code, d, _ = run_json(capsys, "guide", "--experiment", "3", "--plot", str(png), "--csv", str(csv))
+    keys = {"max_speed", "saturated_seconds", "min_radius", "final_position", "min_abs_theta2",
+            "peak_joint_speed", "reached_singularity"}
+    assert code == 0 and keys <= set(d) and d["reached_singularity"] is False
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    lines = csv.read_text().splitlines()
+    assert lines[0].startswith("t,Fx,Fy,x,y") and len(lines) == 9001
+    code, d, _ = run_json(capsys, "guide", "--experiment", "3", "--no-virtual-impedance")
+    assert code == 0 and d["reached_singularity"] is True
+    code, out, _ = run(capsys, "guide", "--experiment", "1")
+    assert code == 0 and "saturated" in out
+    for bad in (["--mass", "-1"], ["--force", "nan"], ["--dt", "0"], ["--robot", "p2us"]):
+        code, out, err = run(capsys, "guide", "--experiment", "2", *bad)
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
