@@ -335,6 +335,13 @@ def cmd_guide(args: argparse.Namespace) -> int:
     return run(args, _out)
 
 
+def cmd_show(args: argparse.Namespace) -> int:
+    """Meshcat view of a robot with overlays."""
+    from .viz_cli import run
+
+    return run(args, _load(args), _out)
+
+
 # Parallel-robot handlers live with the parallel module's CLI helpers.
 def _parallel_fk(args: argparse.Namespace, robot: Any) -> int:
     from .parallel_cli import fk
@@ -484,6 +491,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dt", type=float, metavar="S", help="control period [s] (default 0.001)")
     p.add_argument("--plot", metavar="FILE.png", help="write the time histories (paper A's Figs. 14-30)")
     p.add_argument("--csv", metavar="FILE", help="write every step: force, position, velocities, radii, K_v, joints")
+
+    p = command("show", cmd_show, "Meshcat view with overlays: prints the viewer URL and serves until "
+                                   "interrupted, or writes a static HTML scene with --export")
+    robot_arg(p)
+    p.add_argument("--q", nargs="+", type=float, metavar="Q",
+                   help="joint values [rad or m]; p2us: the 3 actuator values (closed-loop solved)")
+    p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
+    p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                   help="p2us: platform position [m] (default: the sidecar's reference pose)")
+    p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
+    p.add_argument("--ellipsoid", action="store_true", help="the manipulability ellipse/ellipsoid at the tool")
+    p.add_argument("--workspace", action="store_true",
+                   help="the workspace as points coloured by smallest radius (arm) or min(iota_I, iota_II) (p2us)")
+    p.add_argument("--singularities", action="store_true", help="the singular points")
+    p.add_argument("--guide", type=int, choices=[1, 2, 3], help="planar arm: animate guidance experiment N")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"], help="p2us: limits for --workspace")
+    p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="p2us: grid step [m] (default 0.02)")
+    p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
+    p.add_argument("--serve-seconds", type=float, metavar="S", help=argparse.SUPPRESS)
 
     p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")

@@ -34,6 +34,7 @@ def run(args: argparse.Namespace, out: Out) -> int:
     if args.plot:
         from . import plots
 
+        plots.headless()
         vi = "with" if params.virtual_impedance else "WITHOUT"
         plots.save(plots.guidance_run(res, f"experiment {ex.number}: {ex.title} ({vi} virtual impedance)"),
                    args.plot)

@@ -1,6 +1,7 @@
-"""Matplotlib figures for workspaces, singular loci and volume convergence (Agg backend, files).
+"""Matplotlib figures for workspaces, singular loci, volume convergence and guidance runs.
 
 matplotlib is imported inside each function so that the rest of the toolkit never pays for it.
+The figures use whatever backend is active (inline in Jupyter); the CLI calls `headless()` first.
 """
 
 from __future__ import annotations
@@ -11,10 +12,14 @@ from typing import Any
 import numpy as np
 
 
-def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: list[str | None] | None = None) -> Any:
+def headless() -> None:
+    """Switch matplotlib to the file-only Agg backend (for the CLI: no window, no display needed)."""
     import matplotlib
 
-    matplotlib.use("Agg", force=False)
+    matplotlib.use("Agg")
+
+
+def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: list[str | None] | None = None) -> Any:
     import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=(size[0] * ncols, size[1]))
@@ -149,9 +154,6 @@ def scara_workspace(sp: Any, sing: dict[str, Any]) -> Any:
 def guidance_run(run: Any, title: str = "") -> Any:
     """Paper A's Figs. 14-30 in one sheet: force, position, velocity before/after saturation,
     radii with the threshold, K_v = B_v, joint angles and joint speeds against time."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(4, 2, figsize=(11, 10), sharex=True)

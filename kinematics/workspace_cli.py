@@ -115,6 +115,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if args.plot:
         from . import plots
 
+        plots.headless()
         fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01)) if kind == "p2us"
                else plots.scara_workspace(params, scara_singularities(params)))
         plots.save(fig, args.plot)
@@ -193,6 +194,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         if args.plot:
             from . import plots
 
+            plots.headless()
             plots.save(plots.scara_workspace(params, s), args.plot)
 
         def human() -> str:
@@ -235,6 +237,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if args.plot:
         from . import plots
 
+        plots.headless()
         plots.save(plots.p2us_singular_loci(res), args.plot)
 
     def human() -> str:

@@ -42,3 +42,16 @@ def test_help_is_instant():
 def test_package_ships_py_typed_and_urdfs():
     assert (ROOT / "kinematics" / "py.typed").exists()
     assert (ROOT / "urdf" / "scara.urdf").exists()
+
+
+def test_docs_figures_exist_and_are_generated():
+    """Every figure a docs page shows exists, and docs/make_figures.py knows how to draw it."""
+    import re
+
+    text = "\n".join(p.read_text() for p in (ROOT / "docs").glob("*.md"))
+    shown = set(re.findall(r"\]\(figures/([\w-]+)\.png\)", text))
+    assert shown, "the docs show figures"
+    script = (ROOT / "docs" / "make_figures.py").read_text()
+    for name in shown:
+        assert (ROOT / "docs" / "figures" / f"{name}.png").exists(), name
+        assert f'"{name}"' in script, f"{name} is not drawn by docs/make_figures.py"
