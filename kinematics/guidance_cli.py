@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import os
 from collections.abc import Callable
 from typing import Any
 
 from .errors import UnsupportedRobotError
-from .report import fmt, key_values
+from .report import fmt, key_values, write_atomic
 
 Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
 
@@ -30,7 +29,7 @@ def run(args: argparse.Namespace, out: Out) -> int:
     ex = EXPERIMENTS[args.experiment]
     summary = res.summary()
     if args.csv:
-        _write(args.csv, res.to_csv())
+        write_atomic(args.csv, res.to_csv(), "--csv")
     if args.plot:
         from . import plots
 
@@ -61,15 +60,3 @@ def run(args: argparse.Namespace, out: Out) -> int:
 
     out(args, payload, human)
     return 0
-
-
-def _write(path: str, text: str) -> None:
-    from .errors import InvalidInputError
-
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InvalidInputError("--csv", f"cannot write {path}: {exc.strerror or exc}") from None

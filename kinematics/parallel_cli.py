@@ -20,12 +20,16 @@ from .parallel import (
     SINGULARITY_TYPES,
     P2USParams,
     classify,
-    fk as p2us_fk,
-    ik as p2us_ik,
     jacobians,
     mode_index,
     rod_vectors,
     violations,
+)
+from .parallel import (
+    fk as p2us_fk,
+)
+from .parallel import (
+    ik as p2us_ik,
 )
 from .report import key_values, matrix, table
 

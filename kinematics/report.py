@@ -72,3 +72,19 @@ def matrix(rows: Any, digits: int = 6) -> str:
     values = [[fmt(float(v), digits) for v in row] for row in rows]
     width = max((len(v) for row in values for v in row), default=0)
     return "\n".join("  [" + "  ".join(v.rjust(width) for v in row) + "]" for row in values)
+
+
+def write_atomic(path: str, text: str, option: str) -> None:
+    """Write text to `path` through a temporary file and a rename (no half-written file is ever
+    seen); an OSError becomes an InvalidInputError naming the CLI `option`."""
+    import os
+
+    from .errors import InvalidInputError
+
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None

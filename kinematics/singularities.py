@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError
-from .parallel import MODES, SINGULARITY_TYPES, P2USParams, classify, fk, jacobians
 from .p2us_scan import bounding_box, check_limits, scan
+from .parallel import MODES, SINGULARITY_TYPES, P2USParams, classify, fk, jacobians
 from .scara import ScaraParams
 
 

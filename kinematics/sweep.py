@@ -174,8 +174,8 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
                     raise InvalidInputError("--scheduler", f"cannot reach {scheduler}: {exc}") from None
         futures = client.map(evaluate_design, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
         if progress:
-            from tqdm import tqdm
             from distributed import as_completed
+            from tqdm import tqdm
 
             with tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False) as bar:
                 for _ in as_completed(futures):

@@ -266,14 +266,9 @@ class Scene:
 
     def export(self, path: str | os.PathLike[str]) -> None:
         """Write `html()` to a file (atomically)."""
-        path = os.fspath(path)
-        tmp = f"{path}.tmp{os.getpid()}"
-        try:
-            with open(tmp, "w", encoding="utf-8") as f:
-                f.write(self.html())
-            os.replace(tmp, path)
-        except OSError as exc:
-            raise InvalidInputError("--export", f"cannot write {path}: {exc.strerror or exc}") from None
+        from .report import write_atomic
+
+        write_atomic(os.fspath(path), self.html(), "--export")
 
     def notebook(self, height: int = 420) -> Any:
         """An IPython HTML object embedding the scene (an iframe with the page inlined)."""

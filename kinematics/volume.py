@@ -34,8 +34,9 @@ from .chunks import slices
 from .errors import InvalidInputError
 
 MAX_POINTS = 200_000_000
-"""Default cap on sampled points (about 8 s of the 3-[P2(US)] kernel); exceeding it stops the
-refinement with converged = False rather than running for minutes."""
+"""Default cap on sampled points (a few GB of bookkeeping and minutes of work); the refinement
+stops there with converged = False instead of exhausting the machine, and a starting grid that
+alone would exceed it is refused."""
 
 CELL_CHUNK = 1 << 17
 """Boundary cells refined per batch (bounds memory at ~ 27 x this many sampled points)."""

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from .errors import UnknownModeError
-from .parallel import MODES, P2USParams
 from .p2us_scan import bounding_box, check_limits, scan
+from .parallel import MODES, P2USParams
 from .scara import ELBOWS, ScaraParams
 from .volume import VolumeEstimate, adaptive_volume
 

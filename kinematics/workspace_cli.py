@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
-from .report import fmt, key_values, table
+from .report import fmt, key_values, table, write_atomic
 
 Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
 
@@ -280,13 +280,7 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)
     if args.out:
-        tmp = f"{args.out}.tmp{os.getpid()}"
-        try:
-            with open(tmp, "w", encoding="utf-8") as f:
-                f.write(text)
-            os.replace(tmp, args.out)
-        except OSError as exc:
-            raise InvalidInputError("--out", f"cannot write {args.out}: {exc.strerror or exc}") from None
+        write_atomic(args.out, text, "--out")
     payload = {"designs": rows, "columns": list(sw.COLUMNS), "seconds": seconds,
                "scheduler": args.scheduler or "local"}
 

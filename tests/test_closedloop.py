@@ -10,7 +10,12 @@ import pytest
 
 from kinematics import parallel as par
 from kinematics.closedloop import ClosedLoop
-from kinematics.errors import ConvergenceError, InvalidInputError, SingularConfigurationError, UnsupportedRobotError
+from kinematics.errors import (
+    ConvergenceError,
+    InvalidInputError,
+    SingularConfigurationError,
+    UnsupportedRobotError,
+)
 from kinematics.model import load_robot
 from kinematics.p2us_urdf import joint_values_at
 

@@ -10,7 +10,7 @@ import pytest
 from kinematics.closedloop import ClosedLoop
 from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError, UnsupportedRobotError
 from kinematics.model import URDF_DIR, load_robot, parser_agreement
-from kinematics.p2us_urdf import read_params, urdf_text, sidecar_text, write
+from kinematics.p2us_urdf import read_params, sidecar_text, urdf_text, write
 from kinematics.parallel import P2USParams
 
 
