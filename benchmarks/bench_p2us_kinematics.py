@@ -10,21 +10,13 @@ import argparse
 import time
 
 import numpy as np
+from _timing import best_of
 
 from kinematics import parallel as par
 from kinematics.chunks import default_workers, map_chunks
 from kinematics.closedloop import ClosedLoop
 from kinematics.model import load_robot
 from kinematics.p2us_urdf import read_params
-
-
-def best_of(repeats: int, fn) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ import time
 
 import numba
 import numpy as np
+from _timing import best_of
 
 from kinematics import p2us_scan as S
 from kinematics.closedloop import ClosedLoop
@@ -56,11 +57,7 @@ def kernel_only(P, pts, threads: int) -> float:
     out = (np.empty((n, 8)), np.empty((n, 8)), np.empty((n, 3)))
     x, y, z = (np.ascontiguousarray(pts[:, k]) for k in range(3))
     S._kernel(x, y, z, g, True, *out)
-    best = math.inf
-    for _ in range(3):
-        t = time.perf_counter()
-        S._kernel(x, y, z, g, True, *out)
-        best = min(best, time.perf_counter() - t)
+    best = best_of(3, lambda: S._kernel(x, y, z, g, True, *out))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return n / best
 

@@ -8,24 +8,15 @@ Goal (issue 2): >= 1e7 configurations/s for the vectorised closed form.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import pinocchio as pin
+from _timing import best_of
 
 from kinematics import scara as sc
 from kinematics.chunks import default_workers, map_chunks
 from kinematics.manipulability import ellipsoid
 from kinematics.model import load_robot
-
-
-def best_of(repeats: int, fn) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def main() -> None:

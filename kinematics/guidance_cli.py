@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
-from typing import Any
 
 from .errors import UnsupportedRobotError
-from .report import fmt, key_values, write_atomic
-
-Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+from .report import Out, fmt, key_values, write_atomic
 
 
 def run(args: argparse.Namespace, out: Out) -> int:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -31,9 +30,8 @@ from .parallel import (
 from .parallel import (
     ik as p2us_ik,
 )
-from .report import key_values, matrix, table
+from .report import Out, key_values, matrix, table
 
-Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
 EXIT_OK, EXIT_NO = 0, 1
 
 
@@ -71,12 +69,19 @@ def limb_reasons(params: P2USParams, limbs: Any) -> list[dict[str, Any]]:
     return out
 
 
-def _violation_lines(solutions: list[dict[str, Any]]) -> list[str]:
-    lines = []
-    for s in solutions:
-        if s["violations"]:
-            lines.append(f"  {s['mode']}: " + "; ".join(s["violations"]))
-    return (["limit violations:"] + lines) if lines else []
+def _solutions_report(title: str, key: str, columns: list[str], digits: int,
+                      solutions: list[dict[str, Any]], reason: str | None) -> str:
+    """Title line, a table of the solutions (mode, the 3 values under `key`, within limits), their
+    limit violations, and the reason when there is one."""
+    parts = [title]
+    if solutions:
+        parts.append(table(["mode", *columns, "within limits"],
+                           [(s["mode"], *s[key], s["within_limits"]) for s in solutions], digits))
+        lines = [f"  {s['mode']}: " + "; ".join(s["violations"]) for s in solutions if s["violations"]]
+        parts += (["limit violations:"] + lines) if lines else []
+    if reason:
+        parts.append(f"reason: {reason}")
+    return "\n".join(parts)
 
 
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
@@ -103,14 +108,8 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": limbs}
 
     def human() -> str:
-        parts = [f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")]
-        if solutions:
-            parts.append(table(["mode", "q1 [m]", "q2 [m]", "q3 [m]", "within limits"],
-                               [(s["mode"], *s["q"], s["within_limits"]) for s in solutions], 9))
-            parts += _violation_lines(solutions)
-        if reason:
-            parts.append(f"reason: {reason}")
-        return "\n".join(parts)
+        title = f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
+        return _solutions_report(title, "q", ["q1 [m]", "q2 [m]", "q3 [m]"], 9, solutions, reason)
 
     out(args, payload, human)
     return EXIT_OK if reachable else EXIT_NO
@@ -153,14 +152,8 @@ def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
 
     def human() -> str:
-        parts = [f"actuators q = {q.tolist()} m"]
-        if solutions:
-            parts.append(table(["mode", "x [m]", "y [m]", "z [m]", "within limits"],
-                               [(s["mode"], *s["position"], s["within_limits"]) for s in solutions], 12))
-            parts += _violation_lines(solutions)
-        if reason:
-            parts.append(f"reason: {reason}")
-        return "\n".join(parts)
+        return _solutions_report(f"actuators q = {q.tolist()} m", "position", ["x [m]", "y [m]", "z [m]"], 12,
+                                 solutions, reason)
 
     out(args, payload, human)
     return EXIT_OK if res.exists else EXIT_NO

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
+
+Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+"""The CLI's output callback: (args, JSON payload, human-readable report thunk)."""
 
 
 def jsonable(obj: Any) -> Any:

@@ -31,6 +31,7 @@ from .errors import InvalidInputError
 from .p2us_scan import bounding_box, check_limits, scan
 from .parallel import MODES, SINGULARITY_TYPES, P2USParams, classify, fk, jacobians
 from .scara import ScaraParams
+from .volume import check_step
 
 
 @dataclass(frozen=True)
@@ -132,8 +133,7 @@ def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = 
                        modes: Sequence[str] = MODES, progress: bool = True) -> SingularityScan:
     """Type I / II / III loci of the 3-[P2(US)] over a grid of step `step` [m] on its bounding box."""
     check_limits(limits)
-    if not (math.isfinite(step) and step > 0):
-        raise InvalidInputError("step", f"must be a positive length [m], got {step}")
+    check_step(step)
     mode_cols = [MODES.index(m) for m in modes]
     lo, hi = bounding_box(params)
     dims = np.ceil((hi - lo) / step).astype(int) + 1

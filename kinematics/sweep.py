@@ -159,8 +159,9 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
 
     todo = designs(base or P2USParams(), axes)
     own = None
+    own_client = client is None
     try:
-        if client is None:
+        if own_client:
             from distributed import Client, LocalCluster
 
             if scheduler is None:
@@ -182,11 +183,10 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
                     bar.update(1)
         results = client.gather(futures)
     finally:
+        if own_client and client is not None:
+            client.close()
         if own is not None:
-            client.close()
             own.close()
-        elif client is not None and scheduler is not None:
-            client.close()
     return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
 
 

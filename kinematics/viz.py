@@ -356,11 +356,8 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
     scene.add_robot(robot, res.q)
     p = res.pose.translation
     if ellipsoid:
-        from .parallel import ik as ik_
-
-        s = ik_(P, p)
-        m = int(np.nanargmin(np.abs(s.q - np.asarray(actuators)).sum(axis=-1))) if actuators is not None \
-            else mode_index(mode)
+        s = ik(P, p)
+        m = mode_index(mode) if actuators is None else int(np.nanargmin(np.abs(s.q - actuators).sum(axis=-1)))
         e = ellipsoid_of(jacobian_inverse(P, p, s.q[m]))
         scene.add_ellipsoid(p, 0.1 * e.radii / e.radii.max(), e.directions, "overlays/ellipsoid")
     if workspace:

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from .errors import InvalidInputError
-
-Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+from .report import Out
 
 
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
@@ -41,7 +39,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
             q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
                 if args.q is not None else np.zeros(robot.nv)
-            if robot.nv == 2 and robot.loops is None and _planar(robot):
+            if _planar(robot):
                 viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
                                singularities=args.singularities, guide=args.guide, scene=scene)
             else:

@@ -81,6 +81,12 @@ class VolumeEstimate:
     box: np.ndarray
 
 
+def check_step(step: float) -> None:
+    """Raise InvalidInputError unless `step` is a positive, finite grid step [m]."""
+    if not (math.isfinite(step) and step > 0):
+        raise InvalidInputError("step", f"must be a positive length [m], got {step}")
+
+
 def _kuhn_simplices(d: int) -> np.ndarray:
     """(d!, d+1) corner indices (bit k of an index = offset along axis k) of the Kuhn simplices."""
     out = []
@@ -200,8 +206,7 @@ def adaptive_volume(
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     d = lo.shape[0]
-    if not (math.isfinite(step) and step > 0):
-        raise InvalidInputError("step", f"must be a positive length [m], got {step}")
+    check_step(step)
     if rtol is not None and not (math.isfinite(rtol) and rtol > 0):
         raise InvalidInputError("rtol", f"must be positive, got {rtol}")
     if not np.all(hi > lo):
@@ -269,8 +274,7 @@ def adaptive_volume(
         boundary, f, _ = _classify(cv, simplices, mixed[rows])
         frac_parts.append(f)
         bcount = bcount + boundary.sum(axis=0)
-        cells0 = _unravel(slice(0, 0), cdims) if not len(rows) else np.stack(
-            np.unravel_index(rows, tuple(cdims)), axis=-1)
+        cells0 = np.stack(np.unravel_index(rows, tuple(cdims)), axis=-1)
         cells0[:, 0] += a0
         cell_parts.append(cells0)
         mask_parts.append(boundary)

@@ -6,16 +6,13 @@ import argparse
 import math
 import os
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
-from .report import fmt, key_values, table, write_atomic
-
-Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
+from .report import Out, fmt, key_values, table, write_atomic
 
 
 def _kind(robot: Robot) -> str:
@@ -81,6 +78,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     rtol = None if args.rtol == 0 else args.rtol
     t0 = time.perf_counter()
     sing_summary: dict[str, Any]
+    sing: Any = None
     if kind == "p2us":
         from .p2us_scan import PAPER_VOLUME_M3
         from .parallel import MODES
@@ -103,11 +101,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         params = _scara(robot)
         modes = tuple(args.modes or ELBOWS)
         ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=not args.json)
-        s = scara_singularities(params)
-        singular_points = [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
-                           for p, q in zip(s["singular_points"], s["singular_q"], strict=True)]
+        sing = scara_singularities(params)
+        singular_points = _scara_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
-                                        "within_limits": s["theta2_zero_within_limits"]}}
+                                        "within_limits": sing["theta2_zero_within_limits"]}}
         paper = {}
     if args.points:
         pts = _inside_points(kind, params, args.limits, args.step, modes)
@@ -116,8 +113,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from . import plots
 
         plots.headless()
-        fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01)) if kind == "p2us"
-               else plots.scara_workspace(params, scara_singularities(params)))
+        fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01), singular=sing.locus)
+               if kind == "p2us" else plots.scara_workspace(params, sing))
         plots.save(fig, args.plot)
     payload = ws.as_dict()
     payload.update(singular_points=singular_points, singularities=sing_summary, seconds=time.perf_counter() - t0,
@@ -161,6 +158,12 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
+    """JSON-ready points of the SCARA's theta2 = 0 locus (from `scara_singularities`)."""
+    return [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
+            for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
+
+
 def paper_volume_note(limits: str) -> str:
     """Why our volume differs from paper B's 0.13397 m^3."""
     common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
@@ -181,8 +184,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
         params = _scara(robot)
         s = scara_singularities(params, math.radians(args.angle_step_deg))
-        pts = [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
-               for p, q in zip(s["singular_points"], s["singular_q"], strict=True)]
+        pts = _scara_points(s)
         payload = {
             "robot": robot.name,
             "singular_points": pts,
