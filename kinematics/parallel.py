@@ -298,7 +298,9 @@ class FKResult(NamedTuple):
     Attributes:
         p: S + (2, 3) platform positions [m] per ASSEMBLY_MODES (NaN where none exists).
         exists: S, the three rod spheres meet.
-        gap: S, how far they are from meeting [m^2] (> 0 when they do not), for messages.
+        gap: S, how much longer the rods would have to be for the spheres to meet [m]: the
+            centres' circumradius minus L where they do not meet (inf if the centres are
+            collinear), 0 where they do.
     """
 
     p: np.ndarray
@@ -324,9 +326,13 @@ def sphere_centres(params: P2USParams, q: np.ndarray) -> np.ndarray:
 def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     """Forward kinematics (paper eqs. 19-21): intersect three spheres of radius L.
 
-    In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = ex x ey (which points
-    up for limbs numbered counter-clockwise), p = c1 + x ex + y ey -/+ h ez with x = D/2,
-    y = (i^2 + j^2 - 2 i x)/(2 j), h = sqrt(L^2 - x^2 - y^2): "below" takes -h.
+    In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = +/-(ex x ey) turned
+    to point up (ex x ey points down when the limbs are numbered clockwise), p = c1 + x ex + y ey
+    -/+ h ez with x = D/2, y = (i^2 + j^2 - 2 i x)/(2 j), h = sqrt(L^2 - x^2 - y^2): "below" takes
+    -h. c1 + x ex + y ey is the centres' circumcentre, R = sqrt(x^2 + y^2) their circumradius:
+    the spheres meet iff L >= R, and `gap` = R - L is how much longer the rods would need to be.
+    If the centres' plane is vertical (never for rails inclined below the horizontal) "below"
+    and "above" are ex x ey's -/+ side.
     """
     c = sphere_centres(params, q)
     c1, c2, c3 = c[..., 0, :], c[..., 1, :], c[..., 2, :]
@@ -340,6 +346,7 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
         j = np.linalg.norm(ey_raw, axis=-1)
         ey = ey_raw / j[..., None]
         ez = np.cross(ex, ey)
+        ez *= np.where(ez[..., 2:] < 0, -1.0, 1.0)  # up, whatever the limbs' numbering
         x = 0.5 * D
         y = (i * i + j * j - 2.0 * i * x) / (2.0 * j)
         h2 = params.L**2 - x * x - y * y
@@ -347,7 +354,9 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     h = np.sqrt(np.where(exists, np.maximum(h2, 0.0), np.nan))
     base = c1 + x[..., None] * ex + y[..., None] * ey
     p = np.stack([base - h[..., None] * ez, base + h[..., None] * ez], axis=-2)
-    return FKResult(p, exists, np.where(exists, 0.0, -h2))
+    with np.errstate(invalid="ignore"):
+        short = np.hypot(x, y) - params.L  # circumradius - L; inf for collinear centres (j = 0)
+    return FKResult(p, exists, np.where(exists, 0.0, np.where(np.isnan(short), np.inf, short)))
 
 
 # -- velocity and singularities ---------------------------------------------------------------
