@@ -40,7 +40,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .errors import InvalidInputError, UnknownModeError
+from .errors import InvalidDesignError, InvalidInputError, UnknownModeError
 
 MODES: tuple[str, ...] = tuple("".join(m) for m in itertools.product("+-", repeat=3))
 """The 8 working modes, in a fixed order: "+++", "++-", "+-+", ..., "---"."""
@@ -104,6 +104,7 @@ class P2USParams:
                 raise InvalidInputError(name, "must be finite")
         if len(self.alpha) != 3 or not all(math.isfinite(a) for a in self.alpha):
             raise InvalidInputError("alpha", f"need three finite limb angles, got {self.alpha}")
+        self._check_design()
         _check_pair("stroke", self.stroke)
         _check_pair("theta_limits", self.theta_limits)
         _check_pair("phi_limits", self.phi_limits)
@@ -111,6 +112,23 @@ class P2USParams:
             raise InvalidInputError("phi_limits", "must lie within (-90, 90) degrees")
         if self.theta_limits[1] - self.theta_limits[0] >= 2 * math.pi:
             raise InvalidInputError("theta_limits", "must span less than 360 degrees")
+
+    def _check_design(self) -> None:
+        """Reject degenerate geometry (InvalidDesignError): coincident limbs, d >= b, beta
+        outside [0, 90] degrees."""
+        for i, j in ((0, 1), (1, 2), (0, 2)):
+            # angular distance mod 2 pi; 1e-9 rad: limbs closer than ~1e-9 m apart on a 1 m base
+            gap = abs(math.remainder(self.alpha[i] - self.alpha[j], 2 * math.pi))
+            if gap < 1e-9:
+                raise InvalidDesignError("alpha", [float(f"{math.degrees(a):.10g}") for a in self.alpha],
+                                         f"limbs {i + 1} and {j + 1} coincide (limb angles in degrees "
+                                         "must differ modulo 360)")
+        if self.d >= self.b:
+            raise InvalidDesignError("d", self.d, f"the platform radius d must be smaller than the base "
+                                     f"radius b = {self.b:g} m (only b - d > 0 is a working design)")
+        if not 0.0 <= self.beta <= math.pi / 2:
+            raise InvalidDesignError("beta", math.degrees(self.beta), "the rail angle below the horizontal "
+                                     "must be within [0, 90] degrees")
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict of the parameters (tuples as lists), SI units."""
