@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from .errors import ConvergenceError, InvalidInputError, SingularConfigurationError, UnsupportedRobotError
 from .loops import LoopSpec
-from .model import Robot
+from .model import Robot, matrix
 
 TOLERANCE = 1e-12
 """Default loop-closure tolerance: largest constraint error [m] (or [rad] for 6d closures)."""
@@ -114,8 +114,8 @@ class ClosedLoop:
         for cm, cd in zip(self.models, self.datas, strict=True):
             cm.calc(self.model, self.data, cd)
             errors.append(np.array(cd.extract().constraint_position_error))
-        K = pin.getConstraintsJacobian(self.model, self.data, self.models, self.datas)
-        return np.concatenate(errors), np.array(K)
+        K = matrix(pin.getConstraintsJacobian(self.model, self.data, self.models, self.datas), self.model.nv)
+        return np.concatenate(errors), K.copy()
 
     # -- configurations --------------------------------------------------------------------------
     def _with_actuated(self, q: np.ndarray, actuated: np.ndarray) -> np.ndarray:
@@ -254,7 +254,7 @@ class ClosedLoop:
         """
         _, K = self.residual(q)
         Kp, Ka = K[:, self.passive_v], K[:, self.actuated_v]
-        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee, pin.LOCAL_WORLD_ALIGNED)
+        J = matrix(pin.computeFrameJacobian(self.model, self.data, q, self.ee, pin.LOCAL_WORLD_ALIGNED), self.model.nv)
         Jp = J[:, self.passive_v]
         _, s, Vt = np.linalg.svd(Kp)  # full Vt: rows beyond len(s) span null(K_p) when K_p is wide
         rank = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0

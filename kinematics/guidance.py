@@ -33,7 +33,7 @@ from typing import Literal, NamedTuple, Protocol
 import numpy as np
 
 from .errors import InvalidInputError
-from .model import Robot
+from .model import Robot, matrix
 from .scara import ScaraParams, ellipse_point, ik_elbow
 
 Saturation = Literal["norm", "axis"]
@@ -201,7 +201,8 @@ class SerialKinematics:
 
     def _jac(self, q: np.ndarray) -> np.ndarray:
         pin = self.pin
-        return pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+        return matrix(pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL_WORLD_ALIGNED),
+                      self.model.nv)[:3]
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         self.pin.framesForwardKinematics(self.model, self.data, q)

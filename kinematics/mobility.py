@@ -20,7 +20,7 @@ from typing import Any, Literal
 import numpy as np
 import pinocchio as pin
 
-from .model import Robot
+from .model import Robot, matrix
 from .serial import common_axis
 
 RANK_RTOL = 1e-9
@@ -69,7 +69,7 @@ def joint_graph(robot: Robot, q: np.ndarray) -> JointGraph:
     columns: list[np.ndarray] = []
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
-        J = pin.getJointJacobian(model, data, jid, pin.WORLD)[:, joint.idx_v : joint.idx_v + joint.nv]
+        J = matrix(pin.getJointJacobian(model, data, jid, pin.WORLD), model.nv)[:, joint.idx_v : joint.idx_v + joint.nv]
         start = len(columns)
         columns.extend(J.T)
         edges.append(Edge(model.names[jid], "joint", int(model.parents[jid]), jid,
@@ -468,7 +468,7 @@ def numeric_mobility(robot: Robot, q: np.ndarray, rtol: float = RANK_RTOL) -> Nu
     smallest = float(s[rank - 1]) if rank else 0.0
     dropped = float(s[rank]) if rank < s.size else 0.0
     N = _null(K, rtol)
-    J = pin.computeFrameJacobian(model, model.createData(), q, ee, pin.LOCAL_WORLD_ALIGNED)
+    J = matrix(pin.computeFrameJacobian(model, model.createData(), q, ee, pin.LOCAL_WORLD_ALIGNED), model.nv)
     scale = max(float(np.abs(J).max()), 1e-300)
     platform = _rank(np.linalg.svd(J @ N, compute_uv=False), rtol) if N.size else 0
     lock = np.zeros((len(actuated), model.nv))
