@@ -328,3 +328,22 @@ def test_reused_operator_gives_the_same_run(sp):
     assert fresh.force.max() > 5.9
     np.testing.assert_array_equal(again.force, fresh.force)
     np.testing.assert_array_equal(again.x, fresh.x)
+
+
+def test_no_branch_change_from_random_starts(sp, rng):
+    """Property behind defect 1: from 100 seeded starts across the joint space (|theta2| > 0.3),
+    hard pushes in random directions for 300 steps never change the elbow's sign; the elbows
+    only meet at theta2 = 0, which |theta2| > 0.05 throughout rules out here."""
+    kin = ScaraKinematics(sp)
+    p = GuidanceParams()
+    for _ in range(100):
+        q0 = rng.uniform(sp.lower, sp.upper)
+        if abs(q0[1]) < 0.3:
+            continue
+        ctrl = Controller(kin, p, q0)
+        f = rng.normal(size=2)
+        f *= 40.0 / np.linalg.norm(f)
+        qs = np.array([ctrl.step(f).q for _ in range(300)])
+        if np.abs(qs[:, 1]).min() > 0.05:
+            assert np.all(np.sign(qs[:, 1]) == np.sign(q0[1]))
+        assert np.all(qs >= np.array(sp.lower)) and np.all(qs <= np.array(sp.upper))
