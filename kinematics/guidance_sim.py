@@ -167,6 +167,8 @@ class Run:
     blocked: np.ndarray
     params: GuidanceParams
     planar: bool
+    first_refusal: str | None = None
+    """Why the controller first held the arm (`Step.reason`), if it ever did."""
 
     def summary(self) -> dict[str, Any]:
         """The issue's stable keys (SI units)."""
@@ -183,6 +185,7 @@ class Run:
             "reached_singularity": bool(self.radii[:, 0].min() < SINGULAR_RADIUS),
             "max_k_v": float(self.k_v.max()),
             "blocked_steps": int(self.blocked.sum()),
+            "first_refusal": self.first_refusal,
             "virtual_impedance": self.params.virtual_impedance,
         }
         return out
@@ -232,13 +235,17 @@ def simulate(kin: Kinematics, params: GuidanceParams, q0: np.ndarray, operator: 
     sat, blk = np.zeros(n, bool), np.zeros(n, bool)
     t = np.arange(n) * params.dt
     last: Step | None = None
+    refusal: str | None = None
     for i in range(n):
         f = d * operator(float(t[i]), last)
         last = ctrl.step(f)
         rec["force"][i], rec["x"][i], rec["v_raw"][i], rec["v"][i] = f, last.x, last.v_raw, last.v
         radii[i], k_v[i], q[i], qdot[i] = last.radii, last.k_v, last.q, last.qdot
         sat[i], blk[i] = last.saturated, last.blocked
-    return Run(t, rec["force"], rec["x"], rec["v_raw"], rec["v"], radii, k_v, q, qdot, sat, blk, params, dim == 2)
+        if refusal is None and last.reason is not None:
+            refusal = last.reason
+    return Run(t, rec["force"], rec["x"], rec["v_raw"], rec["v"], radii, k_v, q, qdot, sat, blk, params, dim == 2,
+               refusal)
 
 
 # -- paper A's experiments ----------------------------------------------------------------------

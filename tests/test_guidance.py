@@ -234,6 +234,8 @@ def test_no_elbow_flip_at_the_joint1_limit(sp):
     assert held and all(not s.v.any() for s in held)
     assert "joint1" in held[0].reason and "other elbow" in held[0].reason
     assert all(s.reason is None for s in steps if not s.blocked)
+    run = simulate(kin, GuidanceParams(), q0, Profile("step", tuple(push / 10.0), 10.0, 0.0), push, 0.05)
+    assert run.summary()["blocked_steps"] > 0 and "other elbow" in run.summary()["first_refusal"]
 
 
 def test_ik_holds_branch_and_stretched_is_either(sp):
