@@ -17,8 +17,9 @@ cos^2 alpha_j = u_j^2 (eq. 17: the stiffness along u projected on each axis). Ea
    |v|, the ISO 10218-1 hand-guiding limit; `saturation="axis"` clamps each axis); the saturated
    velocity is the one stored and integrated, x += v dt (no wind-up);
 5. inverse kinematics of x to a joint command within the joint limits, on the branch the arm is
-   on; a target no branch reaches within the limits is refused: the tip holds and v = 0 (the arm
-   meets a hard limit, as the drives would).
+   on, never another (a branch switch is a jump within one period); a target the current branch
+   does not reach within the limits is refused: the tip holds, v = 0 (the arm meets a hard limit,
+   as the drives would) and `Step.reason` says why.
 
 M and B are not printed in the paper; the defaults (5 kg, 40 N s/m) give a 0.125 s time constant
 and 0.25 m/s under a steady 10 N push. Units of eq. 16 are taken as N/m and N s/m.
