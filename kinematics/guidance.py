@@ -149,6 +149,9 @@ class ScaraKinematics:
         return sorted(sols, key=lambda s: abs(s[0] - q_prev[0]) + abs(s[1] - q_prev[1]))
 
     def ik(self, x: np.ndarray, q_prev: np.ndarray) -> np.ndarray | None:
+        if q_prev[1] != 0.0:  # the real-time path: one elbow, no lists
+            sol = ik_elbow(self.sp, float(x[0]), float(x[1]), float(q_prev[1]))
+            return np.array(sol) if sol is not None and self._within(sol) else None
         for sol in self._candidates(x, q_prev):
             if self._within(sol):
                 return np.array(sol)
