@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from .errors import ConvergenceError, InvalidInputError, SingularConfigurationError, UnsupportedRobotError
 from .loops import LoopSpec
-from .model import Robot
+from .model import Robot, matrix
 
 TOLERANCE = 1e-12
 """Default loop-closure tolerance: largest constraint error [m] (or [rad] for 6d closures)."""
@@ -44,6 +44,12 @@ of the predicted passive change (a sign that it is converging to another branch)
 
 RANK_RTOL = 1e-10
 """K_p counts as rank deficient when sigma_min <= RANK_RTOL * sigma_max."""
+
+FREE_RTOL = 1e-8
+"""The end effector counts as free with the actuators locked when |J_p N| > FREE_RTOL |J_p|
+(N: orthonormal basis of null(K_p)). N is accurate to ~eps |K_p| / (smallest non-zero singular
+value of K_p), so an idle freedom leaves |J_p N| / |J_p| ~ 1e-16 (measured <= 5e-17 on the RSSR
+test model); 1e-8 keeps eight decades of margin below a motion that would move the end effector."""
 
 
 class LoopSolution(NamedTuple):
@@ -108,8 +114,8 @@ class ClosedLoop:
         for cm, cd in zip(self.models, self.datas, strict=True):
             cm.calc(self.model, self.data, cd)
             errors.append(np.array(cd.extract().constraint_position_error))
-        K = pin.getConstraintsJacobian(self.model, self.data, self.models, self.datas)
-        return np.concatenate(errors), np.array(K)
+        K = matrix(pin.getConstraintsJacobian(self.model, self.data, self.models, self.datas), self.model.nv)
+        return np.concatenate(errors), K.copy()
 
     # -- configurations --------------------------------------------------------------------------
     def _with_actuated(self, q: np.ndarray, actuated: np.ndarray) -> np.ndarray:
@@ -236,16 +242,30 @@ class ClosedLoop:
         """6 x n_actuated map from actuated joint rates to the end-effector twist [v; w]
         (world-aligned) at a closed configuration q.
 
+        With N a basis of null(K_p) (passive motions the loops allow with the actuators locked),
+        the end-effector motion is determined by the actuators iff J_p N = 0. A passive freedom
+        that does not move the end effector (a coupler spinning about its own axis between two
+        spherical joints) leaves J_p N = 0 and is harmless; the twist is then the same for every
+        passive rate that closes the loops, and the minimum-norm one, -K_p^+ K_a, is used.
+
         Raises:
-            SingularConfigurationError: K_p is rank deficient (the passive joints can move with
-                the actuators locked: a type II singularity).
+            SingularConfigurationError: J_p N != 0 (the end effector can move with the actuators
+                locked: a type II singularity).
         """
         _, K = self.residual(q)
         Kp, Ka = K[:, self.passive_v], K[:, self.actuated_v]
-        s = np.linalg.svd(Kp, compute_uv=False)
-        if s.size and s[-1] <= RANK_RTOL * s[0] or Kp.shape[0] < Kp.shape[1]:
-            raise SingularConfigurationError("constrained Jacobian", "the passive joints are not determined by "
-                                             f"the actuators here (sigma_min/sigma_max = {s[-1] / s[0]:.2e})")
-        dvp = -np.linalg.lstsq(Kp, Ka, rcond=None)[0]
-        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee, pin.LOCAL_WORLD_ALIGNED)
-        return J[:, self.actuated_v] + J[:, self.passive_v] @ dvp
+        J = matrix(pin.computeFrameJacobian(self.model, self.data, q, self.ee, pin.LOCAL_WORLD_ALIGNED), self.model.nv)
+        Jp = J[:, self.passive_v]
+        _, s, Vt = np.linalg.svd(Kp)  # full Vt: rows beyond len(s) span null(K_p) when K_p is wide
+        rank = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
+        N = Vt[rank:].T
+        if N.shape[1]:
+            free = float(np.linalg.norm(Jp @ N, 2))
+            scale = float(np.linalg.norm(Jp, 2))
+            if free > FREE_RTOL * max(scale, 1e-300):
+                raise SingularConfigurationError(
+                    "constrained Jacobian", "the end effector can move with the actuators locked "
+                    f"(type II singularity: |J_p N| / |J_p| = {free / scale:.2e}, "
+                    f"{N.shape[1]} passive freedom(s) with the actuators locked)")
+        dvp = -np.linalg.pinv(Kp, rcond=RANK_RTOL) @ Ka
+        return J[:, self.actuated_v] + Jp @ dvp

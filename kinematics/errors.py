@@ -116,3 +116,14 @@ class SingularConfigurationError(KinematicsError, ArithmeticError):
         self.what = what
         self.detail = detail
         super().__init__(f"{what}: {detail}")
+
+
+class InvalidDesignError(InvalidInputError):
+    """A design parameter that makes the mechanism degenerate (coincident limbs, a platform as
+    wide as its base, a rail angle outside its range...)."""
+
+    def __init__(self, parameter: str, value: object, reason: str) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.reason = reason
+        super().__init__(parameter, f"{reason}; got {value}")

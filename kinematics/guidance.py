@@ -17,8 +17,9 @@ cos^2 alpha_j = u_j^2 (eq. 17: the stiffness along u projected on each axis). Ea
    |v|, the ISO 10218-1 hand-guiding limit; `saturation="axis"` clamps each axis); the saturated
    velocity is the one stored and integrated, x += v dt (no wind-up);
 5. inverse kinematics of x to a joint command within the joint limits, on the branch the arm is
-   on; a target no branch reaches within the limits is refused: the tip holds and v = 0 (the arm
-   meets a hard limit, as the drives would).
+   on, never another (a branch switch is a jump within one period); a target the current branch
+   does not reach within the limits is refused: the tip holds, v = 0 (the arm meets a hard limit,
+   as the drives would) and `Step.reason` says why.
 
 M and B are not printed in the paper; the defaults (5 kg, 40 N s/m) give a 0.125 s time constant
 and 0.25 m/s under a steady 10 N push. Units of eq. 16 are taken as N/m and N s/m.
@@ -33,6 +34,8 @@ from typing import Literal, NamedTuple, Protocol
 import numpy as np
 
 from .errors import InvalidInputError
+from .model import Robot, matrix
+from .scara import ScaraParams, ellipse_point, ik_elbow
 
 Saturation = Literal["norm", "axis"]
 
@@ -93,19 +96,34 @@ class Kinematics(Protocol):
         ...
 
     def ik(self, x: np.ndarray, q_prev: np.ndarray) -> np.ndarray | None:
-        """Joint angles reaching x within the limits, near q_prev; None if there are none."""
+        """Joint angles reaching x within the limits on q_prev's IK branch, near q_prev; None if
+        there are none (never a configuration on another branch)."""
+        ...
+
+    def refusal(self, x: np.ndarray, q_prev: np.ndarray) -> str:
+        """Why `ik(x, q_prev)` returned None (called only then, off the fast path)."""
+        ...
+
+    def rate(self, q_prev: np.ndarray, q_new: np.ndarray, dt: float) -> np.ndarray:
+        """Joint velocity [rad/s or m/s] taking q_prev to q_new in dt (shape nv)."""
         ...
 
 
 class ScaraKinematics:
-    """Closed forms of the planar 2R arm, scalar and allocation-light for a real-time loop."""
+    """The planar 2R arm through the scalar closed forms of `kinematics.scara` (half-angle IK,
+    |det J| / r_max radii), allocation-light for a real-time loop.
+
+    IK branch: the elbow sign of theta2. `ik` only answers on q_prev's branch: the two elbows
+    meet only on the stretched boundary (theta2 = 0), so any other switch is a jump of 2|theta2|
+    within one period. At theta2 = 0 exactly both are the same pose and the nearer one is taken.
+    """
 
     dim = 2
 
-    def __init__(self, sp: object) -> None:
+    def __init__(self, sp: ScaraParams) -> None:
         self.sp = sp
-        self.l1, self.l2 = sp.l1, sp.l2  # type: ignore[attr-defined]
-        self.lower, self.upper = sp.lower, sp.upper  # type: ignore[attr-defined]
+        self.l1, self.l2 = sp.l1, sp.l2
+        self.lower, self.upper = sp.lower, sp.upper
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         t1, t12 = q[0], q[0] + q[1]
@@ -113,59 +131,82 @@ class ScaraKinematics:
                          self.l1 * math.sin(t1) + self.l2 * math.sin(t12)])
 
     def ellipse(self, q: np.ndarray) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Radii sqrt(eig(J J^T)) and the smaller one's direction, from the 2 x 2 entries."""
-        s1, c1 = math.sin(q[0]), math.cos(q[0])
-        s12, c12 = math.sin(q[0] + q[1]), math.cos(q[0] + q[1])
-        j11, j12 = -self.l1 * s1 - self.l2 * s12, -self.l2 * s12
-        j21, j22 = self.l1 * c1 + self.l2 * c12, self.l2 * c12
-        a, b, c = j11 * j11 + j12 * j12, j11 * j21 + j12 * j22, j21 * j21 + j22 * j22
-        mean, half = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
-        lo, hi = max(mean - half, 0.0), mean + half
-        # eigenvector of lo: the better conditioned of (b, lo - a) and (lo - c, b)
-        v1, v2 = (b, lo - a), (lo - c, b)
-        vx, vy = v1 if math.hypot(*v1) >= math.hypot(*v2) else v2
-        n = math.hypot(vx, vy)
-        u = (vx / n, vy / n) if n > 0 else (1.0, 0.0)
-        return (math.sqrt(lo), math.sqrt(hi)), u
+        """Radii (r_min, r_max) and the minor axis' direction (`scara.ellipse_point`)."""
+        r_min, r_max, u = ellipse_point(self.sp, float(q[0]), float(q[1]))
+        return (r_min, r_max), u
+
+    def _within(self, q: tuple[float, float]) -> bool:
+        lo, hi = self.lower, self.upper
+        return lo[0] <= q[0] <= hi[0] and lo[1] <= q[1] <= hi[1]
+
+    def _candidates(self, x: np.ndarray, q_prev: np.ndarray) -> list[tuple[float, float]]:
+        x0, x1 = float(x[0]), float(x[1])
+        if q_prev[1] != 0.0:
+            sol = ik_elbow(self.sp, x0, x1, float(q_prev[1]))
+            return [] if sol is None else [sol]
+        # stretched: both elbows continue from here; the nearer first
+        sols = [s for s in (ik_elbow(self.sp, x0, x1, e) for e in (-1.0, 1.0)) if s is not None]
+        return sorted(sols, key=lambda s: abs(s[0] - q_prev[0]) + abs(s[1] - q_prev[1]))
 
     def ik(self, x: np.ndarray, q_prev: np.ndarray) -> np.ndarray | None:
-        l1, l2 = self.l1, self.l2
-        r2 = x[0] * x[0] + x[1] * x[1]
-        c2 = (r2 - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-        if c2 > 1.0 or c2 < -1.0:
-            return None
-        mag = math.acos(c2)
-        best = None
-        for t2 in ((mag, -mag) if q_prev[1] >= 0 else (-mag, mag)):  # stay on the current elbow first
-            t1 = math.atan2(x[1], x[0]) - math.atan2(l2 * math.sin(t2), l1 + l2 * math.cos(t2))
-            t1 = (t1 + math.pi) % (2 * math.pi) - math.pi
-            if self.lower[0] <= t1 <= self.upper[0] and self.lower[1] <= t2 <= self.upper[1]:
-                best = np.array([t1, t2])
-                break
-        return best
+        if q_prev[1] != 0.0:  # the real-time path: one elbow, no lists
+            sol = ik_elbow(self.sp, float(x[0]), float(x[1]), float(q_prev[1]))
+            return np.array(sol) if sol is not None and self._within(sol) else None
+        for sol in self._candidates(x, q_prev):
+            if self._within(sol):
+                return np.array(sol)
+        return None
+
+    def refusal(self, x: np.ndarray, q_prev: np.ndarray) -> str:
+        lo, hi = self.lower, self.upper
+        branch = "up (theta2 < 0)" if q_prev[1] < 0 else "down (theta2 > 0)" if q_prev[1] > 0 else "either"
+        sols = self._candidates(x, q_prev)
+        if not sols:
+            r = math.hypot(float(x[0]), float(x[1]))
+            inner, outer = self.sp.reach
+            return f"target at {r:.6g} m from joint 1 is outside the reachable annulus [{inner:g}, {outer:g}] m"
+        t1, t2 = sols[0]
+        bad = [f"joint{j + 1} = {v:.6g} rad outside [{lo[j]:.6g}, {hi[j]:.6g}]"
+               for j, v in enumerate((t1, t2)) if not lo[j] <= v <= hi[j]]
+        other = ik_elbow(self.sp, float(x[0]), float(x[1]), -1.0 if q_prev[1] > 0 else 1.0)
+        why = f"on the elbow-{branch} branch {', '.join(bad)}"
+        if q_prev[1] != 0.0 and other is not None and self._within(other):
+            why += (f"; the other elbow (theta2 = {other[1]:.6g} rad) is within the limits, but switching "
+                    f"branch within one step would move joint 2 by {abs(other[1] - q_prev[1]):.3g} rad")
+        return why
+
+    def rate(self, q_prev: np.ndarray, q_new: np.ndarray, dt: float) -> np.ndarray:
+        return (q_new - q_prev) / dt
 
 
 class SerialKinematics:
     """Any serial URDF through Pinocchio: the tool's translational task (3D) and ellipsoid, IK by
-    damped least squares from the previous command, clipped to the joint limits."""
+    damped least squares from the previous command, stepped on the configuration manifold
+    (`pin.integrate`, so continuous joints - nq = 2, nv = 1 - work) and held within the bounded
+    joints' limits. Local, so it stays on q_prev's branch."""
 
     dim = 3
 
-    def __init__(self, robot: object, frame: str | None = None, damping: float = 1e-6) -> None:
+    def __init__(self, robot: Robot, frame: str | None = None, damping: float = 1e-6) -> None:
         import pinocchio as pin
 
         self.pin = pin
         self.robot = robot
-        self.model = robot.model  # type: ignore[attr-defined]
+        self.model = robot.model
         self.data = self.model.createData()
-        self.fid = robot.frame_id(frame)  # type: ignore[attr-defined]
-        self.lower = np.where(np.isfinite(self.model.lowerPositionLimit), self.model.lowerPositionLimit, -1e9)
-        self.upper = np.where(np.isfinite(self.model.upperPositionLimit), self.model.upperPositionLimit, 1e9)
+        self.fid = robot.frame_id(frame)
+        # configuration-space indices and bounds of the joints that have finite limits
+        bounded = [d for d in robot.dofs if np.isfinite(d.lower) and np.isfinite(d.upper)]
+        self.bounded_q = np.array([d.idx_q for d in bounded], dtype=int)
+        self.lower = np.array([d.lower for d in bounded])
+        self.upper = np.array([d.upper for d in bounded])
         self.lam2 = damping
+        self.tol = 1e-6
 
     def _jac(self, q: np.ndarray) -> np.ndarray:
         pin = self.pin
-        return pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+        return matrix(pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL_WORLD_ALIGNED),
+                      self.model.nv)[:3]
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         self.pin.framesForwardKinematics(self.model, self.data, q)
@@ -183,9 +224,17 @@ class SerialKinematics:
             if e @ e < tol * tol:
                 return q
             J = self._jac(q)
-            dq = J.T @ np.linalg.solve(J @ J.T + self.lam2 * np.eye(3), e)
-            q = np.clip(q + dq, self.lower, self.upper)
-        return q if np.linalg.norm(x - self.fk(q)) < 1e-6 else None
+            dv = J.T @ np.linalg.solve(J @ J.T + self.lam2 * np.eye(3), e)
+            q = self.pin.integrate(self.model, q, dv)
+            q[self.bounded_q] = np.clip(q[self.bounded_q], self.lower, self.upper)
+        return q if np.linalg.norm(x - self.fk(q)) < self.tol else None
+
+    def refusal(self, x: np.ndarray, q_prev: np.ndarray) -> str:
+        return (f"no configuration within the joint limits near the previous command reaches the target "
+                f"within {self.tol:g} m (damped least squares)")
+
+    def rate(self, q_prev: np.ndarray, q_new: np.ndarray, dt: float) -> np.ndarray:
+        return self.pin.difference(self.model, q_prev, q_new) / dt
 
 
 class Step(NamedTuple):
@@ -201,6 +250,8 @@ class Step(NamedTuple):
     k_v: float
     saturated: bool
     blocked: bool
+    reason: str | None = None
+    """Why the step was refused (`blocked`), else None."""
 
 
 @dataclass
@@ -248,8 +299,10 @@ class Controller:
         x_new = x + dt * v_new
         q_new = self.kin.ik(x_new, self.q)
         blocked = q_new is None
-        if blocked:
+        reason = None
+        if q_new is None:
+            reason = self.kin.refusal(x_new, self.q)
             x_new, v_new, q_new = x.copy(), np.zeros_like(v_new), self.q
-        qdot = (q_new - self.q) / dt
+        qdot = self.kin.rate(self.q, q_new, dt)
         self.x, self.v, self.q = x_new, v_new, q_new
-        return Step(x_new, v_raw, v_new, q_new, qdot, radii, u, k, saturated, blocked)
+        return Step(x_new, v_raw, v_new, q_new, qdot, radii, u, k, saturated, blocked, reason)

@@ -40,11 +40,19 @@ def _check_magnitude(m: float) -> None:
         raise InvalidInputError("force", f"must be a finite magnitude >= 0 [N] (a load cell only pushes), got {m}")
 
 
+def _check_time(name: str, t: float, *, positive: bool = False, finite: bool = True) -> None:
+    ok = isinstance(t, (int, float)) and not math.isnan(t) and (math.isfinite(t) or not finite)
+    if not ok or (t <= 0 if positive else t < 0):
+        raise InvalidInputError(name, f"must be a {'finite ' if finite else ''}time {'> 0' if positive else '>= 0'} "
+                                f"[s], got {t}")
+
+
 @dataclass(frozen=True)
 class Profile:
     """Scripted push of `magnitude` [N] along `direction`.
 
-    kind: "pulse" (on from t0 to t1), "step" (on from t0), "ramp" (0 at t0 to full at t1, then held).
+    kind: "pulse" (on from t0 to t1), "step" (on from t0; t1 unused), "ramp" (0 at t0 to full at
+    t1, then held; t1 = t0 is a step at t0; a ramp needs a finite t1).
     """
 
     kind: Literal["pulse", "step", "ramp"]
@@ -57,14 +65,18 @@ class Profile:
         if self.kind not in ("pulse", "step", "ramp"):
             raise InvalidInputError("kind", f"pulse, step or ramp; got {self.kind!r}")
         _check_magnitude(self.magnitude)
+        _check_time("t0", self.t0)
+        _check_time("t1", self.t1, finite=self.kind == "ramp")
+        if self.t1 < self.t0:
+            raise InvalidInputError("t1", f"must be >= t0 = {self.t0} s, got {self.t1}")
 
     def __call__(self, t: float, last: Step | None) -> float:
         if t < self.t0:
             return 0.0
         if self.kind == "pulse":
             return self.magnitude if t < self.t1 else 0.0
-        if self.kind == "ramp":
-            return self.magnitude * min(1.0, (t - self.t0) / (self.t1 - self.t0))
+        if self.kind == "ramp" and t < self.t1:
+            return self.magnitude * (t - self.t0) / (self.t1 - self.t0)
         return self.magnitude
 
 
@@ -84,6 +96,16 @@ class ReactiveOperator:
 
     def __post_init__(self) -> None:
         _check_magnitude(self.magnitude)
+        _check_time("t0", self.t0)
+        _check_time("rise", self.rise, positive=True)
+        _check_time("delay", self.delay)
+        if not (math.isfinite(self.feel) and self.feel >= 0):
+            raise InvalidInputError("feel", f"must be a finite stiffness >= 0 [N/m], got {self.feel}")
+
+    def reset(self) -> None:
+        """Forget what was felt: `simulate` calls this first, so one operator serves many runs."""
+        self.felt_since = None
+        self.release_at = None
 
     def __call__(self, t: float, last: Step | None) -> float:
         if last is not None and last.k_v > self.feel:
@@ -113,6 +135,9 @@ class StubbornOperator:
 
     def __post_init__(self) -> None:
         _check_magnitude(self.magnitude)
+        _check_time("t0", self.t0)
+        _check_time("rise", self.rise, positive=True)
+        _check_time("until", self.until, finite=False)
 
     def __call__(self, t: float, last: Step | None) -> float:
         if t < self.t0:
@@ -142,6 +167,8 @@ class Run:
     blocked: np.ndarray
     params: GuidanceParams
     planar: bool
+    first_refusal: str | None = None
+    """Why the controller first held the arm (`Step.reason`), if it ever did."""
 
     def summary(self) -> dict[str, Any]:
         """The issue's stable keys (SI units)."""
@@ -158,6 +185,7 @@ class Run:
             "reached_singularity": bool(self.radii[:, 0].min() < SINGULAR_RADIUS),
             "max_k_v": float(self.k_v.max()),
             "blocked_steps": int(self.blocked.sum()),
+            "first_refusal": self.first_refusal,
             "virtual_impedance": self.params.virtual_impedance,
         }
         return out
@@ -167,7 +195,7 @@ class Run:
         axes = "xyz"[:dim]
         cols = (["t"] + [f"F{a}" for a in axes] + list(axes) + [f"v_raw_{a}" for a in axes] + [f"v_{a}" for a in axes]
                 + [f"r{k + 1}" for k in range(self.radii.shape[1])] + ["K_v"]
-                + [f"q{k + 1}" for k in range(self.q.shape[1])] + [f"qdot{k + 1}" for k in range(self.q.shape[1])]
+                + [f"q{k + 1}" for k in range(self.q.shape[1])] + [f"qdot{k + 1}" for k in range(self.qdot.shape[1])]
                 + ["saturated", "blocked"])
         data = np.column_stack([self.t, self.force, self.x, self.v_raw, self.v, self.radii, self.k_v, self.q, self.qdot,
                                 self.saturated, self.blocked])
@@ -196,21 +224,28 @@ def simulate(kin: Kinematics, params: GuidanceParams, q0: np.ndarray, operator: 
         raise InvalidInputError("duration", f"must be positive [s], got {duration}")
     d = _direction(direction, kin.dim)
     ctrl = Controller(kin, params, np.asarray(q0, dtype=float))
+    reset = getattr(operator, "reset", None)
+    if reset is not None:  # stateful operators start each run afresh
+        reset()
     n = int(round(duration / params.dt))
-    dim, nq = kin.dim, len(ctrl.q)
+    dim, nq, nv = kin.dim, len(ctrl.q), len(kin.rate(ctrl.q, ctrl.q, params.dt))  # nv < nq: continuous joints
     rec = {k: np.empty((n, dim)) for k in ("force", "x", "v_raw", "v")}
     radii, k_v = np.empty((n, dim)), np.empty(n)
-    q, qdot = np.empty((n, nq)), np.empty((n, nq))
+    q, qdot = np.empty((n, nq)), np.empty((n, nv))
     sat, blk = np.zeros(n, bool), np.zeros(n, bool)
     t = np.arange(n) * params.dt
     last: Step | None = None
+    refusal: str | None = None
     for i in range(n):
         f = d * operator(float(t[i]), last)
         last = ctrl.step(f)
         rec["force"][i], rec["x"][i], rec["v_raw"][i], rec["v"][i] = f, last.x, last.v_raw, last.v
         radii[i], k_v[i], q[i], qdot[i] = last.radii, last.k_v, last.q, last.qdot
         sat[i], blk[i] = last.saturated, last.blocked
-    return Run(t, rec["force"], rec["x"], rec["v_raw"], rec["v"], radii, k_v, q, qdot, sat, blk, params, dim == 2)
+        if refusal is None and last.reason is not None:
+            refusal = last.reason
+    return Run(t, rec["force"], rec["x"], rec["v_raw"], rec["v"], radii, k_v, q, qdot, sat, blk, params, dim == 2,
+               refusal)
 
 
 # -- paper A's experiments ----------------------------------------------------------------------

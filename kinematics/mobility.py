@@ -14,13 +14,14 @@ chains through such bodies merge into U (2 R) and S (3 R) joints. Each loop clos
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
-from .model import Robot
+from .model import Robot, matrix
 from .serial import common_axis
 
 RANK_RTOL = 1e-9
@@ -28,6 +29,60 @@ RANK_RTOL = 1e-9
 as zero. Reported with the singular-value gap so that a near-singular pose is visible."""
 
 _ORIGIN_TOL = 1e-12
+
+REGULAR_RTOL = 1e-3
+"""A serial configuration is *regular* when its tool Jacobian has the arm's generic rank r and
+sigma_r / sigma_1 > REGULAR_RTOL (well away from a singularity, not merely off it)."""
+
+REGULAR_SEED = 0
+"""Seed of the random configurations `regular_configuration` draws."""
+
+
+class RegularConfiguration(NamedTuple):
+    """A serial arm's analysis configuration and what was checked about it.
+
+    Attributes:
+        q: Pinocchio configuration.
+        values: one value per degree of freedom [rad or m].
+        generic_rank: the largest rank of the tool's 6 x nv Jacobian over the samples.
+        conditioning: sigma_r / sigma_1 of the tool Jacobian at q (r = generic_rank).
+    """
+
+    q: np.ndarray
+    values: np.ndarray
+    generic_rank: int
+    conditioning: float
+
+
+def _tool_jacobian(robot: Robot, q: np.ndarray) -> np.ndarray:
+    model = robot.model
+    return matrix(pin.computeFrameJacobian(model, model.createData(), q, robot.frame_id(), pin.LOCAL_WORLD_ALIGNED),
+                  model.nv)
+
+
+def _samples(robot: Robot, n: int, seed: int) -> np.ndarray:
+    """n seeded random joint-value vectors within the limits (continuous joints: [-pi, pi))."""
+    lo, hi = robot.lower.copy(), robot.upper.copy()
+    free = ~(np.isfinite(lo) & np.isfinite(hi))
+    lo[free], hi[free] = -np.pi, np.pi
+    return np.random.default_rng(seed).uniform(lo, hi, (n, robot.nv))
+
+
+@functools.lru_cache(maxsize=32)
+def regular_configuration(robot: Robot, seed: int = REGULAR_SEED, tries: int = 64) -> RegularConfiguration:
+    """A seeded random configuration within the joint limits where the serial arm is regular.
+
+    The generic rank is the largest rank of the tool Jacobian over `tries` random samples (a
+    singular pose has measure zero, so one regular sample suffices); the first sample with that
+    rank and conditioning above REGULAR_RTOL is returned, else the best conditioned one. The
+    middle of the joint ranges is a poor default: for UR5 it is q = 0, a singular pose.
+    """
+    samples = _samples(robot, tries, seed)
+    svals = [np.linalg.svd(_tool_jacobian(robot, robot.configuration(v)), compute_uv=False) for v in samples]
+    generic = max(_rank(s) for s in svals)
+    cond = np.array([s[generic - 1] / s[0] if generic and _rank(s) == generic else 0.0 for s in svals])
+    k = int(np.argmax(cond > REGULAR_RTOL)) if np.any(cond > REGULAR_RTOL) else int(np.argmax(cond))
+    return RegularConfiguration(robot.configuration(samples[k]), samples[k], generic, float(cond[k]))
 
 
 # -- the joint graph ---------------------------------------------------------------------------
@@ -69,7 +124,7 @@ def joint_graph(robot: Robot, q: np.ndarray) -> JointGraph:
     columns: list[np.ndarray] = []
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
-        J = pin.getJointJacobian(model, data, jid, pin.WORLD)[:, joint.idx_v : joint.idx_v + joint.nv]
+        J = matrix(pin.getJointJacobian(model, data, jid, pin.WORLD), model.nv)[:, joint.idx_v : joint.idx_v + joint.nv]
         start = len(columns)
         columns.extend(J.T)
         edges.append(Edge(model.names[jid], "joint", int(model.parents[jid]), jid,
@@ -425,6 +480,7 @@ class NumericMobility:
     largest_dropped: float
     platform_freedoms: int
     locked_platform_freedoms: int
+    serial: bool = False
 
     @property
     def mobility(self) -> int:
@@ -432,8 +488,14 @@ class NumericMobility:
 
     @property
     def idle(self) -> int:
-        """Freedoms that move joints but not the platform (e.g. a rod spinning between S joints)."""
-        return self.mobility - self.platform_freedoms
+        """Loop freedoms that move joints but not the platform (e.g. a rod spinning between S
+        joints); 0 for a serial arm, whose surplus freedoms are `redundant`."""
+        return 0 if self.serial else self.mobility - self.platform_freedoms
+
+    @property
+    def redundant(self) -> int:
+        """A serial arm's joint freedoms beyond the tool's (self-motion; more at a singular pose)."""
+        return self.mobility - self.platform_freedoms if self.serial else 0
 
     @property
     def gap(self) -> float:
@@ -444,7 +506,7 @@ class NumericMobility:
         return {"mobility": self.mobility, "nv": self.nv, "constraints": self.constraints, "rank": self.rank,
                 "tolerance": self.tolerance, "smallest_kept": self.smallest_kept,
                 "largest_dropped": self.largest_dropped, "gap": self.gap,
-                "platform_freedoms": self.platform_freedoms, "idle": self.idle,
+                "platform_freedoms": self.platform_freedoms, "idle": self.idle, "redundant": self.redundant,
                 "locked_platform_freedoms": self.locked_platform_freedoms}
 
 
@@ -468,7 +530,7 @@ def numeric_mobility(robot: Robot, q: np.ndarray, rtol: float = RANK_RTOL) -> Nu
     smallest = float(s[rank - 1]) if rank else 0.0
     dropped = float(s[rank]) if rank < s.size else 0.0
     N = _null(K, rtol)
-    J = pin.computeFrameJacobian(model, model.createData(), q, ee, pin.LOCAL_WORLD_ALIGNED)
+    J = matrix(pin.computeFrameJacobian(model, model.createData(), q, ee, pin.LOCAL_WORLD_ALIGNED), model.nv)
     scale = max(float(np.abs(J).max()), 1e-300)
     platform = _rank(np.linalg.svd(J @ N, compute_uv=False), rtol) if N.size else 0
     lock = np.zeros((len(actuated), model.nv))
@@ -479,7 +541,7 @@ def numeric_mobility(robot: Robot, q: np.ndarray, rtol: float = RANK_RTOL) -> Nu
     if NL.size:
         sl = np.linalg.svd(J @ NL, compute_uv=False)
         locked = int(np.sum(sl > rtol * scale))
-    return NumericMobility(model.nv, K.shape[0], rank, rtol, smallest, dropped, platform, locked)
+    return NumericMobility(model.nv, K.shape[0], rank, rtol, smallest, dropped, platform, locked, robot.loops is None)
 
 
 # -- all three together --------------------------------------------------------------------------
@@ -512,6 +574,17 @@ def analyse(robot: Robot, q: np.ndarray) -> MobilityReport:
     if n.idle > 0:
         notes.append(f"{n.idle} of the {n.mobility} joint freedoms are idle: they move joints but not the platform "
                      "(e.g. a rod spinning about its axis between two spherical joints)")
+    if n.serial:
+        generic = regular_configuration(robot).generic_rank
+        lost = generic - n.platform_freedoms
+        if lost > 0:
+            notes.append(f"singular configuration: the tool's Jacobian has rank {n.platform_freedoms} here, "
+                         f"{generic} at a regular pose of this arm; the freedoms reported are this pose's")
+        if n.redundant > 0:
+            why = [f"{n.mobility - generic} by design"] if n.mobility > generic else []
+            why += [f"{lost} from the singularity"] if lost > 0 else []
+            notes.append(f"{n.redundant} of the {n.mobility} joint freedoms are redundant: they move the joints "
+                         f"without moving the tool ({', '.join(why)})")
     if s.translations + s.rotations != n.platform_freedoms:
         notes.append(f"screw theory finds {s.translations + s.rotations} platform freedoms but the constrained "
                      f"Jacobian {n.platform_freedoms}: the limbs' wrench systems are not a complete description here "

@@ -16,15 +16,18 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     """The configuration to analyse and a description of where it came from.
 
     Loop robots: --position (3-[P2(US)] closed forms), --q (actuated values, closed-loop solve)
-    or the sidecar's reference; serial robots: --q (every joint) or the middle of the ranges.
+    or the sidecar's reference; serial robots: --q (every joint) or a seeded random regular
+    configuration within the ranges (`mobility.regular_configuration`).
     """
     if robot.loops is None:
         if args.position is not None:
             raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
         if args.q is None:
-            lo, hi = robot.lower, robot.upper
-            mid = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
-            return robot.configuration(mid), "the middle of the joint ranges"
+            from .mobility import REGULAR_SEED, regular_configuration
+
+            reg = regular_configuration(robot)
+            return reg.q, (f"a regular configuration (random within the joint ranges, seed {REGULAR_SEED}): "
+                           f"q = {np.round(reg.values, 6).tolist()}")
         return robot.configuration(args.q, degrees=args.degrees), f"q = {list(args.q)}"
     from .closedloop import ClosedLoop
 
@@ -66,7 +69,8 @@ def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
             "numeric (loop-constraint Jacobian K):",
             key_values([("nv", n.nv), ("constraint rows", n.constraints), ("rank K", n.rank),
                         ("mobility nv - rank", n.mobility), ("platform freedoms", n.platform_freedoms),
-                        ("idle freedoms", n.idle), ("platform, actuators locked", n.locked_platform_freedoms),
+                        ("redundant freedoms" if n.serial else "idle freedoms", n.redundant if n.serial else n.idle),
+                        ("platform, actuators locked", n.locked_platform_freedoms),
                         ("rank tolerance (relative)", n.tolerance), ("smallest kept sigma", n.smallest_kept),
                         ("largest dropped sigma", n.largest_dropped)]),
             "",

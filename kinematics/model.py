@@ -65,6 +65,12 @@ ERD_ALIASES = {
 JointKind = Literal["revolute", "prismatic", "continuous"]
 
 
+def matrix(J: object, ncols: int) -> np.ndarray:
+    """A Pinocchio matrix as a 2-D array with `ncols` columns: Pinocchio's Python bindings
+    return an n x 1 matrix (a 1-DOF robot's Jacobian) as a 1-D array."""
+    return np.asarray(J).reshape(-1, ncols)
+
+
 class Dof(NamedTuple):
     """One degree of freedom: joint name, kind, indices into q and v, limits [rad] or [m]."""
 

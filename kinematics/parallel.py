@@ -40,7 +40,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .errors import InvalidInputError, UnknownModeError
+from .errors import InvalidDesignError, InvalidInputError, UnknownModeError
 
 MODES: tuple[str, ...] = tuple("".join(m) for m in itertools.product("+-", repeat=3))
 """The 8 working modes, in a fixed order: "+++", "++-", "+-+", ..., "---"."""
@@ -104,6 +104,7 @@ class P2USParams:
                 raise InvalidInputError(name, "must be finite")
         if len(self.alpha) != 3 or not all(math.isfinite(a) for a in self.alpha):
             raise InvalidInputError("alpha", f"need three finite limb angles, got {self.alpha}")
+        self._check_design()
         _check_pair("stroke", self.stroke)
         _check_pair("theta_limits", self.theta_limits)
         _check_pair("phi_limits", self.phi_limits)
@@ -111,6 +112,23 @@ class P2USParams:
             raise InvalidInputError("phi_limits", "must lie within (-90, 90) degrees")
         if self.theta_limits[1] - self.theta_limits[0] >= 2 * math.pi:
             raise InvalidInputError("theta_limits", "must span less than 360 degrees")
+
+    def _check_design(self) -> None:
+        """Reject degenerate geometry (InvalidDesignError): coincident limbs, d >= b, beta
+        outside [0, 90] degrees."""
+        for i, j in ((0, 1), (1, 2), (0, 2)):
+            # angular distance mod 2 pi; 1e-9 rad: limbs closer than ~1e-9 m apart on a 1 m base
+            gap = abs(math.remainder(self.alpha[i] - self.alpha[j], 2 * math.pi))
+            if gap < 1e-9:
+                raise InvalidDesignError("alpha", [float(f"{math.degrees(a):.10g}") for a in self.alpha],
+                                         f"limbs {i + 1} and {j + 1} coincide (limb angles in degrees "
+                                         "must differ modulo 360)")
+        if self.d >= self.b:
+            raise InvalidDesignError("d", self.d, f"the platform radius d must be smaller than the base "
+                                     f"radius b = {self.b:g} m (only b - d > 0 is a working design)")
+        if not 0.0 <= self.beta <= math.pi / 2:
+            raise InvalidDesignError("beta", math.degrees(self.beta), "the rail angle below the horizontal "
+                                     "must be within [0, 90] degrees")
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict of the parameters (tuples as lists), SI units."""
@@ -298,7 +316,9 @@ class FKResult(NamedTuple):
     Attributes:
         p: S + (2, 3) platform positions [m] per ASSEMBLY_MODES (NaN where none exists).
         exists: S, the three rod spheres meet.
-        gap: S, how far they are from meeting [m^2] (> 0 when they do not), for messages.
+        gap: S, how much longer the rods would have to be for the spheres to meet [m]: the
+            centres' circumradius minus L where they do not meet (inf if the centres are
+            collinear), 0 where they do.
     """
 
     p: np.ndarray
@@ -324,9 +344,13 @@ def sphere_centres(params: P2USParams, q: np.ndarray) -> np.ndarray:
 def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     """Forward kinematics (paper eqs. 19-21): intersect three spheres of radius L.
 
-    In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = ex x ey (which points
-    up for limbs numbered counter-clockwise), p = c1 + x ex + y ey -/+ h ez with x = D/2,
-    y = (i^2 + j^2 - 2 i x)/(2 j), h = sqrt(L^2 - x^2 - y^2): "below" takes -h.
+    In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = +/-(ex x ey) turned
+    to point up (ex x ey points down when the limbs are numbered clockwise), p = c1 + x ex + y ey
+    -/+ h ez with x = D/2, y = (i^2 + j^2 - 2 i x)/(2 j), h = sqrt(L^2 - x^2 - y^2): "below" takes
+    -h. c1 + x ex + y ey is the centres' circumcentre, R = sqrt(x^2 + y^2) their circumradius:
+    the spheres meet iff L >= R, and `gap` = R - L is how much longer the rods would need to be.
+    If the centres' plane is vertical (never for rails inclined below the horizontal) "below"
+    and "above" are ex x ey's -/+ side.
     """
     c = sphere_centres(params, q)
     c1, c2, c3 = c[..., 0, :], c[..., 1, :], c[..., 2, :]
@@ -340,6 +364,7 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
         j = np.linalg.norm(ey_raw, axis=-1)
         ey = ey_raw / j[..., None]
         ez = np.cross(ex, ey)
+        ez *= np.where(ez[..., 2:] < 0, -1.0, 1.0)  # up, whatever the limbs' numbering
         x = 0.5 * D
         y = (i * i + j * j - 2.0 * i * x) / (2.0 * j)
         h2 = params.L**2 - x * x - y * y
@@ -347,7 +372,9 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     h = np.sqrt(np.where(exists, np.maximum(h2, 0.0), np.nan))
     base = c1 + x[..., None] * ex + y[..., None] * ey
     p = np.stack([base - h[..., None] * ez, base + h[..., None] * ez], axis=-2)
-    return FKResult(p, exists, np.where(exists, 0.0, -h2))
+    with np.errstate(invalid="ignore"):
+        short = np.hypot(x, y) - params.L  # circumradius - L; inf for collinear centres (j = 0)
+    return FKResult(p, exists, np.where(exists, 0.0, np.where(np.isnan(short), np.inf, short)))
 
 
 # -- velocity and singularities ---------------------------------------------------------------

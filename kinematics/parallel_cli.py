@@ -148,7 +148,7 @@ def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
     reason = None if res.exists else (
         f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
-        f"(short by {math.sqrt(res.gap):.6g} m)")
+        f"(the rods would need to be {float(res.gap):.6g} m longer)")
     payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
 
     def human() -> str:

@@ -16,6 +16,7 @@ l1, l2 and the limits come from the URDF through `ScaraParams.from_robot`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -212,6 +213,54 @@ def ik(p: ScaraParams, xy: np.ndarray) -> ScaraIK:
     with np.errstate(invalid="ignore"):
         within = np.all((out >= lo) & (out <= hi), axis=-1) & reachable[..., None]
     return ScaraIK(out, reachable, within)
+
+
+def ik_elbow(p: ScaraParams, x: float, y: float, elbow: float) -> tuple[float, float] | None:
+    """One elbow's IK solution of one point, scalar (for real-time loops): the formulas of `ik`.
+
+    Args:
+        elbow: the sign of theta2, -1 (ELBOWS[0], "up") or +1 ("down").
+
+    Returns:
+        (theta1, theta2) [rad], theta1 wrapped to (-pi, pi]; None outside the annulus
+        (beyond BOUNDARY_TOL, as in `ik`). Joint limits are not checked.
+    """
+    r = math.hypot(x, y)
+    inner, outer = abs(p.l1 - p.l2), p.l1 + p.l2
+    far = (outer - r) * (outer + r)
+    near = (r - inner) * (r + inner)
+    tol = BOUNDARY_TOL * outer * outer
+    if far < -tol or near < -tol:
+        return None
+    t2 = math.copysign(2.0 * math.atan2(math.sqrt(max(far, 0.0)), math.sqrt(max(near, 0.0))), elbow)
+    t1 = math.atan2(y, x) - math.atan2(p.l2 * math.sin(t2), p.l1 + p.l2 * math.cos(t2))
+    if t1 <= -math.pi:
+        t1 += 2 * math.pi
+    elif t1 > math.pi:
+        t1 -= 2 * math.pi
+    return t1, t2
+
+
+def ellipse_point(p: ScaraParams, t1: float, t2: float) -> tuple[float, float, tuple[float, float]]:
+    """The manipulability ellipse at one configuration, scalar (for real-time loops): the closed
+    forms of `manipulability` (r_min = |l1 l2 s2| / r_max, accurate up to the singularity).
+
+    Returns:
+        (r_min, r_max [m], unit direction of the minor axis, canonical sign as in `manipulability`).
+    """
+    s2, c2 = math.sin(t2), math.cos(t2)
+    ls, lc = p.l2 * s2, p.l2 * c2
+    reach = p.l1 + lc
+    a = 2.0 * ls * ls
+    b = -ls * (reach + lc)
+    c = reach * reach + lc * lc
+    half_diff = 0.5 * (a - c)
+    r_max = math.sqrt(0.5 * (a + c) + math.hypot(half_diff, b))
+    r_min = abs(p.l1 * p.l2 * s2) / r_max if r_max > 0 else 0.0
+    psi = 0.5 * math.atan2(b, half_diff) + t1
+    mx, my = -math.sin(psi), math.cos(psi)
+    sign = math.copysign(1.0, mx if abs(mx) >= abs(my) else my)
+    return r_min, r_max, (mx * sign, my * sign)
 
 
 class IKSolution(NamedTuple):

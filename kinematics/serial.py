@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InvalidInputError, UnknownNameError
-from .model import Robot
+from .model import Robot, matrix
 
 Task = Literal["auto", "planar", "translation", "rotation", "full"]
 TASKS: tuple[str, ...] = ("auto", "planar", "translation", "rotation", "full")
@@ -39,7 +39,7 @@ def common_axis(model: pin.Model, q: np.ndarray | None = None) -> np.ndarray | N
     axes, slides = [], []
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
-        J = pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED)
+        J = matrix(pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED), model.nv)
         for col in J[:, joint.idx_v : joint.idx_v + joint.nv].T:  # this joint's own motion
             lin, ang = col[:3], col[3:]
             if np.linalg.norm(ang) < _PARALLEL_TOL:
@@ -105,7 +105,7 @@ def frame_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None) -> np.
     """6 x nv Jacobian of `frame`, LOCAL_WORLD_ALIGNED: [v; w] = J q_dot, v the frame origin's
     velocity [m/s] and w the angular velocity [rad/s], both in world axes."""
     fid = robot.frame_id(frame)
-    return pin.computeFrameJacobian(robot.model, robot.data, q, fid, pin.LOCAL_WORLD_ALIGNED).copy()
+    return matrix(pin.computeFrameJacobian(robot.model, robot.data, q, fid, pin.LOCAL_WORLD_ALIGNED), robot.nv).copy()
 
 
 def task_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None, task: Task = "auto") -> np.ndarray:

@@ -61,9 +61,18 @@ def test_jacobian(capsys):
     assert code == 0
     assert set(data) >= {"J", "Jx", "Jq", "det_Jx", "det_Jq", "singularity"}
     assert data["singularity"] == "none" and data["mode"] == "---"
-    J, Jx, Jq = (np.array(data[k]) for k in ("J", "Jx", "Jq"))
-    np.testing.assert_allclose(Jq @ J, Jx, atol=1e-12)
-    assert data["det_Jx"] == pytest.approx(np.linalg.det(Jx))
+    # independent of the report's own algebra: J against central differences of the IK in mode
+    # "---" (h = 1e-6 m: truncation ~h^2, rounding ~1e-16/h; atol 1e-8), J_x's rows against the
+    # rods C_i - B_i built here from the design (P2USParams defaults = the built-in URDF)
+    from kinematics import parallel as par
+
+    P, p, m, h = par.P2USParams(), np.array([0.0, 0.0, -0.45]), par.mode_index("---"), 1e-6
+    fd = np.stack([(par.ik(P, p + h * e).q[m] - par.ik(P, p - h * e).q[m]) / (2 * h) for e in np.eye(3)], axis=1)
+    np.testing.assert_allclose(np.array(data["J"]), fd, atol=1e-8)
+    q = par.ik(P, p).q[m]
+    rods = p + P.d * P.e - P.b * P.e - q[:, None] * P.w
+    np.testing.assert_allclose(np.array(data["Jx"]), rods, atol=1e-12)
+    assert data["det_Jx"] == pytest.approx(np.linalg.det(rods), rel=1e-9)
     code, data, _ = run_json(capsys, "jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "+++")
     assert code == 0 and data["mode"] == "+++" and data["within_limits"] is False
     code, data, _ = run_json(capsys, "jacobian", "p2us", "--position", "2", "0", "0")

@@ -140,3 +140,28 @@ def test_generic_four_bar():
         plus = cl.solve([crank + h], q0=sol.q).pose.translation
         minus = cl.solve([crank - h], q0=sol.q).pose.translation
         np.testing.assert_allclose(G[:3, 0], (plus - minus) / (2 * h), atol=1e-8)
+
+
+def test_idle_freedom_is_not_a_singularity(capsys):
+    """Defect 2: the RSSR's coupler spins idly between its spherical joints, so K_p always has a
+    null direction, but the rocker's motion is determined by the crank. The constrained Jacobian
+    must exist and match finite differences of the loop solver's poses (an independent path:
+    Newton closure at crank +/- h, no Jacobian algebra). Central differences with h = 1e-6 rad:
+    truncation ~h^2 |d3x| ~ 1e-13 m/rad, rounding ~ 1e-12 (closure tol) / h = 1e-6 m/rad, so
+    atol 1e-5 m/rad."""
+    from .test_cli import run
+
+    robot = load_robot(MODELS / "rssr.urdf")
+    cl = ClosedLoop(robot)
+    h = 1e-6
+    for crank in (-2.5, -0.7, 0.6, 1.9):
+        sol = cl.solve([crank])
+        _, K = cl.residual(sol.q)
+        assert K.shape[0] < len(cl.passive_v)  # a passive freedom the loops leave free
+        G = cl.constrained_jacobian(sol.q)
+        plus, minus = (cl.solve([crank + s], q0=sol.q).pose for s in (h, -h))
+        np.testing.assert_allclose(G[:3, 0], (plus.translation - minus.translation) / (2 * h), atol=1e-5)
+        w = pin.log3(plus.rotation @ minus.rotation.T) / (2 * h)
+        np.testing.assert_allclose(G[3:, 0], w, atol=1e-5)
+    code, out, err = run(capsys, "jacobian", str(MODELS / "rssr.urdf"), "--q", "0.6")
+    assert code == 0 and err == "" and "twist" in out

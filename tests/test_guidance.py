@@ -213,3 +213,139 @@ def test_guide_cli(capsys, tmp_path):
     for bad in (["--mass", "-1"], ["--force", "nan"], ["--dt", "0"], ["--robot", "p2us"]):
         code, out, err = run(capsys, "guide", "--experiment", "2", *bad)
         assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+
+
+# -- hardening (issue 11) -----------------------------------------------------------------------
+def test_no_elbow_flip_at_the_joint1_limit(sp):
+    """Defect 1: at theta1 = 110 deg - 1e-4 rad, elbow up (q2 = -1), a tangential push that
+    would take joint 1 past its limit must hold the arm, not jump to the other elbow (q2 = +1,
+    q2dot ~ 2000 rad/s). Bound: with |v| <= 0.25 m/s and |J^-1| <= 1/r_min, a step moves each
+    joint by at most 0.25 * 1e-3 / r_min ~ 1e-3 rad here; 10 rad/s is two decades above that."""
+    kin = ScaraKinematics(sp)
+    q0 = np.array([math.radians(110) - 1e-4, -1.0])
+    x0 = kin.fk(q0)
+    push = 10.0 * np.array([-x0[1], x0[0]]) / np.linalg.norm(x0)  # tangential, increasing theta1
+    ctrl = Controller(kin, GuidanceParams(), q0)
+    steps = [ctrl.step(push) for _ in range(50)]
+    assert all(np.abs(s.qdot).max() < 10.0 for s in steps)
+    assert all(s.q[1] < 0 for s in steps)  # never the other elbow
+    assert all(s.q[0] <= sp.upper[0] for s in steps)
+    held = [s for s in steps if s.blocked]
+    assert held and all(not s.v.any() for s in held)
+    assert "joint1" in held[0].reason and "other elbow" in held[0].reason
+    assert all(s.reason is None for s in steps if not s.blocked)
+    run = simulate(kin, GuidanceParams(), q0, Profile("step", tuple(push / 10.0), 10.0, 0.0), push, 0.05)
+    assert run.summary()["blocked_steps"] > 0 and "other elbow" in run.summary()["first_refusal"]
+
+
+def test_ik_holds_branch_and_stretched_is_either(sp):
+    kin = ScaraKinematics(sp)
+    # a target the current (up) elbow reaches only beyond joint 1's limit, the down elbow within
+    q_up = np.array([math.radians(110) - 1e-4, -1.0])
+    target = fk(sp, np.array([math.radians(110) + 1e-3, -1.0]))
+    assert kin.ik(target, q_up) is None
+    down = kin.ik(target, np.array([1.0, 1.0]))
+    assert down is not None and down[1] > 0
+    np.testing.assert_allclose(fk(sp, down), target, atol=1e-12)
+    # from the stretched pose (theta2 = 0) either elbow continues: the nearer one is taken
+    q = kin.ik(np.array([0.69, 0.01]), np.array([0.0, 0.0]))
+    assert q is not None and np.abs(q).max() < 0.5
+
+
+def test_scalar_closed_forms_match_vectorised(sp, rng):
+    """The guidance adapter's scalar forms are the library's: same IK (incl. within
+    BOUNDARY_TOL of the outer radius, where acos would lose half the digits) and radii."""
+    from kinematics.scara import BOUNDARY_TOL, ellipse_point, ik, ik_elbow, manipulability
+
+    pts = rng.uniform(-0.7, 0.7, (300, 2))
+    ang = rng.uniform(-np.pi, np.pi, 50)
+    outer = sp.l1 + sp.l2
+    edge = (outer * (1 + rng.uniform(-1, 1, 50) * BOUNDARY_TOL))[:, None] * np.stack([np.cos(ang), np.sin(ang)], -1)
+    pts = np.concatenate([pts, edge])
+    ref = ik(sp, pts)
+    for k, sign in enumerate((-1.0, 1.0)):
+        for xy, qr, ok in zip(pts, ref.q[:, k], ref.reachable, strict=True):
+            got = ik_elbow(sp, xy[0], xy[1], sign)
+            assert (got is not None) == ok
+            if ok:
+                assert got == (qr[0], qr[1]) or np.allclose(got, qr, atol=1e-15, rtol=0)
+    qs = rng.uniform(sp.lower, sp.upper, (200, 2))
+    m = manipulability(sp, qs)
+    for q, radii, d in zip(qs, m.radii, m.directions[:, 0], strict=True):
+        r_min, r_max, u = ellipse_point(sp, *q)
+        np.testing.assert_allclose([r_min, r_max], radii, rtol=1e-14, atol=1e-17)
+        np.testing.assert_allclose(u, d, atol=1e-12)
+
+
+def test_serial_guidance_continuous_joints():
+    """Defect 5: kinova has continuous joints (nq = 9, nv = 6); the serial adapter steps on the
+    configuration manifold and reports joint rates of size nv."""
+    import pinocchio as pin
+
+    from kinematics.model import load_robot
+
+    robot = load_robot("kinova")
+    assert robot.model.nq != robot.model.nv
+    kin = SerialKinematics(robot)
+    bounded = np.isfinite(robot.lower)
+    mid = np.full(robot.nv, 0.3)
+    mid[bounded] = 0.5 * (robot.lower[bounded] + robot.upper[bounded])
+    q0 = robot.configuration(mid)
+    r = simulate(kin, GuidanceParams(), q0, Profile("step", (1.0, 0.0, 0.0), 5.0, 0.0), (1.0, 0.0, 0.0), 0.3)
+    assert r.q.shape[1] == 9 and r.qdot.shape[1] == 6 and not r.blocked.any()
+    assert r.x[-1, 0] > r.x[0, 0] + 0.01  # it moved along the push
+    for q, x in zip(r.q[::50], r.x[::50], strict=True):
+        np.testing.assert_allclose(kin.fk(q), x, atol=1e-6)  # the IK's own acceptance tolerance
+    vals = np.array([robot.values_from_configuration(q) for q in r.q])
+    assert np.all(robot.within_limits(vals))
+    # joint rates: the manifold difference (not q - q_prev, which has the wrong size)
+    np.testing.assert_allclose(r.qdot[10], pin.difference(robot.model, r.q[9], r.q[10]) / 1e-3, atol=1e-9)
+
+
+def test_ramp_edge_cases():
+    with pytest.raises(InvalidInputError, match="t1"):
+        Profile("ramp", (1.0,), 3.0, 1.0)  # t1 = inf: the ramp would never rise
+    with pytest.raises(InvalidInputError, match="t1"):
+        Profile("pulse", (1.0,), 3.0, 2.0, 1.0)
+    step = Profile("ramp", (1.0,), 3.0, 1.0, 1.0)  # t1 = t0: a step
+    assert step(0.999, None) == 0.0 and step(1.0, None) == 3.0 and step(5.0, None) == 3.0
+    assert Profile("step", (1.0,), 3.0, 1.0)(2.0, None) == 3.0
+    with pytest.raises(InvalidInputError, match="rise"):
+        ReactiveOperator((1.0, 0.0), 5.0, rise=0.0)
+    with pytest.raises(InvalidInputError, match="rise"):
+        StubbornOperator((1.0, 0.0), 5.0, rise=0.0)
+
+
+def test_reused_operator_gives_the_same_run(sp):
+    """A ReactiveOperator remembers when it let go; re-used for a second run (from a start
+    farther from the wall) it must push like a fresh one, not let go at the first run's time."""
+    from kinematics.scara import ik
+
+    near, far = (ik(sp, np.array([x, 0.0])).q[0] for x in (0.62, 0.4))
+    kin, p = ScaraKinematics(sp), GuidanceParams()
+    op = ReactiveOperator((1.0, 0.0), 6.0, feel=125.0)
+    simulate(kin, p, near, op, (1.0, 0.0), 4.0)
+    again = simulate(kin, p, far, op, (1.0, 0.0), 4.0)
+    fresh = simulate(kin, p, far, ReactiveOperator((1.0, 0.0), 6.0, feel=125.0), (1.0, 0.0), 4.0)
+    assert fresh.force.max() > 5.9
+    np.testing.assert_array_equal(again.force, fresh.force)
+    np.testing.assert_array_equal(again.x, fresh.x)
+
+
+def test_no_branch_change_from_random_starts(sp, rng):
+    """Property behind defect 1: from 100 seeded starts across the joint space (|theta2| > 0.3),
+    hard pushes in random directions for 300 steps never change the elbow's sign; the elbows
+    only meet at theta2 = 0, which |theta2| > 0.05 throughout rules out here."""
+    kin = ScaraKinematics(sp)
+    p = GuidanceParams()
+    for _ in range(100):
+        q0 = rng.uniform(sp.lower, sp.upper)
+        if abs(q0[1]) < 0.3:
+            continue
+        ctrl = Controller(kin, p, q0)
+        f = rng.normal(size=2)
+        f *= 40.0 / np.linalg.norm(f)
+        qs = np.array([ctrl.step(f).q for _ in range(300)])
+        if np.abs(qs[:, 1]).min() > 0.05:
+            assert np.all(np.sign(qs[:, 1]) == np.sign(q0[1]))
+        assert np.all(qs >= np.array(sp.lower)) and np.all(qs <= np.array(sp.upper))

@@ -155,3 +155,34 @@ def test_cli_bad_input(capsys):
     ]:
         code, out, err = run(capsys, *argv)
         assert code == 2 and needle in err and err.count("\n") == 1, (argv, err)
+
+
+def test_serial_default_is_regular_and_singular_poses_are_flagged(ur5, capsys):
+    """Defect 8: UR5's default used to be q = 0 (the middle of +/-2 pi ranges), a singular pose,
+    reported as 5 platform freedoms and an 'idle' joint. Oracle for (ir)regularity: the rank of
+    a central-difference tool Jacobian (test_serial._fd_jacobian, FK only); a regular pose's
+    sixth singular value is > 1e-3 of the first, a singular one's ~ the FD error (1e-8)."""
+    from .test_serial import _fd_jacobian
+
+    reg = mob.regular_configuration(ur5)
+    assert np.all(ur5.within_limits(reg.values)) and reg.generic_rank == 6
+    s = np.linalg.svd(_fd_jacobian(ur5, reg.values), compute_uv=False)
+    assert s[5] / s[0] > 1e-3
+    code, data, _ = run_json(capsys, "mobility", "ur5")
+    assert code == 0 and data["numeric"]["platform_freedoms"] == 6
+    assert data["numeric"]["idle"] == 0 and data["numeric"]["redundant"] == 0 and data["notes"] == []
+    # q = 0 is singular (independently: the FD Jacobian loses a rank), and is flagged as such
+    s0 = np.linalg.svd(_fd_jacobian(ur5, np.zeros(6)), compute_uv=False)
+    assert s0[5] / s0[0] < 1e-7
+    rep = mob.analyse(ur5, ur5.configuration(np.zeros(6)))
+    assert rep.numeric.platform_freedoms == 5 and rep.numeric.idle == 0 and rep.numeric.redundant == 1
+    assert any(n.startswith("singular configuration") for n in rep.notes)
+    assert not any("idle" in n for n in rep.notes)
+
+
+def test_surplus_freedoms_of_a_serial_arm_are_redundant():
+    panda = load_robot("panda")
+    rep = mob.analyse(panda, mob.regular_configuration(panda).q)
+    assert rep.numeric.redundant == panda.nv - 6 and rep.numeric.idle == 0
+    assert any("redundant" in n and "by design" in n for n in rep.notes)
+    assert not any("idle" in n or "singular" in n for n in rep.notes)

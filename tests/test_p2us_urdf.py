@@ -118,3 +118,32 @@ def test_invalid_designs_rejected():
     for bad in ({"L": -1.0}, {"b": float("nan")}, {"stroke": (0.6, 0.1)}, {"phi_limits": (-2.0, 2.0)}):
         with pytest.raises(InvalidInputError):
             P2USParams().replace(**bad)
+
+
+@pytest.mark.parametrize(("change", "parameter"), [
+    ({"alpha": (0.0, 0.0, 0.0)}, "alpha"),
+    ({"alpha": (0.0, 2 * math.pi, 2.0)}, "alpha"),  # the same limb angle modulo 360 degrees
+    ({"d": 1.0}, "d"),
+    ({"d": 0.325}, "d"),  # d = b: every rail starts on the platform's circle
+    ({"beta": math.radians(400)}, "beta"),
+    ({"beta": -0.1}, "beta"),
+])
+def test_degenerate_designs_rejected(change, parameter):
+    """Defect 7: degenerate designs raise InvalidDesignError carrying the parameter and value,
+    from the parameters (so the generator, the reader and the sweep all refuse them)."""
+    from kinematics.errors import InvalidDesignError
+
+    with pytest.raises(InvalidDesignError) as info:
+        P2USParams().replace(**change)
+    assert info.value.parameter == parameter and "\n" not in str(info.value)
+    assert P2USParams().replace(beta=math.pi / 2).beta == math.pi / 2  # vertical rails are a design
+
+
+def test_degenerate_design_cli(tmp_path, capsys):
+    from .test_cli import run
+
+    for flags in (["--alpha", "0", "0", "0"], ["--d", "1"], ["--degrees", "--beta", "400"]):
+        out = tmp_path / "x.urdf"
+        code, stdout, err = run(capsys, "urdf", "p2us", *flags, "-o", str(out))
+        assert code == 2 and stdout == "" and len(err.strip().splitlines()) == 1
+        assert not out.exists() and not list(tmp_path.iterdir())

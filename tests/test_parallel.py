@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -70,11 +72,26 @@ def test_fk_ik_property(q1, q2, q3):
         assert np.min(np.max(np.abs(ik.q - q), axis=-1)) <= 1e-9
 
 
+def _stroke_at_home(P, z):
+    """The actuator value putting the platform at (0, 0, z) in the smaller-q root, from the
+    geometry's definitions (B = A + q w, C = p + d e, |C - B| = L) by a bracketing root solve,
+    not from the code's quadratic."""
+    from scipy.optimize import brentq
+
+    A, w, C = P.b * P.e[0], P.w[0], np.array([0, 0, z]) + P.d * P.e[0]
+    rod = lambda q: np.linalg.norm(C - A - q * w) - P.L  # noqa: E731
+    qs = np.linspace(0.0, 1.0, 1001)
+    k = np.flatnonzero(np.diff(np.sign([rod(q) for q in qs])))[0]
+    return brentq(rod, qs[k], qs[k + 1], xtol=1e-15)
+
+
 def test_fk_assembly_modes_and_unreachable(p2us_params):
     P = p2us_params
-    res = par.fk(P, np.array([0.2135504881, 0.2135504881, 0.2135504881]))
+    q0 = _stroke_at_home(P, -0.45)
+    res = par.fk(P, np.full(3, q0))
     assert res.exists and res.p[0, 2] < res.p[1, 2]  # "below" is the lower one
-    np.testing.assert_allclose(res.p[0], [0, 0, -0.45], atol=1e-9)
+    # brentq's xtol 1e-15 m on q moves p by ~|dp/dq| 1e-15; 1e-12 m covers rounding of fk
+    np.testing.assert_allclose(res.p[0], [0, 0, -0.45], atol=1e-12)
     far = par.fk(P, np.array([0.1, 0.6, 0.6]) * 5)
     assert not far.exists and far.gap > 0 and np.all(np.isnan(far.p))
     with pytest.raises(InvalidInputError):
@@ -144,8 +161,15 @@ def test_jacobians_against_finite_differences(p2us_params, rng):
         fd = (par.ik(P, p + dp).q[rows, m] - par.ik(P, p - dp).q[rows, m]) / (2 * h)
         np.testing.assert_allclose(fd, J[..., k], rtol=1e-6, atol=1e-7)
     assert good.sum() > 100
+    # J^-1 = dp/dq along the FK branch: central differences of the closed-form FK (a separate
+    # path: sphere intersection, no Jacobian algebra). Same h and conditioning as above.
     inv = par.jacobian_inverse(P, p, q)
-    np.testing.assert_allclose(inv @ J, np.broadcast_to(np.eye(3), inv.shape), atol=1e-9)
+    mode = np.argmin(np.linalg.norm(par.fk(P, q).p - p[:, None, :], axis=-1), axis=-1)
+    for k in range(3):
+        dq = np.zeros(3)
+        dq[k] = h
+        fd = (par.fk(P, q + dq).p[rows, mode] - par.fk(P, q - dq).p[rows, mode]) / (2 * h)
+        np.testing.assert_allclose(fd, inv[..., k], rtol=1e-6, atol=1e-7)
 
 
 def test_type_one_rod_perpendicular_to_actuator(p2us_params):
@@ -215,3 +239,104 @@ def test_paper_table3_does_not_reproduce(p2us_params):
 def test_degrees_of_modes_at_home(p2us_params):
     res = par.ik(p2us_params, np.array([0.0, 0.0, -0.45]))
     assert list(np.array(par.MODES)[res.within_limits]) == ["---"]
+
+
+# -- hardening (issue 11) -----------------------------------------------------------------------
+def _sphere_roots(P, q):
+    """Both platform positions at distance L from the three sphere centres, by scipy root
+    solves of |p - c_i|^2 = L^2 from starts around the centres (independent of `fk`),
+    lower one first."""
+    from scipy.optimize import root
+
+    c = par.sphere_centres(P, q)
+    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.L**2  # noqa: E731
+    roots: list[np.ndarray] = []
+    for start in np.concatenate([np.eye(3), -np.eye(3)]) * 2 * P.L + c.mean(axis=0):
+        sol = root(f, start, method="lm", options={"xtol": 1e-15, "ftol": 1e-15}).x
+        if np.abs(f(sol)).max() < 1e-13 and all(np.linalg.norm(sol - r) > 1e-6 for r in roots):  # m^2, m
+            roots.append(sol)
+    assert len(roots) == 2
+    return sorted(roots, key=lambda r: r[2])
+
+
+@pytest.mark.parametrize("alpha_deg", [(0, 120, 240), (0, 240, 120), (-90, 150, 30)])
+def test_fk_assembly_labels_by_geometry(alpha_deg, rng):
+    """Defect 3: "below" is the lower solution whatever the limbs' numbering (counter-clockwise
+    or clockwise) and whichever way the sphere centres' triangle faces (a carriage past the
+    axis flips it). Oracle: scipy root solves. Both are exact solutions of the same equations:
+    1e-9 m allows ~1e-12 m^2 residuals / |gradient| ~ 0.5 m near-tangent cases (h > 1 cm kept)."""
+    P = par.P2USParams(alpha=tuple(np.radians(alpha_deg)))
+    q = rng.uniform(*P.stroke, (40, 3))
+    res = par.fk(P, q)
+    checked = 0
+    for qq, ok, p in zip(q, res.exists, res.p, strict=True):
+        if not ok or abs(p[1, 2] - p[0, 2]) < 0.02:
+            continue
+        below, above = _sphere_roots(P, qq)
+        np.testing.assert_allclose(p[0], below, atol=1e-9)
+        np.testing.assert_allclose(p[1], above, atol=1e-9)
+        checked += 1
+    assert checked >= 20
+
+
+def test_fk_shortfall_is_a_length():
+    """Defect 4: where the spheres do not meet, `gap` is how much longer the rods must be [m]:
+    the centres' circumradius (Heron's formula, independent of fk's frame) minus L, and rods
+    that much longer (to 1e-9 relative) just assemble."""
+    P = par.P2USParams()
+    for q in (np.array([0.5, 3.0, 3.0]), np.array([0.6, 0.6, 2.2]), np.array([0.1, 0.6, 1.5])):
+        res = par.fk(P, q)
+        assert not res.exists
+        c = par.sphere_centres(P, q)
+        a, b, cc = (np.linalg.norm(c[i] - c[j]) for i, j in ((0, 1), (1, 2), (2, 0)))
+        s = 0.5 * (a + b + cc)
+        R = a * b * cc / (4 * np.sqrt(s * (s - a) * (s - b) * (s - cc)))
+        assert res.gap == pytest.approx(R - P.L, rel=1e-12)
+        assert par.fk(P.replace(L=P.L + res.gap * (1 + 1e-9)), q).exists
+        assert not par.fk(P.replace(L=P.L + res.gap * (1 - 1e-6)), q).exists
+
+
+def test_type_three_both_matrices_singular(p2us_params):
+    """A type III pose built from the geometry alone: limb 1's rod perpendicular to its rail
+    (n1 = cos u a + sin u c, a and c spanning the plane normal to w1, slider at 0.4 m), limbs 2
+    and 3 closed by their own root solves, and u found by bisection where the rods become
+    coplanar (det[n1; n2; n3] = 0). Then iota_I = 0 (to rounding) and iota_II = 0 (to brentq's
+    xtol), so both are far below SINGULAR_TOL and the pose must be "type III"."""
+    from scipy.optimize import brentq
+
+    P = p2us_params
+    w1 = P.w[0]
+    a = np.cross(w1, P.t[0])
+    a /= np.linalg.norm(a)
+    c = np.cross(w1, a)
+    q1 = 0.4  # at 0.3 m the rods only turn coplanar across the other limbs' reach gaps
+
+    def pose(u, root):
+        n1 = np.cos(u) * a + np.sin(u) * c
+        p = P.base_points[0] + q1 * w1 + P.L * n1 - P.d * P.e[0]
+        q, n = [q1], [n1]
+        for i in (1, 2):
+            v = p + P.d * P.e[i] - P.base_points[i]  # C_i - A_i; rod = v - q w_i
+            B, C = -2 * v @ P.w[i], v @ v - P.L**2  # |v - q w|^2 = L^2: q^2 + B q + C = 0
+            disc = B * B - 4 * C
+            if disc < 0:
+                return None
+            qi = (-B + (1 if root[i - 1] else -1) * np.sqrt(disc)) / 2
+            q.append(qi)
+            n.append((v - qi * P.w[i]) / P.L)
+        return p, np.array(q), np.array(n)
+
+    u = np.linspace(0, 2 * np.pi, 721)
+    found = None
+    for root in itertools.product((0, 1), repeat=2):
+        dets = [np.linalg.det(r[2]) if (r := pose(x, root)) is not None else np.nan for x in u]
+        k = np.flatnonzero(np.isfinite(dets[:-1]) & np.isfinite(dets[1:]) & (np.sign(dets[:-1]) != np.sign(dets[1:])))
+        if k.size:
+            found = brentq(lambda x: np.linalg.det(pose(x, root)[2]), u[k[0]], u[k[0] + 1], xtol=1e-15), root
+            break
+    assert found is not None
+    p, q, _ = pose(*found)
+    jac = par.jacobians(P, p, q)
+    assert jac.iota_I < 1e-12 and jac.iota_II < 1e-12
+    assert par.SINGULARITY_TYPES[int(par.classify(jac.iota_I, jac.iota_II))] == "type III"
+    assert abs(jac.Jq[0]) < 1e-12 and abs(np.linalg.det(jac.Jx)) < 1e-12 * P.L**3

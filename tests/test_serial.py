@@ -51,10 +51,40 @@ def test_frame_jacobian_matches_finite_differences(name, rng):
         np.testing.assert_allclose(J, _fd_jacobian(robot, v), atol=1e-8)
 
 
-def test_task_jacobian_selects_rows(ur5, rng):
-    v = rng.uniform(ur5.lower, ur5.upper)
-    q = ur5.configuration(v)
-    full = frame_jacobian(ur5, q)
-    np.testing.assert_array_equal(task_jacobian(ur5, q), full[:3])
-    np.testing.assert_array_equal(task_jacobian(ur5, q, task="rotation"), full[3:])
-    np.testing.assert_array_equal(task_jacobian(ur5, q, frame="wrist_1_link"), frame_jacobian(ur5, q, "wrist_1_link")[:3])
+def test_task_jacobian_matches_finite_differences(ur5, scara, rng):
+    """The task rows against central differences of FK (not against slices of frame_jacobian,
+    which is how task_jacobian is built). h = 1e-6: truncation h^2 |d3x| ~ 1e-12, rounding
+    eps |x| / h ~ 1e-10 m/rad; atol 1e-8."""
+    for robot, frame in ((ur5, None), (ur5, "wrist_1_link"), (scara, None)):
+        v = rng.uniform(robot.lower, robot.upper)
+        fd = _fd_jacobian(robot, v, frame)
+        q = robot.configuration(v)
+        np.testing.assert_allclose(task_jacobian(robot, q, frame), fd[list(task_rows(robot))], atol=1e-8)
+        np.testing.assert_allclose(task_jacobian(robot, q, frame, task="rotation"), fd[3:], atol=1e-8)
+    assert task_jacobian(scara, scara.configuration([0.1, 0.2])).shape == (2, 2)
+
+
+def test_one_dof_robot(capsys):
+    """Defect 6: a 1-DOF URDF (Pinocchio hands its 6 x 1 Jacobians back as 1-D arrays).
+    Oracles: the pendulum's closed form, tool = (0.5 cos q, 0.5 sin q, 0.1) m."""
+    from pathlib import Path
+
+    from .test_cli import run_json
+
+    path = Path(__file__).parent / "models" / "pendulum.urdf"
+    robot = load_robot(path)
+    q = 0.3
+    J = frame_jacobian(robot, robot.configuration([q]))
+    assert J.shape == (6, 1)
+    np.testing.assert_allclose(J[:, 0], [-0.5 * np.sin(q), 0.5 * np.cos(q), 0, 0, 0, 1], atol=1e-15)
+    assert plane(robot) == (0, 1)
+    code, d, _ = run_json(capsys, "info", str(path))
+    assert code == 0 and d["dof"] == 1
+    code, d, _ = run_json(capsys, "fk", str(path), "--q", "0.3")
+    assert code == 0
+    np.testing.assert_allclose(d["position"][:2], [0.5 * np.cos(q), 0.5 * np.sin(q)], atol=1e-15)
+    code, d, _ = run_json(capsys, "jacobian", str(path), "--q", "0.3")
+    assert code == 0
+    np.testing.assert_allclose(d["jacobian"], [[-0.5 * np.sin(q)], [0.5 * np.cos(q)]], atol=1e-15)
+    code, d, _ = run_json(capsys, "mobility", str(path))
+    assert code == 0 and d["grubler"]["mobility"] == 1 and d["numeric"]["mobility"] == 1

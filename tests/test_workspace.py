@@ -117,13 +117,41 @@ def test_adaptive_volume_validates():
 
 
 # -- workspaces ------------------------------------------------------------------------------------------
+def scara_area_closed_form(sp: ScaraParams) -> float:
+    """Reachable area of a planar 2R arm with symmetric joint-2 limits +/-T (T <= pi) and a
+    joint-1 range W with W + 2 max(psi) < 2 pi (true for the SCARA: 220 + 97 < 360 degrees).
+
+    Each elbow's map is one-to-one, so its area is the integral of |det J| = l1 l2 |sin t| over
+    its joint range: W l1 l2 (1 - cos T). At the radius where |theta2| = t the two elbows cover
+    arcs of width W offset by 2 psi(t), psi = atan2(l2 sin t, l1 + l2 c t), overlapping over
+    W - 2 psi; with r dr = l1 l2 sin t dt the overlap is int_0^T (W - 2 psi) l1 l2 sin t dt. The
+    union: l1 l2 [W (1 - cos T) + 2 int_0^T psi(t) sin t dt], a smooth integral (scipy quad).
+    """
+    from scipy.integrate import quad
+
+    W, T = sp.upper[0] - sp.lower[0], sp.upper[1]
+    assert sp.lower[1] == -T and T <= math.pi and sp.l1 > sp.l2
+    assert W + 2 * math.asin(sp.l2 / sp.l1) < 2 * math.pi
+    integral, _ = quad(lambda t: math.atan2(sp.l2 * math.sin(t), sp.l1 + sp.l2 * math.cos(t)) * math.sin(t),
+                       0.0, T, epsabs=1e-15, epsrel=1e-13, limit=200)
+    return sp.l1 * sp.l2 * (W * (1 - math.cos(T)) + 2 * integral)
+
+
 def test_scara_area_two_ways(scara):
+    """The adaptive estimate and the polar quadrature against the closed form. The estimator's
+    Richardson error assumes second-order convergence; where the joint limits meet the
+    annulus the boundary has kinks and it is first order, so its error bar is allowed a factor 3
+    (the same honesty margin as on the spheres above)."""
     sp = ScaraParams.from_robot(scara)
+    exact = scara_area_closed_form(sp)
     ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False)
-    exact = scara_area_quadrature(sp)
     assert ws.result.converged
-    assert ws.total == pytest.approx(exact, rel=3e-4)  # kinks where limits meet the annulus: ~1st order
+    assert abs(ws.total - exact) <= 3 * ws.result.error[-1]
     assert ws.result.lower[-1] <= exact <= ws.result.upper[-1]
+    # the quadrature's integrand r * (arc measure) jumps where an elbow meets its joint-2 limit,
+    # so Simpson is first order there: error <= h * jump / area ~ 3e-5 m * 2.7 m / 0.97 m^2
+    # ~ 8e-5 relative (h = 0.6 m / 20000); measured 1.0e-5
+    assert scara_area_quadrature(sp) == pytest.approx(exact, rel=1e-4)
     free = ScaraParams(sp.l1, sp.l2, (-math.pi, -math.pi), (math.pi, math.pi))
     ring = math.pi * ((sp.l1 + sp.l2) ** 2 - (sp.l1 - sp.l2) ** 2)
     assert scara_area_quadrature(free) == pytest.approx(ring, rel=1e-6)
@@ -134,9 +162,9 @@ def test_scara_area_two_ways(scara):
 def test_p2us_volume_against_monte_carlo(p2us_params, limits):
     ws = p2us_workspace(p2us_params, step=0.02, rtol=2e-3, limits=limits, progress=False)
     mc, se = p2us_volume_monte_carlo(p2us_params, 1_000_000, np.random.default_rng(5), limits)
-    assert abs(ws.total - mc) < 4 * se + 2e-3 * mc
+    assert abs(ws.total - mc) < 4 * se + 2e-3 * mc  # 4 standard errors + the requested rtol
     r = ws.result
-    assert r.lower[-1] <= ws.total <= r.upper[-1]
+    assert r.lower[-1] - 4 * se <= mc <= r.upper[-1] + 4 * se  # the bounds, checked independently
     assert ws.total >= max(r.estimate[:-1]) - 1e-12  # the union contains every mode
     assert ws.total <= sum(r.estimate[:-1]) + 1e-12
 
@@ -191,3 +219,12 @@ def test_scara_singular_arc(scara):
     np.testing.assert_allclose(s["singular_q"][:, 1], 0.0, atol=1e-12)
     assert len(r) == len(s["theta1"])
     assert s["min_radius"].min() == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.xfail(strict=True, reason="the adaptive estimator stops at rtol 1e-4 with a Richardson error "
+                   "of 5.7e-5 relative, but its true error is 1.2e-4: first-order convergence at the limit kinks "
+                   "(volume engine, issue 11)")
+def test_scara_area_meets_requested_rtol(scara):
+    sp = ScaraParams.from_robot(scara)
+    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False)
+    assert abs(ws.total - scara_area_closed_form(sp)) <= 1e-4 * scara_area_closed_form(sp)
