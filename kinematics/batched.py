@@ -478,6 +478,10 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
         cs = np.empty(B)
         n0 = blk * B
         m = min(B, N - n0)
+        qt = np.empty((q.shape[1], B))  # the block's configurations, one row per coordinate
+        for b in range(m):
+            for c in range(q.shape[1]):
+                qt[c, b] = q[n0 + b, c]
         for b in range(m):
             for r in range(12):
                 st[r, b] = 0.0
@@ -501,25 +505,25 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
             col = iq[k]
             if kind[k] == 2:
                 for b in range(m):
-                    t = q[n0 + b, col]
+                    t = qt[col, b]
                     st[9, b] += t * (st[0, b] * ax + st[1, b] * ay + st[2, b] * az)
                     st[10, b] += t * (st[3, b] * ax + st[4, b] * ay + st[5, b] * az)
                     st[11, b] += t * (st[6, b] * ax + st[7, b] * ay + st[8, b] * az)
                 continue
             if kind[k] == 1:
                 for b in range(m):
-                    cs[b] = q[n0 + b, col]
-                    sn[b] = q[n0 + b, col + 1]
+                    cs[b] = qt[col, b]
+                    sn[b] = qt[col + 1, b]
             else:
                 big = 0.0
                 for b in range(m):
-                    big = max(big, abs(q[n0 + b, col]))
+                    big = max(big, abs(qt[col, b]))
                 if big > _REDUCE_MAX:
                     for b in range(m):
-                        sn[b], cs[b] = math.sin(q[n0 + b, col]), math.cos(q[n0 + b, col])
+                        sn[b], cs[b] = math.sin(qt[col, b]), math.cos(qt[col, b])
                 else:
                     for b in range(m):
-                        sn[b], cs[b] = _sincos_reduced(q[n0 + b, col])
+                        sn[b], cs[b] = _sincos_reduced(qt[col, b])
             i = aidx[k]
             if i >= 0:
                 sign = ax + ay + az
