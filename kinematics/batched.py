@@ -29,14 +29,19 @@ RevoluteUnaligned, PX/PY/PZ, PrismaticUnaligned), continuous (RUBX/RUBY/RUBZ,
 RevoluteUnboundedUnaligned) and fixed joints; anything else (free-flyer, spherical, planar,
 helical...) raises `UnsupportedRobotError`.
 
-The kernels run `prange` over chunks of `CHUNK` configurations (one scratch per chunk, so the
-extra memory is bounded whatever N), with fastmath off: results agree with Pinocchio to ~1e-15.
+The FK kernel carries blocks of 256 configurations through the chain one joint at a time (each
+step a loop over configurations, which vectorises); the Jacobian kernel goes configuration by
+configuration in chunks of `CHUNK`. Both run `prange` over blocks/chunks with one small scratch
+each, so the extra memory is bounded whatever N, and fastmath is off: results agree with
+Pinocchio to ~1e-15. Sine and cosine are computed in the kernels (see `_sincos_reduced`).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
@@ -50,7 +55,7 @@ from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
 
 CHUNK = 2048
-"""Configurations per parallel work item (its scratch is a few chain-sized arrays)."""
+"""Configurations per parallel work item of the Jacobian kernel (its scratch: two (n, 3) arrays)."""
 
 REVOLUTE, CONTINUOUS, PRISMATIC = 0, 1, 2
 
@@ -246,25 +251,20 @@ def _poses(rows: np.ndarray) -> BatchedPoses:
     return BatchedPoses(rows[:, :3], rows[:, 3:].reshape(-1, 3, 3), rows)
 
 
-class _threads:
-    """Context manager: run Numba kernels on `n` threads (None: leave as is)."""
+@contextmanager
+def _threads(n: int | None) -> Iterator[None]:
+    """Run Numba kernels on `n` threads inside the block (None: as configured)."""
+    import numba
 
-    def __init__(self, n: int | None) -> None:
-        self.n = n
-
-    def __enter__(self) -> None:
-        import numba
-
-        self.saved = numba.get_num_threads()
-        if self.n is not None:
-            if not 1 <= self.n <= numba.config.NUMBA_NUM_THREADS:
-                raise InvalidInputError("threads", f"must be 1..{numba.config.NUMBA_NUM_THREADS}, got {self.n}")
-            numba.set_num_threads(self.n)
-
-    def __exit__(self, *exc: object) -> None:
-        import numba
-
-        numba.set_num_threads(self.saved)
+    saved = numba.get_num_threads()
+    if n is not None:
+        if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+            raise InvalidInputError("threads", f"must be 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")
+        numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(saved)
 
 
 # -- convenience ----------------------------------------------------------------------------------
