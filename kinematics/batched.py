@@ -468,7 +468,8 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
     """`_pose` for every row of q, reorganised for SIMD: a block of configurations is carried
     through the chain one joint at a time (state R, p as 12 rows of the block), so each step is a
     loop over configurations that the compiler vectorises. Same operations in the same order as
-    `_pose`, hence the same numbers."""
+    `_pose`, hence the same numbers (but for a block holding an angle beyond 1e5 rad, which takes
+    libm's sine and cosine for all its angles)."""
     N = q.shape[0]
     nj = kind.shape[0]
     B = _BLOCK
