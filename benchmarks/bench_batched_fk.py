@@ -44,6 +44,8 @@ def main() -> None:
     many = best_of(5, lambda: kin.fk(q, threads=threads, out=buf))
     one = best_of(3, lambda: kin.fk(q, threads=1, out=buf))
     fresh = best_of(3, lambda: kin.fk(q, threads=threads))
+    nj = min(args.n, 200_000)
+    jac = best_of(3, lambda: kin.jacobian(q[:nj], threads=threads))
     # CPU time of the single-thread run: what one core delivers when it is not shared (the wall
     # rates above drop with the load of other processes on this machine).
     cpu = np.inf
@@ -78,6 +80,7 @@ def main() -> None:
         "compiled_fk_fresh_output_per_s": rate_fresh,
         "compiled_fk_1thread_cpu_time_per_s": args.n / cpu,
         "pinocchio_loop_fk_per_s": rate_loop,
+        "compiled_jacobian_per_s": nj / jac,
         "ratio": rate_many / rate_loop,
         "max_abs_difference": diff,
         "threads": threads,
@@ -94,6 +97,7 @@ def main() -> None:
     print(f"  compiled kernel, 1 thread     : {rate_one:14,.0f} configurations/s")
     print(f"  same, allocating its output   : {rate_fresh:14,.0f} configurations/s ({threads} threads)")
     print(f"  1 thread, per CPU second      : {args.n / cpu:14,.0f} configurations/s (process CPU time)")
+    print(f"  compiled FK + Jacobian        : {nj / jac:14,.0f} configurations/s ({threads} threads)")
     print(f"  Pinocchio loop, per config    : {rate_loop:14,.0f} configurations/s ({len(sub):,} configurations)")
     print(f"  ratio compiled / loop         : {rate_many / rate_loop:14,.1f} x")
     print(f"  max |difference|              : {diff:.2e} (m and rotation entries)")

@@ -29,10 +29,9 @@ RevoluteUnaligned, PX/PY/PZ, PrismaticUnaligned), continuous (RUBX/RUBY/RUBZ,
 RevoluteUnboundedUnaligned) and fixed joints; anything else (free-flyer, spherical, planar,
 helical...) raises `UnsupportedRobotError`.
 
-The FK kernel carries blocks of 256 configurations through the chain one joint at a time (each
-step a loop over configurations, which vectorises); the Jacobian kernel goes configuration by
-configuration in chunks of `CHUNK`. Both run `prange` over blocks/chunks with one small scratch
-each, so the extra memory is bounded whatever N, and fastmath is off: results agree with
+One kernel carries blocks of 256 configurations through the chain one joint at a time (each
+step a loop over configurations, which vectorises), `prange` over the blocks, each with a small
+scratch, so the extra memory is bounded whatever N; fastmath is off: results agree with
 Pinocchio to ~1e-15. Sine and cosine are computed in the kernels (see `_sincos_reduced`).
 """
 
@@ -54,8 +53,7 @@ from numba import njit, prange
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
 
-CHUNK = 2048
-"""Configurations per parallel work item of the Jacobian kernel (its scratch: two (n, 3) arrays)."""
+_NO_JACOBIAN = np.empty((0, 6, 0))
 
 REVOLUTE, CONTINUOUS, PRISMATIC = 0, 1, 2
 
@@ -230,7 +228,7 @@ class BatchedKinematics:
         else:
             rows = out
         with _threads(threads):
-            _fk_kernel(a, *self._args(), rows)
+            _kernel(a, *self._args(), rows, _NO_JACOBIAN, False)
         return _poses(rows)
 
     def jacobian(self, q: np.ndarray, threads: int | None = None) -> np.ndarray:
@@ -243,7 +241,7 @@ class BatchedKinematics:
         rows = np.empty((a.shape[0], 12))
         J = np.empty((a.shape[0], 6, self.nv))
         with _threads(threads):
-            _jacobian_kernel(a, *self._args(), rows, J, CHUNK)
+            _kernel(a, *self._args(), rows, J, True)
         return _poses(rows), J
 
 
@@ -355,131 +353,30 @@ def _sincos_reduced(x):  # pragma: no cover - compiled
     return a, b
 
 
-@njit(cache=True)
-def _sincos(x):  # pragma: no cover - compiled
-    """(sin x, cos x): `_sincos_reduced`, or libm beyond its range. Two libm calls would cost
-    several times more and dominate the kernels (tests hold the kernels to Pinocchio's libm)."""
-    if abs(x) > _REDUCE_MAX:
-        return math.sin(x), math.cos(x)
-    return _sincos_reduced(x)
-
-
-@njit(cache=True)
-def _pose(q, n, kind, aidx, axis, iq, ident, rot, tra, fR, fp, out, W, P, store):  # pragma: no cover - compiled
-    """Frame placement at configuration q[n] into out[n] (12 values); with `store`, each chain joint's
-    world axis into W[k] and origin into P[k] (for the Jacobian)."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-    px, py, pz = 0.0, 0.0, 0.0
-    for k in range(kind.shape[0]):
-        # Joint placement M: p += R t, R = R M.
-        tx, ty, tz = tra[k, 0], tra[k, 1], tra[k, 2]
-        px += r00 * tx + r01 * ty + r02 * tz
-        py += r10 * tx + r11 * ty + r12 * tz
-        pz += r20 * tx + r21 * ty + r22 * tz
-        if not ident[k]:  # most URDF joints have no rotation in their origin: skip R = R I
-            n00 = r00 * rot[k, 0, 0] + r01 * rot[k, 1, 0] + r02 * rot[k, 2, 0]
-            n01 = r00 * rot[k, 0, 1] + r01 * rot[k, 1, 1] + r02 * rot[k, 2, 1]
-            n02 = r00 * rot[k, 0, 2] + r01 * rot[k, 1, 2] + r02 * rot[k, 2, 2]
-            n10 = r10 * rot[k, 0, 0] + r11 * rot[k, 1, 0] + r12 * rot[k, 2, 0]
-            n11 = r10 * rot[k, 0, 1] + r11 * rot[k, 1, 1] + r12 * rot[k, 2, 1]
-            n12 = r10 * rot[k, 0, 2] + r11 * rot[k, 1, 2] + r12 * rot[k, 2, 2]
-            n20 = r20 * rot[k, 0, 0] + r21 * rot[k, 1, 0] + r22 * rot[k, 2, 0]
-            n21 = r20 * rot[k, 0, 1] + r21 * rot[k, 1, 1] + r22 * rot[k, 2, 1]
-            n22 = r20 * rot[k, 0, 2] + r21 * rot[k, 1, 2] + r22 * rot[k, 2, 2]
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = n00, n01, n02, n10, n11, n12, n20, n21, n22
-        ax, ay, az = axis[k, 0], axis[k, 1], axis[k, 2]
-        if store or kind[k] == 2:
-            # World axis, unchanged by the joint's own motion (R(t) a = a).
-            wx = r00 * ax + r01 * ay + r02 * az
-            wy = r10 * ax + r11 * ay + r12 * az
-            wz = r20 * ax + r21 * ay + r22 * az
-        else:
-            wx = wy = wz = 0.0
-        if kind[k] == 2:  # prismatic: p += t R a
-            t = q[n, iq[k]]
-            px += t * wx
-            py += t * wy
-            pz += t * wz
-        else:
-            if kind[k] == 1:
-                c, s = q[n, iq[k]], q[n, iq[k] + 1]
-            else:
-                s, c = _sincos(q[n, iq[k]])
-            i = aidx[k]
-            if i >= 0:
-                # About +-e_i: columns j, l (cyclic after i) turn by the angle, sign included.
-                s = s * (ax + ay + az)
-                j = (i + 1) % 3
-                if j == 0:
-                    a0, a1, a2 = r00, r10, r20
-                elif j == 1:
-                    a0, a1, a2 = r01, r11, r21
-                else:
-                    a0, a1, a2 = r02, r12, r22
-                if j == 2:
-                    b0, b1, b2 = r00, r10, r20
-                elif j == 0:
-                    b0, b1, b2 = r01, r11, r21
-                else:
-                    b0, b1, b2 = r02, r12, r22
-                u0, u1, u2 = c * a0 + s * b0, c * a1 + s * b1, c * a2 + s * b2
-                v0, v1, v2 = c * b0 - s * a0, c * b1 - s * a1, c * b2 - s * a2
-                if i == 2:
-                    r00, r10, r20, r01, r11, r21 = u0, u1, u2, v0, v1, v2
-                elif i == 0:
-                    r01, r11, r21, r02, r12, r22 = u0, u1, u2, v0, v1, v2
-                else:
-                    r02, r12, r22, r00, r10, r20 = u0, u1, u2, v0, v1, v2
-            else:
-                # R = R (c I + s [a]x + (1 - c) a a^T)
-                d = 1.0 - c
-                e00, e01, e02 = c + d * ax * ax, d * ax * ay - s * az, d * ax * az + s * ay
-                e10, e11, e12 = d * ay * ax + s * az, c + d * ay * ay, d * ay * az - s * ax
-                e20, e21, e22 = d * az * ax - s * ay, d * az * ay + s * ax, c + d * az * az
-                n00 = r00 * e00 + r01 * e10 + r02 * e20
-                n01 = r00 * e01 + r01 * e11 + r02 * e21
-                n02 = r00 * e02 + r01 * e12 + r02 * e22
-                n10 = r10 * e00 + r11 * e10 + r12 * e20
-                n11 = r10 * e01 + r11 * e11 + r12 * e21
-                n12 = r10 * e02 + r11 * e12 + r12 * e22
-                n20 = r20 * e00 + r21 * e10 + r22 * e20
-                n21 = r20 * e01 + r21 * e11 + r22 * e21
-                n22 = r20 * e02 + r21 * e12 + r22 * e22
-                r00, r01, r02, r10, r11, r12, r20, r21, r22 = n00, n01, n02, n10, n11, n12, n20, n21, n22
-        if store:
-            W[k, 0], W[k, 1], W[k, 2] = wx, wy, wz
-            P[k, 0], P[k, 1], P[k, 2] = px, py, pz
-    tx, ty, tz = fp[0], fp[1], fp[2]
-    out[n, 0] = px + r00 * tx + r01 * ty + r02 * tz
-    out[n, 1] = py + r10 * tx + r11 * ty + r12 * tz
-    out[n, 2] = pz + r20 * tx + r21 * ty + r22 * tz
-    for b in range(3):
-        m0, m1, m2 = fR[0, b], fR[1, b], fR[2, b]
-        out[n, 3 + b] = r00 * m0 + r01 * m1 + r02 * m2
-        out[n, 6 + b] = r10 * m0 + r11 * m1 + r12 * m2
-        out[n, 9 + b] = r20 * m0 + r21 * m1 + r22 * m2
-
-
-_BLOCK = 256  # configurations advanced together, one joint at a time, by the FK kernel
+BLOCK = 256
+"""Configurations carried through the chain together by one parallel work item."""
 
 
 @njit(cache=True, parallel=True)
-def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # pragma: no cover - compiled
-    """`_pose` for every row of q, reorganised for SIMD: a block of configurations is carried
-    through the chain one joint at a time (state R, p as 12 rows of the block), so each step is a
-    loop over configurations that the compiler vectorises. Same operations in the same order as
-    `_pose`, hence the same numbers (but for a block holding an angle beyond 1e5 rad, which takes
-    libm's sine and cosine for all its angles)."""
+def _kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows, J, jac):  # pragma: no cover - compiled
+    """Frame placements of every row of q into rows (N, 12) and, if `jac`, Jacobians into J.
+
+    Organised for SIMD: a block of configurations is carried through the chain one joint at a
+    time (state R, p as 12 rows of the block), so each step is a loop over configurations that the
+    compiler vectorises; blocks run in parallel, each with its own small scratch.
+    """
     N = q.shape[0]
     nj = kind.shape[0]
-    B = _BLOCK
+    B = BLOCK
     for blk in prange((N + B - 1) // B):
+        n0 = blk * B
+        m = min(B, N - n0)
         st = np.empty((12, B))  # R row-major, then p
         sn = np.empty(B)
         cs = np.empty(B)
-        n0 = blk * B
-        m = min(B, N - n0)
         qt = np.empty((q.shape[1], B))  # the block's configurations, one row per coordinate
+        W = np.empty((nj if jac else 0, 3, B))  # world axis of each joint
+        P = np.empty((nj if jac else 0, 3, B))  # world origin of each joint
         for b in range(m):
             for c in range(q.shape[1]):
                 qt[c, b] = q[n0 + b, c]
@@ -490,12 +387,13 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
             st[4, b] = 1.0
             st[8, b] = 1.0
         for k in range(nj):
+            # Joint placement M: p += R t, R = R M.
             tx, ty, tz = tra[k, 0], tra[k, 1], tra[k, 2]
             for b in range(m):
                 st[9, b] += st[0, b] * tx + st[1, b] * ty + st[2, b] * tz
                 st[10, b] += st[3, b] * tx + st[4, b] * ty + st[5, b] * tz
                 st[11, b] += st[6, b] * tx + st[7, b] * ty + st[8, b] * tz
-            if not ident[k]:
+            if not ident[k]:  # most URDF joints have no rotation in their origin: skip R = R I
                 for r in range(0, 9, 3):
                     for b in range(m):
                         a0, a1, a2 = st[r, b], st[r + 1, b], st[r + 2, b]
@@ -504,14 +402,21 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
                         st[r + 2, b] = a0 * rot[k, 0, 2] + a1 * rot[k, 1, 2] + a2 * rot[k, 2, 2]
             ax, ay, az = axis[k, 0], axis[k, 1], axis[k, 2]
             col = iq[k]
-            if kind[k] == 2:
+            if jac:
+                # World axis R a (the joint's own motion leaves it unchanged) and origin.
+                for b in range(m):
+                    W[k, 0, b] = st[0, b] * ax + st[1, b] * ay + st[2, b] * az
+                    W[k, 1, b] = st[3, b] * ax + st[4, b] * ay + st[5, b] * az
+                    W[k, 2, b] = st[6, b] * ax + st[7, b] * ay + st[8, b] * az
+                    P[k, 0, b], P[k, 1, b], P[k, 2, b] = st[9, b], st[10, b], st[11, b]
+            if kind[k] == 2:  # prismatic: p += t R a
                 for b in range(m):
                     t = qt[col, b]
                     st[9, b] += t * (st[0, b] * ax + st[1, b] * ay + st[2, b] * az)
                     st[10, b] += t * (st[3, b] * ax + st[4, b] * ay + st[5, b] * az)
                     st[11, b] += t * (st[6, b] * ax + st[7, b] * ay + st[8, b] * az)
                 continue
-            if kind[k] == 1:
+            if kind[k] == 1:  # continuous: (cos t, sin t) from q, as Pinocchio
                 for b in range(m):
                     cs[b] = qt[col, b]
                     sn[b] = qt[col + 1, b]
@@ -527,6 +432,7 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
                         sn[b], cs[b] = _sincos_reduced(qt[col, b])
             i = aidx[k]
             if i >= 0:
+                # About +-e_i: columns j, l (cyclic after i) turn by the angle, sign included.
                 sign = ax + ay + az
                 j = (i + 1) % 3
                 l = (i + 2) % 3  # noqa: E741
@@ -537,6 +443,7 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
                         st[r + j, b] = c * u + s * v
                         st[r + l, b] = c * v - s * u
             else:
+                # R = R (c I + s [a]x + (1 - c) a a^T)
                 for b in range(m):
                     c, s = cs[b], sn[b]
                     d = 1.0 - c
@@ -558,29 +465,22 @@ def _fk_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows):  # p
                 for c in range(3):
                     rows[n, 3 + 3 * r + c] = st[3 * r, b] * fR[0, c] + st[3 * r + 1, b] * fR[1, c] \
                         + st[3 * r + 2, b] * fR[2, c]
-
-
-@njit(cache=True, parallel=True)
-def _jacobian_kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows, J, chunk):  # pragma: no cover
-    N = q.shape[0]
-    nj = kind.shape[0]
-    for c in prange((N + chunk - 1) // chunk):
-        W = np.empty((nj, 3))
-        P = np.empty((nj, 3))
-        for n in range(c * chunk, min(N, (c + 1) * chunk)):
-            _pose(q, n, kind, aidx, axis, iq, ident, rot, tra, fR, fp, rows, W, P, True)
+        if not jac:
+            continue
+        for b in range(m):
+            n = n0 + b
             for r in range(6):
-                for col in range(J.shape[2]):
-                    J[n, r, col] = 0.0
+                for c in range(J.shape[2]):
+                    J[n, r, c] = 0.0
             x, y, z = rows[n, 0], rows[n, 1], rows[n, 2]
             for k in range(nj):
-                col = iv[k]
-                wx, wy, wz = W[k, 0], W[k, 1], W[k, 2]
+                c = iv[k]
+                wx, wy, wz = W[k, 0, b], W[k, 1, b], W[k, 2, b]
                 if kind[k] == 2:
-                    J[n, 0, col], J[n, 1, col], J[n, 2, col] = wx, wy, wz
+                    J[n, 0, c], J[n, 1, c], J[n, 2, c] = wx, wy, wz
                 else:
-                    dx, dy, dz = x - P[k, 0], y - P[k, 1], z - P[k, 2]
-                    J[n, 0, col] = wy * dz - wz * dy
-                    J[n, 1, col] = wz * dx - wx * dz
-                    J[n, 2, col] = wx * dy - wy * dx
-                    J[n, 3, col], J[n, 4, col], J[n, 5, col] = wx, wy, wz
+                    dx, dy, dz = x - P[k, 0, b], y - P[k, 1, b], z - P[k, 2, b]
+                    J[n, 0, c] = wy * dz - wz * dy
+                    J[n, 1, c] = wz * dx - wx * dz
+                    J[n, 2, c] = wx * dy - wy * dx
+                    J[n, 3, c], J[n, 4, c], J[n, 5, c] = wx, wy, wz

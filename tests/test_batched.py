@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from kinematics.batched import CHUNK, BatchedKinematics, batched_fk, batched_jacobian, configurations
+from kinematics.batched import BLOCK, BatchedKinematics, batched_fk, batched_jacobian, configurations
 from kinematics.cli import main
 from kinematics.errors import InvalidInputError, UnknownFrameError, UnsupportedRobotError
 from kinematics.model import load_robot
@@ -120,7 +120,7 @@ def test_large_angles_match_pinocchio():
 
 def test_chunks_and_threads_do_not_change_results(ur5, rng):
     kin = BatchedKinematics.from_robot(ur5)
-    q = configurations(ur5, random_values(ur5, 3 * CHUNK + 7, rng))
+    q = configurations(ur5, random_values(ur5, 9 * BLOCK + 7, rng))
     many, J = kin.fk_jacobian(q)
     one, J1 = kin.fk_jacobian(q, threads=1)
     assert np.array_equal(many.rows, one.rows) and np.array_equal(J, J1)
