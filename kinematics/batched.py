@@ -194,20 +194,22 @@ class BatchedKinematics:
             off = np.abs(c * c + s * s - 1.0) > 1e-9
             if off.any():
                 row, col = (int(x[0]) for x in np.nonzero(off))
+                j = int(self.continuous_q[col])
                 raise InvalidInputError(
-                    "q",
-                    f"row {row}: continuous joint at q[{self.continuous_q[col]}:{self.continuous_q[col] + 2}] needs "
-                    f"(cos t, sin t) with unit norm, got {a[row, self.continuous_q[col]:self.continuous_q[col] + 2].tolist()}",
+                    "q", f"row {row}: a continuous joint's q[{j}:{j + 2}] must be (cos t, sin t) with unit norm, "
+                    f"got {a[row, j:j + 2].tolist()}",
                 )
         return np.ascontiguousarray(a)
 
-    def _args(self) -> tuple[np.ndarray, ...]:
-        return (
-            self.kind, self.axis_index, self.axis, self.idx_q, self.idx_v,
+    def _run(self, q: np.ndarray, rows: np.ndarray, J: np.ndarray, threads: int | None) -> None:
+        args = (
+            q, self.kind, self.axis_index, self.axis, self.idx_q, self.idx_v,
             np.array([np.array_equal(r, np.eye(3)) for r in self.rotation], dtype=np.bool_).reshape(-1),
             self.rotation, self.translation,
-            self.frame_rotation, self.frame_translation,
+            self.frame_rotation, self.frame_translation, rows, J, J.shape[0] > 0,
         )
+        with _threads(threads):
+            _kernel(*args)
 
     def fk(self, q: np.ndarray, threads: int | None = None, out: np.ndarray | None = None) -> BatchedPoses:
         """World placement of the frame at each configuration.
@@ -227,8 +229,7 @@ class BatchedKinematics:
             raise InvalidInputError("out", f"needs a C-contiguous float64 array of shape ({a.shape[0]}, 12)")
         else:
             rows = out
-        with _threads(threads):
-            _kernel(a, *self._args(), rows, _NO_JACOBIAN, False)
+        self._run(a, rows, _NO_JACOBIAN, threads)
         return _poses(rows)
 
     def jacobian(self, q: np.ndarray, threads: int | None = None) -> np.ndarray:
@@ -240,8 +241,7 @@ class BatchedKinematics:
         a = self.check_configurations(q)
         rows = np.empty((a.shape[0], 12))
         J = np.empty((a.shape[0], 6, self.nv))
-        with _threads(threads):
-            _kernel(a, *self._args(), rows, J, True)
+        self._run(a, rows, J, threads)
         return _poses(rows), J
 
 
@@ -256,9 +256,10 @@ def _threads(n: int | None) -> Iterator[None]:
 
     saved = numba.get_num_threads()
     if n is not None:
-        if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-            raise InvalidInputError("threads", f"must be 1..{numba.config.NUMBA_NUM_THREADS}, got {n}")
-        numba.set_num_threads(n)
+        try:
+            numba.set_num_threads(n)
+        except ValueError as exc:  # not in 1..NUMBA_NUM_THREADS
+            raise InvalidInputError("threads", str(exc)) from None
     try:
         yield
     finally:
@@ -435,7 +436,7 @@ def _kernel(q, kind, aidx, axis, iq, iv, ident, rot, tra, fR, fp, rows, J, jac):
                 # About +-e_i: columns j, l (cyclic after i) turn by the angle, sign included.
                 sign = ax + ay + az
                 j = (i + 1) % 3
-                l = (i + 2) % 3  # noqa: E741
+                l = (i + 2) % 3
                 for r in range(0, 9, 3):
                     for b in range(m):
                         c, s = cs[b], sn[b] * sign

@@ -87,8 +87,12 @@ def write_atomic(path: str, text: str | bytes, option: str) -> None:
 
     tmp = f"{path}.tmp{os.getpid()}"
     try:
-        with open(tmp, "wb") if isinstance(text, bytes) else open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
+        if isinstance(text, bytes):
+            with open(tmp, "wb") as fb:
+                fb.write(text)
+        else:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
         os.replace(tmp, path)
     except OSError as exc:
         raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None

@@ -147,6 +147,10 @@ def test_bad_input_is_refused(ur5, rng):
     q[1, 2] = np.nan
     with pytest.raises(InvalidInputError, match="row 1"):
         kin.fk(q)
+    with pytest.raises(InvalidInputError, match="threads"):
+        kin.fk(np.zeros((3, 6)), threads=0)
+    with pytest.raises(InvalidInputError, match=r"shape \(3, 12\)"):
+        kin.fk(np.zeros((3, 6)), out=np.empty((3, 11)))
     with pytest.raises(UnknownFrameError):
         BatchedKinematics.from_robot(ur5, "no_such_frame")
     kinova = load_robot("kinova")
