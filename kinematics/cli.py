@@ -137,6 +137,10 @@ def _values(args: argparse.Namespace, robot: Any) -> Any:
 def cmd_fk(args: argparse.Namespace) -> int:
     """Forward kinematics: tool position (and rotation for spatial robots)."""
     robot = _load(args)
+    if args.q_file is not None or args.out is not None:
+        from .batched_cli import fk_file
+
+        return fk_file(args, robot, _out)
     if _is_parallel(robot):
         return _parallel_fk(args, robot)
     from .report import key_values, matrix
@@ -407,8 +411,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("fk", cmd_fk, "forward kinematics: tool position (and rotation)")
     robot_arg(p)
-    q_args(p)
+    q_args(p, required=False)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
+    p.add_argument("--q-file", metavar="Q.csv|Q.npy",
+                   help="serial robots: many configurations (compiled, every core), one per row, one value "
+                        "per degree of freedom [rad or m] (a continuous joint: its angle); CSV may have a "
+                        "header line")
+    p.add_argument("--out", metavar="P.csv|P.npy",
+                   help="with --q-file: one row per configuration: x y z [m] then the rotation matrix "
+                        "row-major (9 entries) for spatial robots; the plane coordinates for planar arms")
 
     p = command("ik", cmd_ik, "closed-form inverse kinematics (scara, p2us): all solutions")
     robot_arg(p)

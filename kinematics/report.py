@@ -78,17 +78,21 @@ def matrix(rows: Any, digits: int = 6) -> str:
     return "\n".join("  [" + "  ".join(v.rjust(width) for v in row) + "]" for row in values)
 
 
-def write_atomic(path: str, text: str, option: str) -> None:
-    """Write text to `path` through a temporary file and a rename (no half-written file is ever
-    seen); an OSError becomes an InvalidInputError naming the CLI `option`."""
+def write_atomic(path: str, text: str | bytes, option: str) -> None:
+    """Write text (or bytes) to `path` through a temporary file and a rename (no half-written file
+    is ever seen); an OSError becomes an InvalidInputError naming the CLI `option`."""
     import os
 
     from .errors import InvalidInputError
 
     tmp = f"{path}.tmp{os.getpid()}"
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
+        if isinstance(text, bytes):
+            with open(tmp, "wb") as fb:
+                fb.write(text)
+        else:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
         os.replace(tmp, path)
     except OSError as exc:
         raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None
