@@ -3,7 +3,8 @@
 NumPy releases the GIL inside ufunc loops, so a thread pool over cache-sized chunks uses every
 core without copying inputs to other processes. Chunks keep memory bounded whatever the total
 size; results are returned in chunk order, so they do not depend on scheduling or chunk size
-(as long as the kernel is pointwise). A tqdm bar appears only once a map has run for a second.
+(as long as the kernel is pointwise). A tqdm bar appears only when asked for (the CLI asks when
+stderr is a terminal), and then only once a map has run for a second.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def map_chunks(
     *,
     chunk: int = DEFAULT_CHUNK,
     workers: int | None = None,
-    progress: bool = True,
+    progress: bool = False,
     desc: str = "",
     unit: str = "pt",
 ) -> list[T]:

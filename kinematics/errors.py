@@ -116,3 +116,7 @@ class SingularConfigurationError(KinematicsError, ArithmeticError):
         self.what = what
         self.detail = detail
         super().__init__(f"{what}: {detail}")
+
+
+class SweepError(KinematicsError):
+    """A design of a sweep failed on the cluster; the message names the design and the cause."""

@@ -22,6 +22,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .guidance import Controller, GuidanceParams, Kinematics, ScaraKinematics, Step
+from .sizes import MAX_STEPS, check_points
 
 SINGULAR_RADIUS = 0.01
 """A run *reached the singularity* when the smaller radius fell below this [m] (1/70 of the
@@ -196,7 +197,8 @@ def simulate(kin: Kinematics, params: GuidanceParams, q0: np.ndarray, operator: 
         raise InvalidInputError("duration", f"must be positive [s], got {duration}")
     d = _direction(direction, kin.dim)
     ctrl = Controller(kin, params, np.asarray(q0, dtype=float))
-    n = int(round(duration / params.dt))
+    n = check_points("dt", round(duration / params.dt), limit=MAX_STEPS, unit="control steps",
+                     hint=f"{duration:g} s at dt = {params.dt:g} s")
     dim, nq = kin.dim, len(ctrl.q)
     rec = {k: np.empty((n, dim)) for k in ("force", "x", "v_raw", "v")}
     radii, k_v = np.empty((n, dim)), np.empty(n)

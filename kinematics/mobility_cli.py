@@ -46,9 +46,29 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     return loop.reference, "the sidecar's reference configuration"
 
 
+def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:
+    """For a loop robot given --position: None if the platform can be there, else the answer."""
+    if robot.loops is None or args.position is None or args.q is not None:
+        return None
+    from .parallel import ik
+    from .parallel_cli import _position, limb_reasons, params_of
+
+    params = params_of(robot)
+    p = _position(args)
+    res = ik(params, p)
+    if res.limbs.reach.all():
+        return None
+    reasons = [lb["reason"] for lb in limb_reasons(params, res.limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": "; ".join(reasons)}
+
+
 def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
     from .mobility import analyse
 
+    answer = _unreachable(args, robot)
+    if answer is not None:
+        out(args, answer, lambda: f"platform at {answer['position']} m is NOT reachable: {answer['reason']}")
+        return 1
     q, where = configuration(args, robot)
     rep = analyse(robot, q)
     payload = {"robot": robot.name, "configuration": where, **rep.as_dict()}

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInputError, UnknownParameterError
+from .errors import InvalidInputError, KinematicsError, SweepError, UnknownParameterError
 from .parallel import MODES, P2USParams
 
 SWEEPABLE = ("b", "d", "L", "beta", "theta_zero", "rod_spacing", "stroke_min", "stroke_max")
@@ -74,11 +74,26 @@ class Axis:
         return np.linspace(self.start, self.stop, self.count)
 
 
-def designs(base: P2USParams, axes: Sequence[Axis]) -> list[dict[str, float]]:
-    """The full grid of designs (the last axis varies fastest), as plain parameter dicts."""
+def designs(base: P2USParams, axes: Sequence[Axis], step: float | None = None) -> list[dict[str, float]]:
+    """The full grid of designs (the last axis varies fastest), as plain parameter dicts.
+
+    With `step`, the work (designs x grid points of the base design's box at that step) must fit
+    the budget of `kinematics.sizes`; it is checked before any design is built.
+    """
+    from .sizes import check_points, grid_points
+
     names = [a.name for a in axes]
     if len(set(names)) != len(names):
         raise InvalidInputError("--param", f"a parameter is given twice: {names}")
+    count = math.prod(float(a.count) for a in axes)
+    if step is not None:
+        from .p2us_scan import bounding_box
+
+        lo, hi = bounding_box(base)
+        check_points("--param", count * grid_points(lo, hi, step),
+                     hint=f"{count:,.0f} designs x the grid points at step {step:g} m; sweep fewer designs")
+    else:
+        check_points("--param", count, unit="designs")
     start = _flat(base)
     out = []
     for combo in itertools.product(*[a.values() for a in axes]):
@@ -101,9 +116,27 @@ def to_params(d: dict[str, Any]) -> P2USParams:
                       phi_limits=tuple(d["phi_limits"]), theta_zero=d["theta_zero"], rod_spacing=d["rod_spacing"])
 
 
+def one_kernel_thread() -> int:
+    """Inside a Dask worker, limit the Numba kernels of the calling thread to one thread (the
+    cluster already runs one task per core: cores x cores threads otherwise); returns the
+    thread count the kernels now use. Outside a worker, nothing changes."""
+    import numba
+
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return int(numba.get_num_threads())
+    numba.set_num_threads(1)
+    return int(numba.get_num_threads())
+
+
 def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
     """Volume, singularity-free fraction and conditioning index of one design (a Dask task)."""
     from .p2us_scan import bounding_box, scan
+
+    one_kernel_thread()
     from .parallel import ik, jacobians
     from .workspace import p2us_workspace
 
@@ -146,7 +179,7 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
 
 def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0.02, rtol: float | None = 1e-2,
         sing_tol: float = 0.05, scheduler: str | None = None, workers: int | None = None,
-        client: Any = None, progress: bool = True) -> list[dict[str, Any]]:
+        client: Any = None, progress: bool = False) -> list[dict[str, Any]]:
     """Evaluate every design on Dask; rows in design order.
 
     Args:
@@ -156,24 +189,36 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
         workers: worker processes of the embedded cluster (default: the cores).
     """
     from .chunks import default_workers
+    from .sizes import check_points
 
-    todo = designs(base or P2USParams(), axes)
+    todo = designs(base or P2USParams(), axes, step)
+    if workers is not None:
+        check_points("--workers", workers, limit=4 * default_workers(), unit="worker processes",
+                     hint="at most 4 per core")
     own = None
     own_client = client is None
+    futures: list[Any] = []
     try:
         if own_client:
+            import logging
+
             from distributed import Client, LocalCluster
 
             if scheduler is None:
+                # one kernel thread per worker process (NUMBA_NUM_THREADS is read when Numba
+                # starts), no dashboards, and worker logs only for what breaks the cluster:
+                # task errors reach the caller as one exception
                 own = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
-                                   processes=True, dashboard_address=None)
+                                   processes=True, dashboard_address=None, worker_dashboard_address=None,
+                                   silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": "1"})
                 client = Client(own)
             else:
                 try:
                     client = Client(scheduler, timeout="10s")
-                except (OSError, TimeoutError) as exc:
-                    raise InvalidInputError("--scheduler", f"cannot reach {scheduler}: {exc}") from None
-        futures = client.map(evaluate_design, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
+                except Exception as exc:  # bad address, refused, timeout: all one answer
+                    raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
+                                            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
         if progress:
             from distributed import as_completed
             from tqdm import tqdm
@@ -181,13 +226,34 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             with tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False) as bar:
                 for _ in as_completed(futures):
                     bar.update(1)
-        results = client.gather(futures)
+        try:
+            results = client.gather(futures)
+        except Exception as exc:  # a task failed: name the design, not the worker's traceback
+            failed = next((k for k, f in enumerate(futures) if f.status == "error"), None)
+            where = f"design {failed} ({_describe(todo[failed], axes)})" if failed is not None else "a design"
+            lines = str(exc).splitlines()
+            why = lines[0] if lines else ""
+            raise SweepError(f"{where}: {why}" if isinstance(exc, KinematicsError)
+                             else f"{where} failed: {type(exc).__name__}: {why}") from None
     finally:
         if own_client and client is not None:
             client.close()
         if own is not None:
             own.close()
     return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
+
+
+def _task(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
+    """`evaluate_design` as a task: its KinematicsErrors come back as a SweepError with the same
+    message (the subclasses' constructors take data, so they do not survive pickling)."""
+    try:
+        return evaluate_design(design, step, rtol, sing_tol)
+    except KinematicsError as exc:
+        raise SweepError(str(exc)) from None
+
+
+def _describe(design: dict[str, Any], axes: Sequence[Axis]) -> str:
+    return ", ".join(f"{a.name}={design[a.name]:g}" for a in axes)
 
 
 def to_csv(rows: Sequence[dict[str, Any]]) -> str:

@@ -18,6 +18,12 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     from . import viz
     from .parallel_cli import _is_p2us
 
+    if _is_p2us(robot):
+        unreachable = _p2us_checks(args, robot)
+        if unreachable is not None:
+            out(args, unreachable, lambda: f"platform at {unreachable['position']} m is NOT reachable in mode "
+                                           f"{unreachable['mode']}: {unreachable['reason']}")
+            return 1
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
@@ -74,6 +80,33 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         return 0
     finally:
         scene.close()
+
+
+def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
+    """Before a scene starts: the overlay grid fits the view budget, and --position is reachable
+    in --mode (else the answer to report, exit 1)."""
+    from .p2us_scan import bounding_box
+    from .parallel import ik, mode_index
+    from .parallel_cli import params_of
+    from .sizes import MAX_VIEW_POINTS, check_points, grid_points
+
+    params = params_of(robot)
+    if args.workspace or args.singularities:
+        lo, hi = bounding_box(params)
+        check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
+                     hint=f"{args.step:g} m is too fine a step for a view")
+    if args.position is None:
+        return None
+    mode = args.mode or "---"
+    m = mode_index(mode)
+    p = np.array(args.position, dtype=float)
+    if ik(params, p).reachable[m]:
+        return None
+    from .parallel_cli import limb_reasons
+
+    reasons = [lb["reason"] for lb in limb_reasons(params, ik(params, p).limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
+            "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}
 
 
 def _planar(robot: Any) -> bool:
