@@ -14,6 +14,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
+from .errors import InvalidInputError
+
 T = TypeVar("T")
 
 DEFAULT_CHUNK = 32768
@@ -23,7 +25,7 @@ DEFAULT_CHUNK = 32768
 def slices(n: int, chunk: int = DEFAULT_CHUNK) -> Iterator[slice]:
     """Consecutive slices of length `chunk` covering range(n)."""
     if chunk <= 0:
-        raise ValueError(f"chunk must be positive, got {chunk}")
+        raise InvalidInputError("chunk", f"must be positive, got {chunk}")
     for start in range(0, n, chunk):
         yield slice(start, min(start + chunk, n))
 

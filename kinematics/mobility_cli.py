@@ -50,10 +50,11 @@ def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | Non
     """For a loop robot given --position: None if the platform can be there, else the answer."""
     if robot.loops is None or args.position is None or args.q is not None:
         return None
-    from .parallel import ik
+    from .parallel import ik, mode_index
     from .parallel_cli import _position, limb_reasons, params_of
 
     params = params_of(robot)
+    mode_index(args.mode or "---")  # a bad mode is bad input even where nothing reaches
     p = _position(args)
     res = ik(params, p)
     if res.limbs.reach.all():

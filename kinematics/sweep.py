@@ -200,17 +200,10 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
     futures: list[Any] = []
     try:
         if own_client:
-            import logging
-
-            from distributed import Client, LocalCluster
+            from distributed import Client
 
             if scheduler is None:
-                # one kernel thread per worker process (NUMBA_NUM_THREADS is read when Numba
-                # starts), no dashboards, and worker logs only for what breaks the cluster:
-                # task errors reach the caller as one exception
-                own = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
-                                   processes=True, dashboard_address=None, worker_dashboard_address=None,
-                                   silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": "1"})
+                own = local_cluster(workers or default_workers())
                 client = Client(own)
             else:
                 try:
@@ -219,13 +212,7 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
                     raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
                                             f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
         futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
-        if progress:
-            from distributed import as_completed
-            from tqdm import tqdm
-
-            with tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False) as bar:
-                for _ in as_completed(futures):
-                    bar.update(1)
+        _wait(futures, progress)
         try:
             results = client.gather(futures)
         except Exception as exc:  # a task failed: name the design, not the worker's traceback
@@ -241,6 +228,47 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
         if own is not None:
             own.close()
     return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
+
+
+def local_cluster(workers: int) -> Any:
+    """The embedded cluster: `workers` single-threaded worker processes whose Numba kernels use
+    one thread each (NUMBA_NUM_THREADS is read when Numba starts; cores x cores threads
+    otherwise); no dashboards (the scheduler's HTTP routes go to a free local port, not 8787);
+    worker logs only for what breaks the cluster (a task's error reaches the caller instead)."""
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                        worker_dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                        silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": "1"})
+
+
+def _wait(futures: list[Any], progress: bool) -> None:
+    """Wait for every future (or the first error) by polling from this thread: no gather runs in
+    the background, so an interrupt leaves nothing pending for the client to report at close."""
+    import time
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False)
+    try:
+        done = 0
+        while done < len(futures):
+            states = [f.status for f in futures]
+            if "error" in states or "cancelled" in states:
+                return
+            now = states.count("finished")
+            if bar is not None:
+                bar.update(now - done)
+            done = now
+            if done < len(futures):
+                time.sleep(0.05)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _task(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
