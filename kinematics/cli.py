@@ -29,7 +29,14 @@ ROBOT_HELP = "built-in name (scara, p2us), URDF path, or example-robot-data name
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (no usage dump) and exit status 2."""
+    """argparse with one-line errors (no usage dump) and exit status 2, and numbers such as -1e-3
+    and -inf taken as values, not options (as Python 3.12's argparse does)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        import re
+
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$", re.I)
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
@@ -634,11 +641,19 @@ def _run(argv: Sequence[str] | None) -> int:
     if args.command is None:
         parser.print_help()
         return EXIT_OK
+    import warnings
+
     try:
-        _check_outputs(args)
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            # an overflow or invalid operation the inputs provoked is bad input, not a result
+            warnings.simplefilter("error", RuntimeWarning)
+            _check_outputs(args)
+            return int(args.func(args))
     except KinematicsError as exc:
         print(f"kinematics {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except RuntimeWarning as exc:
+        print(f"kinematics {args.command}: error: the inputs are out of a computable range ({exc})", file=sys.stderr)
         return EXIT_ERROR
 
 

@@ -18,11 +18,12 @@ Per design, on the union of the working modes' workspaces (every limit applied):
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -203,7 +204,9 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             from distributed import Client
 
             if scheduler is None:
-                own = local_cluster(workers or default_workers())
+                # a half-started cluster cannot be closed cleanly: Ctrl-C waits for the start
+                with _interrupts_deferred(), _children_quiet():
+                    own = local_cluster(workers or default_workers())
                 client = Client(own)
             else:
                 try:
@@ -223,11 +226,59 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             raise SweepError(f"{where}: {why}" if isinstance(exc, KinematicsError)
                              else f"{where} failed: {type(exc).__name__}: {why}") from None
     finally:
-        if own_client and client is not None:
-            client.close()
-        if own is not None:
-            own.close()
+        with _interrupts_deferred():
+            if own_client and client is not None:
+                client.close()
+            if own is not None:
+                own.close()
     return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
+
+
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold Ctrl-C (SIGINT) until the block is done, then raise KeyboardInterrupt; in the main
+    thread only (elsewhere signals cannot be handled, and the block runs as is). A terminal's
+    Ctrl-C reaches the worker processes too, so a block that fails after one is interrupted."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    except Exception:
+        if pending:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pending:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _children_quiet() -> Iterator[None]:
+    """Processes started in the block write their stderr to /dev/null: a terminal's Ctrl-C reaches
+    the worker processes as well, and each would print a traceback; their errors reach the
+    caller through the client instead."""
+    import os
+
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr descriptor
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
 
 
 def local_cluster(workers: int) -> Any:

@@ -21,8 +21,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     if _is_p2us(robot):
         unreachable = _p2us_checks(args, robot)
         if unreachable is not None:
-            out(args, unreachable, lambda: f"platform at {unreachable['position']} m is NOT reachable in mode "
-                                           f"{unreachable['mode']}: {unreachable['reason']}")
+            where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
+                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
+            out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
@@ -95,6 +96,13 @@ def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
         lo, hi = bounding_box(params)
         check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
                      hint=f"{args.step:g} m is too fine a step for a view")
+    if args.q is not None and args.position is None and len(args.q) == 3:
+        from .parallel import fk
+
+        if fk(params, np.array(args.q, dtype=float)).exists:
+            return None
+        return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
+                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
     if args.position is None:
         return None
     mode = args.mode or "---"

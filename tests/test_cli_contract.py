@@ -47,6 +47,8 @@ CASES: list[tuple[list[str], str]] = [
     (["fk", "scara", "--q", "inf", "0"], FINITE),
     (["fk", "scara", "--q", "1e308", "0"], FINITE),
     (["fk", "scara", "--q", "0", "-10000000"], FINITE),
+    (["fk", "scara", "--q", "0", "-1e7"], FINITE),  # an exponent is a number, not an option
+    (["fk", "scara", "--q", "-inf", "0"], FINITE),
     (["fk", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
     (["fk", "scara", "--q", "0", "0", "--frame"], "expected one argument"),
     (["fk", "nosuchbot", "--q", "0"], "unknown robot"),
@@ -192,6 +194,8 @@ CASES: list[tuple[list[str], str]] = [
     ([*EXP, "--dt", "1e308"], "at least 1 is needed"),
     ([*EXP, "--dt", "1e-12"], "over the 2,000,000 limit"),
     ([*EXP, "--dt", "x"], NUMBER),
+    ([*EXP, "--dt", "0.01", "--mass", "1e-300"], "out of a computable range"),
+    ([*EXP, "--dt", "0.01", "--k-max", "1e300"], "out of a computable range"),
     ([*EXP, "--plot", "g"], "unknown suffix"),
     ([*EXP, "--plot", "adir"], "is a directory"),
     ([*EXP, "--plot", "nodir/g.png"], "does not exist"),
@@ -277,11 +281,13 @@ UNREACHABLE = [
     ["fk", "p2us", "--q", "2", "0.1", "0.1"],
     ["jacobian", "p2us", "--position", "10", "10", "10"],
     ["mobility", "p2us", "--position", "10", "10", "10"],
+    ["mobility", "p2us", "--q", "2", "0.1", "0.1"],
     ["show", "p2us", "--position", "10", "10", "10", "--export", "v.html"],
+    ["show", "p2us", "--q", "2", "0.1", "0.1", "--export", "v.html"],
 ]
 
 
-@pytest.mark.parametrize("argv", UNREACHABLE, ids=[a[0] + " " + a[1] for a in UNREACHABLE])
+@pytest.mark.parametrize("argv", UNREACHABLE, ids=[" ".join(a[:3]) for a in UNREACHABLE])
 def test_unreachable_is_exit_1(argv, capsys, workdir):
     before = _listing(workdir)
     assert main(argv) == 1
