@@ -122,6 +122,7 @@ CASES: list[tuple[list[str], str]] = [
     (["workspace-volume", "p2us", "--rtol", "-1"], POSITIVE),
     (["workspace-volume", "p2us", "--rtol", "nan"], POSITIVE),
     (["workspace-volume", "p2us", "--rtol", "x"], NUMBER),
+    (["workspace-volume", "scara", "--rtol", "1e-12"], "too tight a tolerance"),  # refused after the first grid
     (["workspace-volume", "p2us", "--plot", "myplot"], "unknown suffix"),
     (["workspace-volume", "p2us", "--plot", "plot.foo"], "unknown suffix"),
     (["workspace-volume", "p2us", "--plot", "adir"], "is a directory"),
