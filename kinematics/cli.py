@@ -442,7 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="kinematics",
         description="Kinematic analysis of serial and parallel robots described by URDF (built on Pinocchio).",
         epilog="Units are SI (m, rad, s, N). Exit status: 0 ok, 1 unreachable target, 2 bad input, "
-               "130 interrupted.",
+               "130 interrupted, 141 output pipe closed.",
     )
     parser.add_argument("--version", action=_Version, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)

@@ -17,6 +17,9 @@ from .errors import InvalidInputError
 MAX_POINTS = 200_000_000
 """Sampled points one call may evaluate (a few GB of bookkeeping and minutes of work)."""
 
+MAX_LISTED_POINTS = 50_000_000
+"""Grid points a points file may list (1.2 GB as an array, several as CSV text)."""
+
 MAX_VIEW_POINTS = 2_000_000
 """Grid points a Meshcat view may sample (a browser draws a few million points at most)."""
 

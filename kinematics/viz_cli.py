@@ -108,11 +108,12 @@ def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
     mode = args.mode or "---"
     m = mode_index(mode)
     p = np.array(args.position, dtype=float)
-    if ik(params, p).reachable[m]:
+    sol = ik(params, p)
+    if sol.reachable[m]:
         return None
     from .parallel_cli import limb_reasons
 
-    reasons = [lb["reason"] for lb in limb_reasons(params, ik(params, p).limbs) if lb["reason"]]
+    reasons = [lb["reason"] for lb in limb_reasons(params, sol.limbs) if lb["reason"]]
     return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
             "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}
 

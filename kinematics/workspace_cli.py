@@ -12,8 +12,8 @@ import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
-from .sizes import check_points, grid_points
 from .report import Out, fmt, key_values, show_progress, table, write_atomic
+from .sizes import MAX_LISTED_POINTS, check_points, grid_points
 
 
 def _kind(robot: Robot) -> str:
@@ -59,7 +59,8 @@ def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any)
         outer = params.reach[1]
         lo, hi = np.full(2, -outer), np.full(2, outer)
         margin = scara_margin(params, modes)
-    check_points("--points", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step to list the points")
+    check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
+                 hint=f"{step:g} m is too fine a step to list the points")
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
     return pts[margin(pts)[:, -1] >= 0]
