@@ -175,7 +175,13 @@ def paper_volume_note(limits: str) -> str:
 def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     kind = _kind(robot)
     if kind == "scara":
+        from .errors import UnknownModeError
+        from .scara import ELBOWS
         from .singularities import scara_singularities
+
+        for mode in args.modes or ():  # the singular arc is both elbows'; still, a typo is bad input
+            if mode not in ELBOWS:
+                raise UnknownModeError(mode, ELBOWS)
 
         params = _scara(robot)
         s = scara_singularities(params, math.radians(args.angle_step_deg))

@@ -148,6 +148,7 @@ CASES: list[tuple[list[str], str]] = [
     (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "deg"], NUMBER),
     (["singularities", "scara", "--plot", "s"], "unknown suffix"),
+    (["singularities", "scara", "--modes", "zzz"], "unknown mode"),
     # sweep
     (["sweep", "p2us"], "give at least one"),
     (["sweep", "scara", "--param", "b=0.3"], "3-[P2(US)]"),
