@@ -18,23 +18,11 @@ import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
-from .report import Out, write_atomic
-
-SUFFIXES = (".csv", ".npy")
-
+from .report import Out, check_output, write_atomic
 
 def _check_out(path: str, q_file: str) -> None:
-    """Refuse an output we could not write, before any work is done."""
-    if os.path.isdir(path):
-        raise InvalidInputError("--out", f"{path} is a directory")
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in SUFFIXES:
-        raise InvalidInputError("--out", f"{path}: the suffix must be one of {', '.join(SUFFIXES)}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise InvalidInputError("--out", f"{path}: directory {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise InvalidInputError("--out", f"{path}: directory {folder} is not writable")
+    """Refuse an output we could not write (the shared check), or the input file itself."""
+    check_output(path, "--out", "poses")
     if os.path.exists(q_file) and os.path.exists(path) and os.path.samefile(path, q_file):
         raise InvalidInputError("--out", f"{path} is the --q-file itself")
 

@@ -3,7 +3,8 @@
 NumPy releases the GIL inside ufunc loops, so a thread pool over cache-sized chunks uses every
 core without copying inputs to other processes. Chunks keep memory bounded whatever the total
 size; results are returned in chunk order, so they do not depend on scheduling or chunk size
-(as long as the kernel is pointwise). A tqdm bar appears only once a map has run for a second.
+(as long as the kernel is pointwise). A tqdm bar appears only when asked for (the CLI asks when
+stderr is a terminal), and then only once a map has run for a second.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
+
+from .errors import InvalidInputError
 
 T = TypeVar("T")
 
@@ -22,7 +25,7 @@ DEFAULT_CHUNK = 32768
 def slices(n: int, chunk: int = DEFAULT_CHUNK) -> Iterator[slice]:
     """Consecutive slices of length `chunk` covering range(n)."""
     if chunk <= 0:
-        raise ValueError(f"chunk must be positive, got {chunk}")
+        raise InvalidInputError("chunk", f"must be positive, got {chunk}")
     for start in range(0, n, chunk):
         yield slice(start, min(start + chunk, n))
 
@@ -41,7 +44,7 @@ def map_chunks(
     *,
     chunk: int = DEFAULT_CHUNK,
     workers: int | None = None,
-    progress: bool = True,
+    progress: bool = False,
     desc: str = "",
     unit: str = "pt",
 ) -> list[T]:

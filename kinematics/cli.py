@@ -1,8 +1,9 @@
 """The `kinematics` command line. `main(argv)` is the entry point; it returns the exit status.
 
 Exit status: 0 success, 1 a well-formed question whose answer is "no" (an unreachable target),
-2 bad input (one line on stderr, never a traceback). Heavy imports happen inside the commands so
-that `kinematics --help` stays instant.
+2 bad input (one line on stderr, never a traceback), 130 interrupted (Ctrl-C), 141 stdout closed
+by its reader (`| head`), quietly. Output files are checked before any work and written
+atomically. Heavy imports happen inside the commands so that `kinematics --help` stays instant.
 """
 
 from __future__ import annotations
@@ -14,13 +15,30 @@ from typing import Any, NoReturn
 
 from .errors import KinematicsError
 
-EXIT_OK, EXIT_NO, EXIT_ERROR = 0, 1, 2
+EXIT_OK, EXIT_NO, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
+
+MAX_MAGNITUDE = 1e6
+"""Largest magnitude of a coordinate on the command line [m, rad, deg, N]: a million metres is
+beyond any robot, and squares of such values stay far from overflowing."""
+
+OUTPUTS = {"plot": ("--plot", "figure"), "output": ("-o/--output", "urdf"), "export": ("--export", "html"),
+           "points": ("--points", "points"), "out": ("--out", "csv"), "csv": ("--csv", "csv")}
+"""Output options (argparse dest -> option, kind of file), checked before a command runs."""
+OUTPUTS_BY_COMMAND = {("fk", "out"): ("--out", "poses")}
+"""Where one command's option writes another kind of file than OUTPUTS says."""
 
 ROBOT_HELP = "built-in name (scara, p2us), URDF path, or example-robot-data name (ur5, panda, ...)"
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (no usage dump) and exit status 2."""
+    """argparse with one-line errors (no usage dump) and exit status 2, and numbers such as -1e-3
+    and -inf taken as values, not options (as Python 3.12's argparse does)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        import re
+
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$", re.I)
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
@@ -64,10 +82,18 @@ def cmd_info(args: argparse.Namespace) -> int:
         except UnsupportedRobotError:
             pass
     axes = plane(robot)
+    if _is_parallel(robot):
+        from .mobility import grubler
+
+        mobility = grubler(robot).mobility
+    else:
+        mobility = robot.nv
     payload = {
         "name": robot.name,
         "urdf": str(robot.urdf_path),
         "dof": robot.nv,
+        "joint_coordinates": robot.nv,
+        "mobility": mobility,
         "joints": [{"name": d.name, "type": d.kind, "lower": d.lower, "upper": d.upper} for d in robot.dofs],
         "tool_frame": robot.tool_frame,
         "frames": list(robot.frame_names),
@@ -86,7 +112,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         unit = {"prismatic": "m", "revolute": "rad", "continuous": "rad"}
         parts = [
             f"{robot.name}  ({robot.urdf_path})",
-            f"{robot.nv} degrees of freedom, tool frame {robot.tool_frame!r}, "
+            (f"{robot.nv} joint coordinates, mobility {mobility}" if _is_parallel(robot)
+             else f"{robot.nv} degrees of freedom") + f", tool frame {robot.tool_frame!r}, "
             + ("planar in " + "-".join(payload["plane_axes"]) if axes else "spatial"),
             "",
             table(
@@ -382,14 +409,49 @@ def _non_negative(text: str) -> float:
     return 0.0 if text.strip() in ("0", "0.0") else _positive(text)
 
 
+def _number(text: str) -> float:
+    """A coordinate: finite, magnitude at most MAX_MAGNITUDE."""
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+        raise argparse.ArgumentTypeError(f"must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {text}")
+    return v
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+class _Version(argparse.Action):
+    """--version from the installed package's metadata (looked up only when asked)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        from importlib.metadata import version
+
+        print(f"kinematics {version('kinematics')}")
+        parser.exit(0)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (exposed for the CLI-reference check in the tests)."""
     parser = _Parser(
         prog="kinematics",
         description="Kinematic analysis of serial and parallel robots described by URDF (built on Pinocchio).",
-        epilog="Units are SI (m, rad, s, N). Exit status: 0 ok, 1 unreachable target, 2 bad input.",
+        epilog="Units are SI (m, rad, s, N). Exit status: 0 ok, 1 unreachable target, 2 bad input, "
+               "130 interrupted, 141 output pipe closed.",
     )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser, required=True)
+    parser.add_argument("--version", action=_Version, help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     def command(name: str, func: Callable[[argparse.Namespace], int], help_: str) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_, description=help_)
@@ -400,10 +462,10 @@ def build_parser() -> argparse.ArgumentParser:
     def robot_arg(p: argparse.ArgumentParser) -> None:
         p.add_argument("robot", metavar="ROBOT", help=ROBOT_HELP)
 
-    def q_args(p: argparse.ArgumentParser, required: bool = True) -> None:
-        p.add_argument("--q", nargs="+", type=float, required=required, metavar="Q",
-                       help="joint values, one per degree of freedom [rad or m]; for a closed-loop "
-                            "robot, one per actuated joint")
+    def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint") -> None:
+        p.add_argument("--q", nargs="+", type=_number, required=required, metavar="Q",
+                       help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
+                            f"robot, one per actuated joint; p2us: {p2us}")
         p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
     p = command("info", cmd_info, "joints, limits, frames and parameters of a robot")
@@ -423,17 +485,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("ik", cmd_ik, "closed-form inverse kinematics (scara, p2us): all solutions")
     robot_arg(p)
-    p.add_argument("--position", nargs="+", type=float, required=True, metavar="X",
+    p.add_argument("--position", nargs="+", type=_number, required=True, metavar="X",
                    help="target position [m]: X Y for a planar arm, X Y Z for p2us")
 
     p = command("jacobian", cmd_jacobian, "world-aligned Jacobian at a configuration (p2us: at a position)")
     robot_arg(p)
-    q_args(p, required=False)
+    q_args(p, required=False, p2us="not used, give --position")
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
                    help="task-space rows (default auto: x-y for planar arms, x-y-z otherwise)")
-    p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"), help="p2us: platform position [m]")
-    p.add_argument("--mode", help="p2us: working mode label such as +++ (default: every mode)")
+    p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"), help="p2us: platform position [m]")
+    p.add_argument("--mode", help="p2us: working mode label such as +++ (default: the first mode within the "
+                                  "limits, else the first that assembles)")
 
     p = command("manipulability", cmd_manipulability, "manipulability ellipsoid at a configuration")
     robot_arg(p)
@@ -442,8 +505,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("mobility", cmd_mobility, "mobility three ways: Grübler-Kutzbach, screw theory, constraint rank")
     robot_arg(p)
-    q_args(p, required=False)
-    p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"),
+    q_args(p, required=False, p2us="the 3 actuator values (closed-loop solved)")
+    p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"),
                    help="p2us: platform position [m] (default: the sidecar's reference configuration)")
     p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
 
@@ -481,7 +544,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "stroke_max [m, rad]")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
                                                             "local cluster)")
-    p.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster (default: cores)")
+    p.add_argument("--workers", type=_integer, metavar="N",
+                   help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
     p.add_argument("--rtol", type=_positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
@@ -491,25 +555,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="1: hard short push (saturation); 2: push to (0.7, 0), operator stops; 3: keeps pushing")
     p.add_argument("--robot", default="scara", metavar="ROBOT", help="a planar 2R arm (default scara)")
     p.add_argument("--no-virtual-impedance", action="store_true", help="the baseline: plain admittance control")
-    p.add_argument("--force", type=float, metavar="N", help="operator push [N] (default 30 for 1, 6 for 2 and 3)")
-    p.add_argument("--mass", type=float, metavar="KG", help="admittance mass per axis [kg] (default 5)")
-    p.add_argument("--damping", type=float, metavar="NS/M", help="admittance damping [N s/m] (default 40)")
-    p.add_argument("--v-max", type=float, metavar="M/S", help="velocity saturation [m/s] (default 0.25)")
+    p.add_argument("--force", type=_number, metavar="N", help="operator push [N] (default 30 for 1, 6 for 2 and 3)")
+    p.add_argument("--mass", type=_positive, metavar="KG", help="admittance mass per axis [kg] (default 5)")
+    p.add_argument("--damping", type=_positive, metavar="NS/M", help="admittance damping [N s/m] (default 40)")
+    p.add_argument("--v-max", type=_positive, metavar="M/S", help="velocity saturation [m/s] (default 0.25)")
     p.add_argument("--saturation", choices=["norm", "axis"], help="saturate the speed (default) or each axis")
-    p.add_argument("--threshold", type=float, metavar="M", help="radius threshold [m] (default 0.1)")
-    p.add_argument("--k-max", type=float, metavar="N/M", help="eq. 16 step height (default 250)")
-    p.add_argument("--gain", type=float, metavar="1/M", help="eq. 16 arctan slope (default 1e4)")
-    p.add_argument("--dt", type=float, metavar="S", help="control period [s] (default 0.001)")
+    p.add_argument("--threshold", type=_positive, metavar="M", help="radius threshold [m] (default 0.1)")
+    p.add_argument("--k-max", type=_positive, metavar="N/M", help="eq. 16 step height (default 250)")
+    p.add_argument("--gain", type=_positive, metavar="1/M", help="eq. 16 arctan slope (default 1e4)")
+    p.add_argument("--dt", type=_positive, metavar="S", help="control period [s] (default 0.001)")
     p.add_argument("--plot", metavar="FILE.png", help="write the time histories (paper A's Figs. 14-30)")
     p.add_argument("--csv", metavar="FILE", help="write every step: force, position, velocities, radii, K_v, joints")
 
     p = command("show", cmd_show, "Meshcat view with overlays: prints the viewer URL and serves until "
                                    "interrupted, or writes a static HTML scene with --export")
     robot_arg(p)
-    p.add_argument("--q", nargs="+", type=float, metavar="Q",
+    p.add_argument("--q", nargs="+", type=_number, metavar="Q",
                    help="joint values [rad or m]; p2us: the 3 actuator values (closed-loop solved)")
     p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
-    p.add_argument("--position", nargs=3, type=float, metavar=("X", "Y", "Z"),
+    p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"),
                    help="p2us: platform position [m] (default: the sidecar's reference pose)")
     p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
     p.add_argument("--ellipsoid", action="store_true", help="the manipulability ellipse/ellipsoid at the tool")
@@ -520,25 +584,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--limits", default="all", choices=["all", "actuators"], help="p2us: limits for --workspace")
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="p2us: grid step [m] (default 0.02)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
-    p.add_argument("--serve-seconds", type=float, metavar="S", help=argparse.SUPPRESS)
+    p.add_argument("--serve-seconds", type=_non_negative, metavar="S", help=argparse.SUPPRESS)
 
     p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="URDF to write; the sidecar goes beside it as NAME.loops.yaml")
-    p.add_argument("--b", type=float, metavar="M", help="base radius [m] (default 0.325)")
-    p.add_argument("--d", type=float, metavar="M", help="platform radius [m] (default 0.028)")
-    p.add_argument("--L", type=float, metavar="M", help="rod length [m] (default 0.34)")
-    p.add_argument("--beta", type=float, metavar="A", help="rail angle below horizontal [rad] (default 40 deg)")
-    p.add_argument("--alpha", type=float, nargs=3, metavar="A", help="limb angles [rad] (default 0, 120, 240 deg)")
-    p.add_argument("--stroke", type=float, nargs=2, metavar=("MIN", "MAX"), help="actuator range [m] (default 0.1 0.6)")
-    p.add_argument("--theta", type=float, nargs=2, metavar=("MIN", "MAX"),
+    p.add_argument("--b", type=_number, metavar="M", help="base radius [m] (default 0.325)")
+    p.add_argument("--d", type=_number, metavar="M", help="platform radius [m] (default 0.028)")
+    p.add_argument("--L", type=_number, metavar="M", help="rod length [m] (default 0.34)")
+    p.add_argument("--beta", type=_number, metavar="A", help="rail angle below horizontal [rad] (default 40 deg)")
+    p.add_argument("--alpha", type=_number, nargs=3, metavar="A", help="limb angles [rad] (default 0, 120, 240 deg)")
+    p.add_argument("--stroke", type=_number, nargs=2, metavar=("MIN", "MAX"), help="actuator range [m] (default 0.1 0.6)")
+    p.add_argument("--theta", type=_number, nargs=2, metavar=("MIN", "MAX"),
                    help="universal joint theta range [rad] (default -10 100 deg)")
-    p.add_argument("--phi", type=float, nargs=2, metavar=("MIN", "MAX"),
+    p.add_argument("--phi", type=_number, nargs=2, metavar=("MIN", "MAX"),
                    help="universal joint phi range [rad] (default -70 70 deg)")
-    p.add_argument("--theta-zero", type=float, metavar="A",
+    p.add_argument("--theta-zero", type=_number, metavar="A",
                    help="rod elevation below the inward horizontal at theta = 0 [rad] (default 0)")
-    p.add_argument("--rod-spacing", type=float, metavar="M", help="parallelogram rod spacing [m] (default 0.05)")
+    p.add_argument("--rod-spacing", type=_number, metavar="M", help="parallelogram rod spacing [m] (default 0.05)")
     p.add_argument("--degrees", action="store_true", help="angles (beta, alpha, theta, phi, theta-zero) in degrees")
     return parser
 
@@ -572,18 +636,69 @@ def reference_markdown() -> str:
             os.environ["COLUMNS"] = saved
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 ok, 1 unreachable, 2 bad input)."""
+def _check_outputs(args: argparse.Namespace) -> None:
+    from .report import check_output
+
+    for dest, default in OUTPUTS.items():
+        path = getattr(args, dest, None)
+        if path is not None:
+            option, kind = OUTPUTS_BY_COMMAND.get((args.command, dest), default)
+            check_output(path, option, kind)
+
+
+def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        return int(args.func(args))
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a one-line usage error already printed
+        return exc.code if isinstance(exc.code, int) else EXIT_ERROR
+    if args.command is None:
+        parser.print_help()
+        return EXIT_OK
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            # an overflow or invalid operation the inputs provoked is bad input, not a result
+            warnings.simplefilter("error", RuntimeWarning)
+            _check_outputs(args)
+            return int(args.func(args))
     except KinematicsError as exc:
         print(f"kinematics {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_ERROR
+    except RuntimeWarning as exc:
+        print(f"kinematics {args.command}: error: the inputs are out of a computable range ({exc})", file=sys.stderr)
+        return EXIT_ERROR
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit status (0 ok, 1 unreachable, 2 bad input, 130 interrupted,
+    141 stdout closed early)."""
+    import os
+
+    try:
+        code = _run(argv)
+        sys.stdout.flush()
+        return code
     except KeyboardInterrupt:
-        print(f"kinematics {args.command}: interrupted", file=sys.stderr)
-        return 130
+        print("kinematics: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except OSError as exc:
+        import errno
+
+        if not isinstance(exc, BrokenPipeError) and exc.errno != errno.ENOSPC and exc.errno != errno.EIO:
+            raise
+        # stdout is gone (reader closed the pipe) or full: send what is left to /dev/null so the
+        # interpreter's final flush is quiet too
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # pragma: no cover - stdout without a descriptor
+            pass
+        if isinstance(exc, BrokenPipeError):
+            return EXIT_PIPE
+        print(f"kinematics: error: cannot write the report to stdout: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -127,3 +127,7 @@ class InvalidDesignError(InvalidInputError):
         self.value = value
         self.reason = reason
         super().__init__(parameter, f"{reason}; got {value}")
+
+
+class SweepError(KinematicsError):
+    """A design of a sweep failed on the cluster; the message names the design and the cause."""

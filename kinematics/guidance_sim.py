@@ -22,6 +22,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .guidance import Controller, GuidanceParams, Kinematics, ScaraKinematics, Step
+from .sizes import MAX_STEPS, check_points
 
 SINGULAR_RADIUS = 0.01
 """A run *reached the singularity* when the smaller radius fell below this [m] (1/70 of the
@@ -227,7 +228,8 @@ def simulate(kin: Kinematics, params: GuidanceParams, q0: np.ndarray, operator: 
     reset = getattr(operator, "reset", None)
     if reset is not None:  # stateful operators start each run afresh
         reset()
-    n = int(round(duration / params.dt))
+    n = check_points("dt", round(duration / params.dt), limit=MAX_STEPS, unit="control steps",
+                     hint=f"{duration:g} s at dt = {params.dt:g} s")
     dim, nq, nv = kin.dim, len(ctrl.q), len(kin.rate(ctrl.q, ctrl.q, params.dt))  # nv < nq: continuous joints
     rec = {k: np.empty((n, dim)) for k in ("force", "x", "v_raw", "v")}
     radii, k_v = np.empty((n, dim)), np.empty(n)

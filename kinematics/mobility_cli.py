@@ -49,9 +49,39 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     return loop.reference, "the sidecar's reference configuration"
 
 
+def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:
+    """For a 3-[P2(US)] given --position or --q: None if the platform can be there, else the answer."""
+    from .parallel_cli import _is_p2us
+
+    if robot.loops is None or not _is_p2us(robot) or (args.position is None) == (args.q is None):
+        return None
+    from .parallel import fk, ik, mode_index
+    from .parallel_cli import _actuated, _position, limb_reasons, params_of
+
+    params = params_of(robot)
+    if args.q is not None:
+        q = _actuated(args, robot)
+        if fk(params, q).exists:
+            return None
+        return {"robot": robot.name, "q": q.tolist(), "reachable": False,
+                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
+    mode_index(args.mode or "---")  # a bad mode is bad input even where nothing reaches
+    p = _position(args)
+    res = ik(params, p)
+    if res.limbs.reach.all():
+        return None
+    reasons = [lb["reason"] for lb in limb_reasons(params, res.limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": "; ".join(reasons)}
+
+
 def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
     from .mobility import analyse
 
+    answer = _unreachable(args, robot)
+    if answer is not None:
+        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} m"
+        out(args, answer, lambda: f"{where} is NOT reachable: {answer['reason']}")
+        return 1
     q, where = configuration(args, robot)
     rep = analyse(robot, q)
     payload = {"robot": robot.name, "configuration": where, **rep.as_dict()}

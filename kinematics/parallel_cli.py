@@ -179,6 +179,8 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if not _is_p2us(robot):
         return _generic_jacobian(args, robot, out)
     params = params_of(robot)
+    if args.q is not None:
+        raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
     p = _position(args)
     res = p2us_ik(params, p)
     if args.mode is not None:

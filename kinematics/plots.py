@@ -27,16 +27,16 @@ def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: 
     return fig, axes
 
 
-def save(fig: Any, path: str | os.PathLike[str]) -> None:
-    """Write the figure (format from the suffix) atomically and close it."""
+def save(fig: Any, path: str | os.PathLike[str], option: str = "--plot") -> None:
+    """Write the figure (format from the suffix) atomically (`report.write_atomic`) and close it."""
     import matplotlib.pyplot as plt
 
-    path = os.fspath(path)
-    root, ext = os.path.splitext(path)
-    tmp = f"{root}.tmp{os.getpid()}{ext}"
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    os.replace(tmp, path)
-    plt.close(fig)
+    from .report import write_atomic
+
+    try:
+        write_atomic(os.fspath(path), lambda tmp: fig.savefig(tmp, dpi=110, bbox_inches="tight"), option)
+    finally:
+        plt.close(fig)
 
 
 def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_z: int = 3,

@@ -27,10 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .errors import InvalidInputError, UnknownModeError
 from .p2us_scan import bounding_box, check_limits, scan
 from .parallel import MODES, SINGULARITY_TYPES, P2USParams, classify, fk, jacobians
 from .scara import ScaraParams
+from .sizes import check_points, grid_points
 from .volume import check_step
 
 
@@ -130,15 +131,17 @@ def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, p
 
 
 def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = "all",
-                       modes: Sequence[str] = MODES, progress: bool = True) -> SingularityScan:
+                       modes: Sequence[str] = MODES, progress: bool = False) -> SingularityScan:
     """Type I / II / III loci of the 3-[P2(US)] over a grid of step `step` [m] on its bounding box."""
     check_limits(limits)
     check_step(step)
+    for m in modes:
+        if m not in MODES:
+            raise UnknownModeError(m, MODES)
     mode_cols = [MODES.index(m) for m in modes]
     lo, hi = bounding_box(params)
+    check_points("step", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step")
     dims = np.ceil((hi - lo) / step).astype(int) + 1
-    if int(np.prod(dims)) > 400_000_000:
-        raise InvalidInputError("step", f"{step:g} m needs {int(np.prod(dims)):,} points; use a larger step")
     t0 = time.perf_counter()
     ix, iy = np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij")
     ix, iy = ix.ravel(), iy.ravel()
@@ -238,6 +241,8 @@ def scara_singularities(sp: ScaraParams, step: float = math.radians(1.0)) -> dic
 
     if not (math.isfinite(step) and step > 0):
         raise InvalidInputError("step", f"must be a positive angle [rad], got {step}")
+    check_points("angle step", ((sp.upper[0] - sp.lower[0]) / step + 1) * ((sp.upper[1] - sp.lower[1]) / step + 1),
+                 hint=f"{math.degrees(step):g} deg is too fine a joint-grid step")
     t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, int(math.ceil((sp.upper[0] - sp.lower[0]) / step)) + 1))
     t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, int(math.ceil((sp.upper[1] - sp.lower[1]) / step)) + 1))
     Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1)

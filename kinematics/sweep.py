@@ -18,17 +18,18 @@ Per design, on the union of the working modes' workspaces (every limit applied):
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInputError, UnknownParameterError
+from .errors import InvalidInputError, KinematicsError, SweepError, UnknownParameterError
 from .parallel import MODES, P2USParams
 
 SWEEPABLE = ("b", "d", "L", "beta", "theta_zero", "rod_spacing", "stroke_min", "stroke_max")
@@ -74,11 +75,26 @@ class Axis:
         return np.linspace(self.start, self.stop, self.count)
 
 
-def designs(base: P2USParams, axes: Sequence[Axis]) -> list[dict[str, float]]:
-    """The full grid of designs (the last axis varies fastest), as plain parameter dicts."""
+def designs(base: P2USParams, axes: Sequence[Axis], step: float | None = None) -> list[dict[str, float]]:
+    """The full grid of designs (the last axis varies fastest), as plain parameter dicts.
+
+    With `step`, the work (designs x grid points of the base design's box at that step) must fit
+    the budget of `kinematics.sizes`; it is checked before any design is built.
+    """
+    from .sizes import check_points, grid_points
+
     names = [a.name for a in axes]
     if len(set(names)) != len(names):
         raise InvalidInputError("--param", f"a parameter is given twice: {names}")
+    count = math.prod(float(a.count) for a in axes)
+    if step is not None:
+        from .p2us_scan import bounding_box
+
+        lo, hi = bounding_box(base)
+        check_points("--param", count * grid_points(lo, hi, step),
+                     hint=f"{count:,.0f} designs x the grid points at step {step:g} m; sweep fewer designs")
+    else:
+        check_points("--param", count, unit="designs")
     start = _flat(base)
     out = []
     for combo in itertools.product(*[a.values() for a in axes]):
@@ -101,9 +117,27 @@ def to_params(d: dict[str, Any]) -> P2USParams:
                       phi_limits=tuple(d["phi_limits"]), theta_zero=d["theta_zero"], rod_spacing=d["rod_spacing"])
 
 
+def one_kernel_thread() -> int:
+    """Inside a Dask worker, limit the Numba kernels of the calling thread to one thread (the
+    cluster already runs one task per core: cores x cores threads otherwise); returns the
+    thread count the kernels now use. Outside a worker, nothing changes."""
+    import numba
+
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return int(numba.get_num_threads())
+    numba.set_num_threads(1)
+    return int(numba.get_num_threads())
+
+
 def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
     """Volume, singularity-free fraction and conditioning index of one design (a Dask task)."""
     from .p2us_scan import bounding_box, scan
+
+    one_kernel_thread()
     from .parallel import ik, jacobians
     from .workspace import p2us_workspace
 
@@ -146,7 +180,7 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
 
 def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0.02, rtol: float | None = 1e-2,
         sing_tol: float = 0.05, scheduler: str | None = None, workers: int | None = None,
-        client: Any = None, progress: bool = True) -> list[dict[str, Any]]:
+        client: Any = None, progress: bool = False) -> list[dict[str, Any]]:
     """Evaluate every design on Dask; rows in design order.
 
     Args:
@@ -156,38 +190,149 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
         workers: worker processes of the embedded cluster (default: the cores).
     """
     from .chunks import default_workers
+    from .sizes import check_points
 
-    todo = designs(base or P2USParams(), axes)
+    todo = designs(base or P2USParams(), axes, step)
+    if workers is not None:
+        check_points("--workers", workers, limit=4 * default_workers(), unit="worker processes",
+                     hint="at most 4 per core")
     own = None
     own_client = client is None
+    futures: list[Any] = []
     try:
         if own_client:
-            from distributed import Client, LocalCluster
+            from distributed import Client
 
             if scheduler is None:
-                own = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
-                                   processes=True, dashboard_address=None)
+                # a half-started cluster cannot be closed cleanly: Ctrl-C waits for the start
+                with _interrupts_deferred(), _children_quiet():
+                    own = local_cluster(workers or default_workers())
                 client = Client(own)
             else:
                 try:
                     client = Client(scheduler, timeout="10s")
-                except (OSError, TimeoutError) as exc:
-                    raise InvalidInputError("--scheduler", f"cannot reach {scheduler}: {exc}") from None
-        futures = client.map(evaluate_design, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
-        if progress:
-            from distributed import as_completed
-            from tqdm import tqdm
-
-            with tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False) as bar:
-                for _ in as_completed(futures):
-                    bar.update(1)
-        results = client.gather(futures)
+                except Exception as exc:  # bad address, refused, timeout: all one answer
+                    raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
+                                            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
+        _wait(futures, progress)
+        try:
+            results = client.gather(futures)
+        except Exception as exc:  # a task failed: name the design, not the worker's traceback
+            failed = next((k for k, f in enumerate(futures) if f.status == "error"), None)
+            where = f"design {failed} ({_describe(todo[failed], axes)})" if failed is not None else "a design"
+            lines = str(exc).splitlines()
+            why = lines[0] if lines else ""
+            raise SweepError(f"{where}: {why}" if isinstance(exc, KinematicsError)
+                             else f"{where} failed: {type(exc).__name__}: {why}") from None
     finally:
-        if own_client and client is not None:
-            client.close()
-        if own is not None:
-            own.close()
+        with _interrupts_deferred():
+            if own_client and client is not None:
+                client.close()
+            if own is not None:
+                own.close()
     return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
+
+
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold Ctrl-C (SIGINT) until the block is done, then raise KeyboardInterrupt; in the main
+    thread only (elsewhere signals cannot be handled, and the block runs as is). A terminal's
+    Ctrl-C reaches the worker processes too, so a block that fails after one is interrupted."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    except Exception:
+        if pending:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pending:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _children_quiet() -> Iterator[None]:
+    """Processes started in the block write their stderr to /dev/null: a terminal's Ctrl-C reaches
+    the worker processes as well, and each would print a traceback; their errors reach the
+    caller through the client instead."""
+    import os
+
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr descriptor
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+def local_cluster(workers: int) -> Any:
+    """The embedded cluster: `workers` single-threaded worker processes whose Numba kernels use
+    one thread each (NUMBA_NUM_THREADS is read when Numba starts; cores x cores threads
+    otherwise); no dashboards (the scheduler's HTTP routes go to a free local port, not 8787);
+    worker logs only for what breaks the cluster (a task's error reaches the caller instead)."""
+    import logging
+
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                        worker_dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                        silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": "1"})
+
+
+def _wait(futures: list[Any], progress: bool) -> None:
+    """Wait for every future (or the first error) by polling from this thread: no gather runs in
+    the background, so an interrupt leaves nothing pending for the client to report at close."""
+    import time
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False)
+    try:
+        done = 0
+        while done < len(futures):
+            states = [f.status for f in futures]
+            if "error" in states or "cancelled" in states:
+                return
+            now = states.count("finished")
+            if bar is not None:
+                bar.update(now - done)
+            done = now
+            if done < len(futures):
+                time.sleep(0.05)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _task(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
+    """`evaluate_design` as a task: its KinematicsErrors come back as a SweepError with the same
+    message (the subclasses' constructors take data, so they do not survive pickling)."""
+    try:
+        return evaluate_design(design, step, rtol, sing_tol)
+    except KinematicsError as exc:
+        raise SweepError(str(exc)) from None
+
+
+def _describe(design: dict[str, Any], axes: Sequence[Axis]) -> str:
+    return ", ".join(f"{a.name}={design[a.name]:g}" for a in axes)
 
 
 def to_csv(rows: Sequence[dict[str, Any]]) -> str:

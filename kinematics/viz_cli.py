@@ -18,6 +18,13 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     from . import viz
     from .parallel_cli import _is_p2us
 
+    if _is_p2us(robot):
+        unreachable = _p2us_checks(args, robot)
+        if unreachable is not None:
+            where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
+                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
+            out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
+            return 1
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
@@ -74,6 +81,41 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         return 0
     finally:
         scene.close()
+
+
+def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
+    """Before a scene starts: the overlay grid fits the view budget, and --position is reachable
+    in --mode (else the answer to report, exit 1)."""
+    from .p2us_scan import bounding_box
+    from .parallel import ik, mode_index
+    from .parallel_cli import params_of
+    from .sizes import MAX_VIEW_POINTS, check_points, grid_points
+
+    params = params_of(robot)
+    if args.workspace or args.singularities:
+        lo, hi = bounding_box(params)
+        check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
+                     hint=f"{args.step:g} m is too fine a step for a view")
+    if args.q is not None and args.position is None and len(args.q) == 3:
+        from .parallel import fk
+
+        if fk(params, np.array(args.q, dtype=float)).exists:
+            return None
+        return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
+                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
+    if args.position is None:
+        return None
+    mode = args.mode or "---"
+    m = mode_index(mode)
+    p = np.array(args.position, dtype=float)
+    sol = ik(params, p)
+    if sol.reachable[m]:
+        return None
+    from .parallel_cli import limb_reasons
+
+    reasons = [lb["reason"] for lb in limb_reasons(params, sol.limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
+            "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}
 
 
 def _planar(robot: Any) -> bool:

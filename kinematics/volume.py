@@ -32,11 +32,10 @@ from numba import njit, prange
 
 from .chunks import slices
 from .errors import InvalidInputError
+from .sizes import MAX_POINTS, check_points, grid_points, refinement_points
 
-MAX_POINTS = 200_000_000
-"""Default cap on sampled points (a few GB of bookkeeping and minutes of work); the refinement
-stops there with converged = False instead of exhausting the machine, and a starting grid that
-alone would exceed it is refused."""
+# MAX_POINTS (kinematics.sizes) caps the sampled points: the refinement stops there with
+# converged = False, and a starting grid or a tolerance that would need more is refused.
 
 CELL_CHUNK = 1 << 17
 """Boundary cells refined per batch (bounds memory at ~ 27 x this many sampled points)."""
@@ -192,7 +191,7 @@ def adaptive_volume(
     *,
     max_levels: int = 12,
     max_points: int = MAX_POINTS,
-    progress: bool = True,
+    progress: bool = False,
 ) -> VolumeEstimate:
     """Measure {x : margin(x)[:, t] >= 0} for every target t inside the box [lo, hi].
 
@@ -211,12 +210,8 @@ def adaptive_volume(
         raise InvalidInputError("rtol", f"must be positive, got {rtol}")
     if not np.all(hi > lo):
         raise InvalidInputError("box", f"empty box {lo.tolist()} .. {hi.tolist()}")
+    check_points("step", grid_points(lo, hi, step), limit=max_points, hint=f"{step:g} m is too fine a step")
     dims = np.ceil((hi - lo) / step).astype(np.int64)
-    n0 = int(np.prod(dims + 1))
-    if n0 > max_points:
-        raise InvalidInputError(
-            "step", f"{step:g} m needs {n0:,} grid points, over the {max_points:,} limit; use a larger step"
-        )
     box: list[np.ndarray] = []
     bar = None
     if progress:
@@ -285,6 +280,9 @@ def adaptive_volume(
     keep = mask.any(axis=1)
     cells, mask = cells[keep], mask[keep]
 
+    if rtol is not None:  # refuse a tolerance the budget cannot reach, before refining
+        check_points("rtol", refinement_points(points, len(cells), d, rtol), limit=max_points,
+                     hint=f"{rtol:g} is too tight a tolerance at step {step:g} m")
     estimate = np.array(levels[-1].estimate)
     error = np.full(T, np.inf)
     converged = False

@@ -115,7 +115,7 @@ def p2us_margin(params: P2USParams, modes: Sequence[str] = MODES, limits: str = 
 
 def p2us_workspace(params: P2USParams, *, step: float = 0.01, rtol: float | None = 1e-3,
                    modes: Sequence[str] = MODES, limits: str = "all", name: str = "p2us",
-                   progress: bool = True, max_points: int | None = None) -> Workspace:
+                   progress: bool = False, max_points: int | None = None) -> Workspace:
     """Volume of the 3-[P2(US)] workspace per working mode and of their union [m^3]."""
     modes = _check_modes(modes, MODES)
     lo, hi = bounding_box(params)
@@ -170,7 +170,7 @@ def scara_margin(sp: ScaraParams, elbows: Sequence[str] = ELBOWS) -> Callable[[n
 
 
 def scara_workspace(sp: ScaraParams, *, step: float = 0.005, rtol: float | None = 1e-3,
-                    elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = True) -> Workspace:
+                    elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = False) -> Workspace:
     """Reachable area of the planar arm per elbow and of their union [m^2]."""
     elbows = _check_modes(elbows, ELBOWS)
     outer = sp.reach[1]

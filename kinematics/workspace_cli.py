@@ -12,7 +12,8 @@ import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
-from .report import Out, fmt, key_values, table, write_atomic
+from .report import Out, fmt, key_values, show_progress, table, write_atomic
+from .sizes import MAX_LISTED_POINTS, check_points, grid_points
 
 
 def _kind(robot: Robot) -> str:
@@ -36,17 +37,12 @@ def _scara(robot: Robot) -> Any:
 
 
 def _write_points(path: str, points: np.ndarray, header: str) -> None:
-    """Write points as .npy or CSV (by suffix), atomically (temp file + rename)."""
-    root, ext = os.path.splitext(path)
-    tmp = f"{root}.tmp{os.getpid()}{ext}"
-    try:
-        if ext == ".npy":
-            np.save(tmp, points)
-        else:
-            np.savetxt(tmp, points, delimiter=",", header=header, comments="", fmt="%.17g")
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InvalidInputError("--points", f"cannot write {path}: {exc.strerror or exc}") from None
+    """Write points as .npy or CSV (by suffix), atomically."""
+    if os.path.splitext(path)[1].lower() == ".npy":
+        write_atomic(path, lambda tmp: np.save(tmp, points), "--points")
+    else:
+        write_atomic(path, lambda tmp: np.savetxt(tmp, points, delimiter=",", header=header, comments="",
+                                                  fmt="%.17g"), "--points")
 
 
 def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any) -> np.ndarray:
@@ -63,10 +59,9 @@ def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any)
         outer = params.reach[1]
         lo, hi = np.full(2, -outer), np.full(2, outer)
         margin = scara_margin(params, modes)
+    check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
+                 hint=f"{step:g} m is too fine a step to list the points")
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
-    n = int(np.prod([len(a) for a in axes]))
-    if n > 50_000_000:
-        raise InvalidInputError("--points", f"{n:,} grid points at step {step:g} m; use a larger --step")
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
     return pts[margin(pts)[:, -1] >= 0]
 
@@ -88,8 +83,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         params = params_of(robot)
         modes = tuple(args.modes or MODES)
         ws = p2us_workspace(params, step=args.step, rtol=rtol, modes=modes, limits=args.limits, name=robot.name,
-                            progress=not args.json)
-        sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=not args.json)
+                            progress=show_progress(args))
+        sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
         paper = {"paper_volume_m3": PAPER_VOLUME_M3, "ratio_to_paper": ws.total / PAPER_VOLUME_M3,
@@ -100,7 +95,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
         params = _scara(robot)
         modes = tuple(args.modes or ELBOWS)
-        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=not args.json)
+        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=show_progress(args))
         sing = scara_singularities(params)
         singular_points = _scara_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
@@ -180,7 +175,13 @@ def paper_volume_note(limits: str) -> str:
 def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     kind = _kind(robot)
     if kind == "scara":
+        from .errors import UnknownModeError
+        from .scara import ELBOWS
         from .singularities import scara_singularities
+
+        for mode in args.modes or ():  # the singular arc is both elbows'; still, a typo is bad input
+            if mode not in ELBOWS:
+                raise UnknownModeError(mode, ELBOWS)
 
         params = _scara(robot)
         s = scara_singularities(params, math.radians(args.angle_step_deg))
@@ -219,7 +220,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     params = params_of(robot)
     modes = tuple(args.modes or MODES)
-    res = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=not args.json)
+    res = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
     payload = {
         "robot": robot.name,
         "limits": args.limits,
@@ -278,7 +279,7 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     axes = [sw.Axis.parse(p) for p in args.param]
     t0 = time.perf_counter()
     rows = sw.run(axes, params_of(robot), step=args.step, rtol=args.rtol, scheduler=args.scheduler,
-                  workers=args.workers, progress=not args.json)
+                  workers=args.workers, progress=show_progress(args))
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)
     if args.out:

@@ -134,7 +134,7 @@ def bad_inputs(tmp_path):
         (["info", str(bad_side)], "unknown frame 'tip_9_9'"),
         (["ik", str(tmp_path / "nothere.urdf"), "--position", "0", "0", "0"], "no such file"),
         (["urdf", "p2us", "-o", str(tmp_path / "x.urdf"), "--L", "-1"], "positive length"),
-        (["urdf", "p2us", "-o", str(tmp_path / "x.urdf"), "--b", "nan"], "positive length"),
+        (["urdf", "p2us", "-o", str(tmp_path / "x.urdf"), "--b", "nan"], "must be finite"),
         (["urdf", "p2us", "-o", str(tmp_path / "missing_dir" / "x.urdf")], "does not exist"),
         (["urdf", "scara", "-o", str(tmp_path / "x.urdf")], "invalid choice"),
         (["manipulability", "p2us", "--q", *["0"] * 18], "serial robot"),

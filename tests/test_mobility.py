@@ -146,8 +146,9 @@ def test_cli_json(capsys):
 
 
 def test_cli_bad_input(capsys):
+    code, out, err = run(capsys, "mobility", "p2us", "--position", "0", "0", "0.5")
+    assert code == 1 and "cannot reach" in out and err == ""  # unreachable: an answer, as in ik
     for argv, needle in [
-        (["mobility", "p2us", "--position", "0", "0", "0.5"], "cannot reach"),
         (["mobility", "scara", "--position", "0", "0", "0"], "serial"),
         (["mobility", "p2us", "--q", "0.3"], "3 actuated"),
         (["mobility", "p2us", "--position", "0", "0", "-0.45", "--q", "0.2", "0.2", "0.2"], "not both"),

@@ -58,8 +58,8 @@ def test_show_export_and_errors(capsys, tmp_path):
     out = tmp_path / "s.html"
     code, text, _ = run(capsys, "show", "scara", "--q", "20", "-60", "--degrees", "--ellipsoid", "--export", str(out))
     assert code == 0 and out.exists() and str(out) in text
-    code, _, err = run(capsys, "show", "p2us", "--position", "0.9", "0", "-0.3", "--export", str(out))
-    assert code == 2 and "reachable" in err
+    code, text, err = run(capsys, "show", "p2us", "--position", "0.9", "0", "-0.3", "--export", str(out))
+    assert code == 1 and "NOT reachable" in text and err == ""  # unreachable: an answer, as in ik
     code, _, err = run(capsys, "show", "ur5", "--workspace", "--export", str(out))
     assert code == 2 and len(err.strip().splitlines()) == 1
 

@@ -1,0 +1,428 @@
+"""The contract every command keeps (issue 11): bad input is one line on stderr and exit 2, with no
+traceback and no file left behind; unreachable targets are answers (exit 1); outputs are checked
+before any work; stdout closed early, a full disk and Ctrl-C end quietly."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from kinematics.cli import main
+
+MODELS = Path(__file__).parent / "models"
+FOURBAR = str(MODELS / "fourbar.urdf")
+
+# every command and every option that takes a value, with values that must be refused before
+# any work: (argv, text the one error line must contain). Output paths are relative to the
+# test's working directory (a fresh tmp_path); "adir" is a directory there, "nodir/" is not.
+EXP = ["guide", "--experiment", "1"]
+SHOW = ["show", "p2us", "--export", "v.html"]
+SWEEP = ["sweep", "p2us", "--param", "b=0.3"]
+URDF = ["urdf", "p2us", "-o", "d.urdf"]
+NUMBER = "expected a number"
+FINITE = "must be finite"
+POSITIVE = "must be positive"
+CASES: list[tuple[list[str], str]] = [
+    # the command itself
+    (["nosuchcommand"], "invalid choice"),
+    (["--bogus"], "unrecognized arguments"),
+    (["info"], "required: ROBOT"),
+    (["info", "nosuchbot"], "unknown robot"),
+    (["info", "nodir/x.urdf"], "no such file"),
+    (["info", "adir"], "adir"),
+    (["info", "scara", "--frame", "x"], "unrecognized arguments"),
+    # fk
+    (["fk", "scara"], "required: --q"),
+    (["fk", "scara", "--q"], "expected at least one argument"),
+    (["fk", "scara", "--q", "0"], "2"),
+    (["fk", "scara", "--q", "0", "0", "0"], "2"),
+    (["fk", "scara", "--q", "zero", "0"], NUMBER),
+    (["fk", "scara", "--q", "nan", "0"], FINITE),
+    (["fk", "scara", "--q", "inf", "0"], FINITE),
+    (["fk", "scara", "--q", "1e308", "0"], FINITE),
+    (["fk", "scara", "--q", "0", "-10000000"], FINITE),
+    (["fk", "scara", "--q", "0", "-1e7"], FINITE),  # an exponent is a number, not an option
+    (["fk", "scara", "--q", "-inf", "0"], FINITE),
+    (["fk", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
+    (["fk", "scara", "--q", "0", "0", "--frame"], "expected one argument"),
+    (["fk", "nosuchbot", "--q", "0"], "unknown robot"),
+    (["fk", "p2us", "--q", "0.3", "0.2"], "3 actuated joints"),
+    (["fk", "p2us", "--q", "0.3", "0.2", "0.2", "0.2"], "3 actuated joints"),
+    (["fk", "p2us", "--q", "0.3", "nan", "0.2"], FINITE),
+    (["fk", "p2us", "--q", "1e308", "0.2", "0.2"], FINITE),
+    (["fk", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
+    (["fk", "ur5", "--q", "0", "0"], "6"),
+    # ik
+    (["ik", "scara"], "required: --position"),
+    (["ik", "scara", "--position", "0.1"], "give X Y"),
+    (["ik", "scara", "--position", "0.1", "0.2", "0.3"], "give X Y"),
+    (["ik", "scara", "--position", "0.1", "nan"], FINITE),
+    (["ik", "scara", "--position", "0.1", "1e999"], FINITE),
+    (["ik", "scara", "--position", "1e308", "1e308"], FINITE),
+    (["ik", "scara", "--position", "x", "0"], NUMBER),
+    (["ik", "p2us", "--position", "0", "-0.4"], "X Y Z"),
+    (["ik", "p2us", "--position", "1e308", "1e308", "1e308"], FINITE),
+    (["ik", "p2us", "--position", "0", "0", "nan"], FINITE),
+    (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "closed-form IK"),
+    (["ik", "nodir/x.urdf", "--position", "0", "0"], "no such file"),
+    # jacobian
+    (["jacobian", "scara"], "needs joint values"),
+    (["jacobian", "scara", "--q", "0"], "2"),
+    (["jacobian", "scara", "--q", "0", "nan"], FINITE),
+    (["jacobian", "scara", "--q", "0", "0", "--task", "bogus"], "invalid choice"),
+    (["jacobian", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
+    (["jacobian", "ur5", "--q", "0", "0", "0"], "6"),
+    (["jacobian", "p2us"], "X Y Z"),
+    (["jacobian", "p2us", "--position", "0", "0"], "expected 3 arguments"),
+    (["jacobian", "p2us", "--position", "0", "0", "nan"], FINITE),
+    (["jacobian", "p2us", "--position", "0", "0", "1e308"], FINITE),
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], "unknown mode"),
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "++"], "unknown mode"),
+    (["jacobian", "p2us", "--q", "0.3", "0.3", "0.3"], "--position"),
+    (["jacobian", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
+    # manipulability
+    (["manipulability", "scara"], "required: --q"),
+    (["manipulability", "scara", "--q", "0"], "2"),
+    (["manipulability", "scara", "--q", "0", "inf"], FINITE),
+    (["manipulability", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
+    (["manipulability", "p2us", "--q", *["0"] * 18], "serial robot"),
+    (["manipulability", "nosuchbot", "--q", "0"], "unknown robot"),
+    # mobility
+    (["mobility", "nosuchbot"], "unknown robot"),
+    (["mobility", "scara", "--q", "0"], "2"),
+    (["mobility", "scara", "--q", "0", "nan"], FINITE),
+    (["mobility", "scara", "--position", "0", "0", "0"], "serial"),
+    (["mobility", "p2us", "--q", "0.3"], "3 actuated"),
+    (["mobility", "p2us", "--q", "0.3", "0.3", "1e308"], FINITE),
+    (["mobility", "p2us", "--position", "0", "0", "nan"], FINITE),
+    (["mobility", "p2us", "--position", "1e308", "1e308", "1e308"], FINITE),
+    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--q", "0.2", "0.2", "0.2"], "not both"),
+    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], "unknown mode"),
+    (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], "unknown mode"),
+    # workspace-volume
+    (["workspace-volume", "nosuchbot"], "unknown robot"),
+    (["workspace-volume", "ur5"], "ur5"),
+    (["workspace-volume", "p2us", "--step", "0"], POSITIVE),
+    (["workspace-volume", "p2us", "--step", "-0.01"], POSITIVE),
+    (["workspace-volume", "p2us", "--step", "nan"], POSITIVE),
+    (["workspace-volume", "p2us", "--step", "inf"], POSITIVE),
+    (["workspace-volume", "p2us", "--step", "x"], NUMBER),
+    (["workspace-volume", "p2us", "--step", "1e-9"], "over the 200,000,000 limit"),
+    (["workspace-volume", "scara", "--step", "1e-7"], "over the 200,000,000 limit"),
+    (["workspace-volume", "p2us", "--modes", "zzz"], "unknown mode"),
+    (["workspace-volume", "p2us", "--modes", "+++", "up"], "unknown mode"),
+    (["workspace-volume", "scara", "--modes", "zzz"], "unknown mode"),
+    (["workspace-volume", "p2us", "--limits", "some"], "invalid choice"),
+    (["workspace-volume", "p2us", "--rtol", "-1"], POSITIVE),
+    (["workspace-volume", "p2us", "--rtol", "nan"], POSITIVE),
+    (["workspace-volume", "p2us", "--rtol", "x"], NUMBER),
+    (["workspace-volume", "scara", "--rtol", "1e-12"], "too tight a tolerance"),  # refused after the first grid
+    (["workspace-volume", "p2us", "--plot", "myplot"], "unknown suffix"),
+    (["workspace-volume", "p2us", "--plot", "plot.foo"], "unknown suffix"),
+    (["workspace-volume", "p2us", "--plot", "adir"], "is a directory"),
+    (["workspace-volume", "p2us", "--plot", "nodir/p.png"], "does not exist"),
+    (["workspace-volume", "p2us", "--plot", ""], "is a directory"),
+    (["workspace-volume", "p2us", "--points", "pts.xyz"], "unknown suffix"),
+    (["workspace-volume", "p2us", "--points", "adir"], "is a directory"),
+    (["workspace-volume", "p2us", "--points", "nodir/p.npy"], "does not exist"),
+    (["workspace-volume", "p2us", "--points", "adir/"], "is a directory"),
+    # singularities
+    (["singularities", "nosuchbot"], "unknown robot"),
+    (["singularities", "ur5"], "ur5"),
+    (["singularities", "p2us", "--step", "0"], POSITIVE),
+    (["singularities", "p2us", "--step", "1e-9"], "over the 200,000,000 limit"),
+    (["singularities", "p2us", "--modes", "zzz"], "unknown mode"),
+    (["singularities", "p2us", "--limits", "x"], "invalid choice"),
+    (["singularities", "p2us", "--plot", "s.foo"], "unknown suffix"),
+    (["singularities", "p2us", "--plot", "adir"], "is a directory"),
+    (["singularities", "p2us", "--plot", "nodir/s.png"], "does not exist"),
+    (["singularities", "scara", "--angle-step-deg", "1e-9"], "over the 200,000,000 limit"),
+    (["singularities", "scara", "--angle-step-deg", "0"], POSITIVE),
+    (["singularities", "scara", "--angle-step-deg", "-1"], POSITIVE),
+    (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),
+    (["singularities", "scara", "--angle-step-deg", "deg"], NUMBER),
+    (["singularities", "scara", "--plot", "s"], "unknown suffix"),
+    (["singularities", "scara", "--modes", "zzz"], "unknown mode"),
+    # sweep
+    (["sweep", "p2us"], "give at least one"),
+    (["sweep", "scara", "--param", "b=0.3"], "3-[P2(US)]"),
+    (["sweep", "p2us", "--param", "b"], "NAME=START:STOP:COUNT"),
+    (["sweep", "p2us", "--param", "zz=1:2:3"], "unknown parameter"),
+    (["sweep", "p2us", "--param", "b=0.3:0.4"], "START:STOP:COUNT"),
+    (["sweep", "p2us", "--param", "b=0.3:0.4:0"], "COUNT >= 1"),
+    (["sweep", "p2us", "--param", "b=0.3:0.4:x"], "START:STOP:COUNT"),
+    (["sweep", "p2us", "--param", "b=nan:0.4:2"], "finite"),
+    (["sweep", "p2us", "--param", "b=0.3", "--param", "b=0.4"], "twice"),
+    (["sweep", "p2us", "--param", "b=0.3:0.4:100000000"], "over the 200,000,000 limit"),
+    (["sweep", "p2us", "--param", "b=0.3:0.4:1000", "--param", "d=0.02:0.03:1000"], "over the 200,000,000 limit"),
+    (["sweep", "p2us", "--param", "L=-1"], "L"),
+    ([*SWEEP, "--workers", "-1"], "at least 1"),
+    ([*SWEEP, "--workers", "0"], "at least 1"),
+    ([*SWEEP, "--workers", "100000"], "limit"),
+    ([*SWEEP, "--workers", "two"], "whole number"),
+    ([*SWEEP, "--step", "0"], POSITIVE),
+    ([*SWEEP, "--step", "1e-9"], "over the 200,000,000 limit"),
+    ([*SWEEP, "--rtol", "0"], POSITIVE),
+    ([*SWEEP, "--rtol", "-0.001"], POSITIVE),
+    ([*SWEEP, "--out", "adir"], "is a directory"),
+    ([*SWEEP, "--out", "table.txt"], "unknown suffix"),
+    ([*SWEEP, "--out", "nodir/t.csv"], "does not exist"),
+    ([*SWEEP, "--scheduler", "notascheme://x"], "--scheduler"),
+    # guide
+    (["guide"], "required: --experiment"),
+    (["guide", "--experiment", "4"], "invalid choice"),
+    (["guide", "--experiment", "one"], "invalid int"),
+    ([*EXP, "--robot", "p2us"], "planar 2R arm"),
+    ([*EXP, "--robot", "nosuchbot"], "unknown robot"),
+    ([*EXP, "--robot", "ur5"], "ur5"),
+    ([*EXP, "--force", "nan"], FINITE),
+    ([*EXP, "--force", "1e308"], FINITE),
+    ([*EXP, "--mass", "0"], POSITIVE),
+    ([*EXP, "--mass", "-5"], POSITIVE),
+    ([*EXP, "--damping", "0"], POSITIVE),
+    ([*EXP, "--damping", "inf"], POSITIVE),
+    ([*EXP, "--v-max", "0"], POSITIVE),
+    ([*EXP, "--saturation", "both"], "invalid choice"),
+    ([*EXP, "--threshold", "-0.1"], POSITIVE),
+    ([*EXP, "--k-max", "nan"], POSITIVE),
+    ([*EXP, "--gain", "0"], POSITIVE),
+    ([*EXP, "--dt", "0"], POSITIVE),
+    ([*EXP, "--dt", "1e308"], "at least 1 is needed"),
+    ([*EXP, "--dt", "1e-12"], "over the 2,000,000 limit"),
+    ([*EXP, "--dt", "x"], NUMBER),
+    ([*EXP, "--dt", "0.01", "--mass", "1e-300"], "out of a computable range"),
+    ([*EXP, "--dt", "0.01", "--k-max", "1e300"], "out of a computable range"),
+    ([*EXP, "--plot", "g"], "unknown suffix"),
+    ([*EXP, "--plot", "adir"], "is a directory"),
+    ([*EXP, "--plot", "nodir/g.png"], "does not exist"),
+    ([*EXP, "--csv", "g.json"], "unknown suffix"),
+    ([*EXP, "--csv", "adir"], "is a directory"),
+    ([*EXP, "--csv", "nodir/g.csv"], "does not exist"),
+    # show (always with --export: no viewer is started)
+    (["show", "nosuchbot", "--export", "v.html"], "unknown robot"),
+    ([*SHOW, "--q", "0.3", "0.3"], "3 actuator values"),
+    ([*SHOW, "--q", "0.3", "0.3", "nan"], FINITE),
+    ([*SHOW, "--position", "0", "0", "nan"], FINITE),
+    ([*SHOW, "--position", "1e308", "1e308", "1e308"], FINITE),
+    ([*SHOW, "--position", "0", "0"], "expected 3 arguments"),
+    ([*SHOW, "--mode", "zzz", "--position", "0", "0", "-0.45"], "unknown mode"),
+    ([*SHOW, "--guide", "4"], "invalid choice"),
+    ([*SHOW, "--guide", "1"], "planar arms"),
+    ([*SHOW, "--limits", "x"], "invalid choice"),
+    ([*SHOW, "--step", "0"], POSITIVE),
+    ([*SHOW, "--step", "1e-9", "--workspace"], "limit"),
+    ([*SHOW, "--step", "0.001", "--singularities"], "limit"),
+    ([*SHOW, "--serve-seconds", "-1"], POSITIVE),
+    (["show", "p2us", "--export", "v.png"], "unknown suffix"),
+    (["show", "p2us", "--export", "adir"], "is a directory"),
+    (["show", "p2us", "--export", "nodir/v.html"], "does not exist"),
+    (["show", "scara", "--export", "v.html", "--position", "0", "0", "0"], "--q"),
+    (["show", "scara", "--export", "v.html", "--q", "0"], "2"),
+    (["show", "ur5", "--export", "v.html", "--workspace"], "planar arm"),
+    # urdf
+    (["urdf", "p2us"], "required: -o/--output"),
+    (["urdf", "scara", "-o", "d.urdf"], "invalid choice"),
+    (["urdf", "p2us", "-o", "adir"], "is a directory"),
+    (["urdf", "p2us", "-o", "d.txt"], "unknown suffix"),
+    (["urdf", "p2us", "-o", "nodir/d.urdf"], "does not exist"),
+    ([*URDF, "--b", "nan"], FINITE),
+    ([*URDF, "--b", "-1"], "b"),
+    ([*URDF, "--d", "0"], "d"),
+    ([*URDF, "--L", "-1"], "positive length"),
+    ([*URDF, "--L", "1e308"], FINITE),
+    ([*URDF, "--beta", "x"], NUMBER),
+    ([*URDF, "--alpha", "0", "120"], "expected 3 arguments"),
+    ([*URDF, "--stroke", "0.6", "0.1"], "stroke"),
+    ([*URDF, "--stroke", "0.1"], "expected 2 arguments"),
+    ([*URDF, "--theta", "nan", "1"], FINITE),
+    ([*URDF, "--phi", "1", "-1"], "phi"),
+    ([*URDF, "--theta-zero", "inf"], FINITE),
+    ([*URDF, "--rod-spacing", "-0.05"], "rod"),
+]
+
+
+@pytest.fixture()
+def workdir(tmp_path, monkeypatch):
+    (tmp_path / "adir").mkdir()
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def _listing(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+def test_enough_cases():
+    assert len(CASES) >= 150
+    assert len({tuple(a) for a, _ in CASES}) == len(CASES)  # no case counted twice
+
+
+@pytest.mark.parametrize(("argv", "needle"), CASES, ids=[" ".join(a)[:60] for a, _ in CASES])
+def test_bad_input(argv, needle, capsys, workdir):
+    before = _listing(workdir)
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2, (argv, out, err)
+    assert err.count("\n") == 1 and err.endswith("\n"), err  # exactly one line
+    assert needle in err, err
+    assert "Traceback" not in err and "Warning" not in err
+    assert out == ""
+    assert _listing(workdir) == before  # nothing written, nothing left behind
+
+
+# -- answers, not errors: unreachable targets exit 1 in every command -------------------------------
+UNREACHABLE = [
+    ["ik", "scara", "--position", "0", "0.05"],
+    ["ik", "p2us", "--position", "10", "10", "10"],
+    ["fk", "p2us", "--q", "2", "0.1", "0.1"],
+    ["jacobian", "p2us", "--position", "10", "10", "10"],
+    ["mobility", "p2us", "--position", "10", "10", "10"],
+    ["mobility", "p2us", "--q", "2", "0.1", "0.1"],
+    ["show", "p2us", "--position", "10", "10", "10", "--export", "v.html"],
+    ["show", "p2us", "--q", "2", "0.1", "0.1", "--export", "v.html"],
+]
+
+
+@pytest.mark.parametrize("argv", UNREACHABLE, ids=[" ".join(a[:3]) for a in UNREACHABLE])
+def test_unreachable_is_exit_1(argv, capsys, workdir):
+    before = _listing(workdir)
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    assert err == "" and ("NOT reachable" in out or "no assembly" in out), out
+    assert main([*argv, "--json"]) == 1
+    out, err = capsys.readouterr()
+    assert '"reachable": false' in out or '"exists": false' in out
+    assert _listing(workdir) == before
+
+
+def test_no_arguments_lists_the_commands(capsys):
+    assert main([]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and "workspace-volume" in out and "sweep" in out and "guide" in out
+
+
+def test_help_texts_match_behaviour(capsys):
+    """jacobian --mode's default and --q on closed-loop robots say what the code does."""
+    assert main(["jacobian", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "default: every mode" not in text and "first mode within the limits" in text
+    assert "p2us: not used, give --position" in text
+    code = main(["jacobian", "p2us", "--position", "0", "0", "-0.45", "--json"])
+    import json
+
+    assert code == 0 and json.loads(capsys.readouterr().out)["within_limits"] is True  # the first valid mode
+
+
+def test_info_counts_coordinates_and_mobility(capsys):
+    assert main(["info", "p2us"]) == 0
+    out = capsys.readouterr().out
+    assert "18 joint coordinates, mobility 3" in out and "degrees of freedom" not in out
+    assert main(["info", "scara"]) == 0
+    assert "2 degrees of freedom" in capsys.readouterr().out
+
+
+def test_outputs_written_atomically(capsys, workdir):
+    """A figure and a CSV land under their names, with no temporary file beside them."""
+    assert main(["guide", "--experiment", "1", "--dt", "0.01", "--csv", "g.csv", "--plot", "g.png"]) == 0
+    capsys.readouterr()
+    assert _listing(workdir) == {"adir", "g.csv", "g.png"}
+    assert (workdir / "g.png").read_bytes()[:4] == b"\x89PNG"
+    assert (workdir / "g.csv").read_text().count("\n") == 601  # header + 6 s at 10 ms
+
+
+def test_write_atomic_leaves_nothing_on_failure(tmp_path):
+    from kinematics.errors import InvalidInputError
+    from kinematics.report import write_atomic
+
+    target = tmp_path / "t.csv"
+    target.write_text("old")
+
+    def broken(path: str) -> None:
+        Path(path).write_text("half")
+        raise RuntimeError("writer failed")
+
+    def interrupted(path: str) -> None:
+        Path(path).write_text("half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(RuntimeError):
+        write_atomic(str(target), broken, "--out")
+    with pytest.raises(KeyboardInterrupt):
+        write_atomic(str(target), interrupted, "--out")
+    (tmp_path / "sub").mkdir()
+    with pytest.raises(InvalidInputError, match="--out: cannot write"):  # rename onto a directory
+        write_atomic(str(tmp_path / "sub"), "x", "--out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sub", "t.csv"]
+    assert target.read_text() == "old"  # the old file is untouched until a new one is complete
+    write_atomic(str(target), b"new", "--out")
+    assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["sub", "t.csv"]
+
+
+# -- the process boundary: version, pipes, a full disk, Ctrl-C ---------------------------------------
+def _kinematics(*argv: str) -> list[str]:
+    return [sys.executable, "-m", "kinematics", *argv]
+
+
+def test_version_from_package_metadata():
+    from importlib.metadata import version
+
+    proc = subprocess.run(_kinematics("--version"), capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout == f"kinematics {version('kinematics')}\n" and proc.stderr == ""
+
+
+def test_no_arguments_subprocess():
+    proc = subprocess.run(_kinematics(), capture_output=True, text=True)
+    assert proc.returncode == 0 and "COMMAND" in proc.stdout and proc.stderr == ""
+
+
+def test_pipe_closed_early_is_quiet():
+    # the report (~200 kB) is far larger than a pipe's buffer, so the writer is still writing
+    # when the reader takes one line and closes the pipe: it must end quietly (141, like SIGPIPE)
+    argv = _kinematics("singularities", "scara", "--angle-step-deg", "0.2", "--json")
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    assert proc.stdout.readline() == b"{\n"
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141 and err == ""
+    shell = subprocess.run(f"{sys.executable} -m kinematics fk scara --q 0 0 | head -1", shell=True,
+                           capture_output=True, text=True)
+    assert shell.stderr == "" and shell.stdout.startswith("frame")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_full_disk_is_one_line():
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run(_kinematics("fk", "scara", "--q", "0", "0"), stdout=full, stderr=subprocess.PIPE,
+                              text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "No space left" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def _interrupt(argv: list[str], after: float, group: bool = False) -> subprocess.CompletedProcess[str]:
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    time.sleep(after)
+    if group:  # what a terminal's Ctrl-C does: SIGINT to the whole process group
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(argv, proc.returncode, out, err)
+
+
+def test_ctrl_c_is_one_line():
+    # 900,000 control steps: far longer than the interrupt delay
+    proc = _interrupt(_kinematics("guide", "--experiment", "3", "--dt", "1e-5"), 4.0)
+    assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_sweep_is_one_line():
+    proc = _interrupt(_kinematics("sweep", "p2us", "--param", "b=0.3:0.35:6", "--workers", "2"), 10.0, group=True)
+    assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr
