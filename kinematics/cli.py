@@ -125,7 +125,9 @@ def cmd_info(args: argparse.Namespace) -> int:
             parts += ["", "parameters (read from the URDF):", key_values(params.items(), None)]
         if payload["loops"]:
             lp = payload["loops"]
-            parts += ["", f"loop closures: {len(lp['constraints'])} point constraints; actuated: {', '.join(lp['actuated'])}"]
+            kinds = [c["type"] for c in lp["constraints"]]
+            counts = ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds))
+            parts += ["", f"loop closures ({lp['sidecar']}): {counts or 'none'}; actuated: {', '.join(lp['actuated'])}"]
         parts += [
             "",
             f"frames ({len(robot.frame_names)}): {', '.join(robot.frame_names)}",

@@ -189,7 +189,7 @@ def _composite_type(kinds: list[str]) -> str:
 
 def grubler(robot: Robot, q: np.ndarray | None = None) -> GrublerCount:
     """Grübler–Kutzbach count of the physical mechanism (planar lambda = 3 when every revolute
-    axis is parallel at q and every closure is a point closure, else 6)."""
+    axis is parallel at q, else 6; a point closure then acts as a pin, a 6d closure as a weld)."""
     model = robot.model
     q = pin.neutral(model) if q is None else q
     kinds = {d.name: d.kind for d in robot.dofs}
@@ -208,8 +208,9 @@ def grubler(robot: Robot, q: np.ndarray | None = None) -> GrublerCount:
         return (body != 0 and body not in anchored and len(kids) == 1
                 and np.linalg.norm(model.jointPlacements[kids[0]].translation) <= _ORIGIN_TOL)
 
-    planar = common_axis(model, q) is not None and all(
-        c.type == "point" for c in (robot.loops.closures if robot.loops else ()))
+    # A weld (6d closure) keeps a planar mechanism planar: it removes the welded body's 3 planar
+    # freedoms just as it removes 6 spatial ones, so lambda = 3 holds whatever the closure types.
+    planar = common_axis(model, q) is not None
     joints: list[PhysicalJoint] = []
     bodies = {0}
     for jid in range(1, model.njoints):

@@ -295,7 +295,9 @@ def _default_tool_frame(model: pin.Model) -> str:
 def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -> Robot:
     """Load a robot from a built-in name, a URDF path or an example-robot-data name.
 
-    A loop-closure sidecar next to the URDF (`<stem>.loops.yaml`) is loaded too.
+    A loop-closure sidecar next to the URDF (`<stem>.loops.yaml`) is loaded too; failing that, a
+    Gepetto-format `robot.yaml` in the same folder (see `kinematics.gepetto`), whose joint
+    substitutions change the model built from the URDF.
 
     Raises:
         UnknownRobotError: `spec` is no known name and no existing file.
@@ -313,10 +315,21 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -
         package_dirs = (str(erd_robots_dir().parent.parent),)  # type: ignore[union-attr]
     else:
         raise UnknownRobotError(text, robot_names())
-    model = build_model(path)
-    from .loops import find_loop_spec
+    from .loops import find_loop_spec, sidecar_for
 
-    loops = find_loop_spec(path, model)
+    gepetto = None
+    if not sidecar_for(Path(path)).exists():  # our own sidecar wins over a Gepetto robot.yaml
+        from .gepetto import find_gepetto
+
+        gepetto = find_gepetto(path)
+    if gepetto is not None:
+        from . import gepetto as gp
+
+        model = gp.build_model(path, gepetto)
+        loops: LoopSpec | None = gp.loop_spec(gepetto, model, tool_frame)
+    else:
+        model = build_model(path)
+        loops = find_loop_spec(path, model)
     frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
     robot = Robot(name, Path(path), model, frame, package_dirs, loops)
     robot.frame_id(frame)  # validate
