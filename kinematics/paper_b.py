@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 
-REPRODUCTION_PAGE = "docs/paper-b-reproduction.md"
+from .p2us_scan import PAPER_VOLUME_M3 as VOLUME_M3  # Sec. 8: 0.13397 m^3 with eq. 30's limits
 
-VOLUME_M3 = 0.13397
-"""Sec. 8: the workspace volume with the limits of eq. 30 [m^3]."""
+REPRODUCTION_PAGE = "docs/paper-b-reproduction.md"
 
 TABLE3_POSITION_M = np.array([0.10, 0.10, -0.55])
 """Table 3's platform position, (10, 10, -55) read in cm [m]."""
@@ -124,3 +123,94 @@ def comparison_lines(c: dict[str, Any]) -> list[str]:
     return [f"design: {c['design']} ({what})",
             f"paper B: {c['paper_volume_m3']} m^3; ours ({c['compared']}, {c['limits']} limits): "
             f"{c['ours_m3']:.6g} m^3, {100 * c['relative_difference']:+.2f} % (see {c['page']})"]
+
+
+# -- the paper's computed results, recomputed for a design -----------------------------------------
+def table3(params: Any) -> dict[str, Any]:
+    """Table 3: the working mode's IK at (10, 10, -55) cm beside the paper's IK and ADAMS values."""
+    from .parallel import ik, mode_index
+
+    res = ik(params, TABLE3_POSITION_M)
+    m = mode_index(WORKING_MODE)
+    q = res.q[m]
+    return {"position_m": TABLE3_POSITION_M, "mode": WORKING_MODE, "q_m": q, "within_limits": bool(res.within_limits[m]),
+            "paper_ik_m": TABLE3_Q_IK_M, "paper_adams_m": TABLE3_Q_ADAMS_M,
+            "rel_diff_ik": float(np.max(np.abs(q / TABLE3_Q_IK_M - 1))),
+            "rel_diff_adams": float(np.max(np.abs(q / TABLE3_Q_ADAMS_M - 1))),
+            "paper_ik_vs_adams": float(np.max(np.abs(TABLE3_Q_IK_M / TABLE3_Q_ADAMS_M - 1)))}
+
+
+def fit_table3(params: Any) -> dict[str, float]:
+    """Solve Table 3's three rod equations |v_i - q_i w_i| = L (the paper's IK values, working
+    root) for (b - d, L, beta), the limb angles as in `params`; Newton from `params`' values."""
+    from scipy.optimize import least_squares
+
+    alpha = np.asarray(params.alpha)
+    e = np.stack([np.cos(alpha), np.sin(alpha), np.zeros(3)], axis=-1)
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        r, L, beta = x
+        w = np.concatenate([-np.cos(beta) * e[:, :2], np.full((3, 1), -np.sin(beta))], axis=-1)
+        v = TABLE3_POSITION_M - r * e
+        return np.linalg.norm(v - TABLE3_Q_IK_M[:, None] * w, axis=-1) - L
+
+    sol = least_squares(residual, [params.b - params.d, params.L, params.beta], xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    r, L, beta = sol.x
+    return {"b_minus_d_m": float(r), "L_m": float(L), "beta_deg": float(np.degrees(beta)),
+            "residual_m": float(np.max(np.abs(sol.fun)))}
+
+
+def fig6(params: Any) -> dict[str, Any]:
+    """Fig. 6: the working mode's IK at (-0.2, -0.2, -0.4) m and its limits."""
+    from .parallel import ik, mode_index, violations
+
+    res = ik(params, FIG6_POSITION_M)
+    m = mode_index(WORKING_MODE)
+    roots = [0 if c == "+" else 1 for c in WORKING_MODE]
+    ok = bool(res.reachable[m])
+    viol = violations(params, res.q[m], res.limbs.n[np.arange(3), roots]) if ok else ["does not assemble"]
+    return {"position_m": FIG6_POSITION_M, "mode": WORKING_MODE, "q_m": res.q[m], "assembles": ok,
+            "within_limits": bool(res.within_limits[m]), "violations": viol,
+            "modes_assembled": int(res.reachable.sum())}
+
+
+def fig8(params: Any, q: np.ndarray = np.array([0.1, 0.7, 0.0])) -> dict[str, Any]:
+    """Fig. 8: FK of q (both assembly modes), the distance of each pose from the printed one, and
+    the singularity measures and type of the nearer pose (cosine of each rod-rail angle)."""
+    from .parallel import SINGULARITY_TYPES, classify, fk, jacobians, limb_ik
+
+    res = fk(params, q)
+    out: dict[str, Any] = {"q_m": q, "printed_pose_m": FIG8_POSITION_M, "assembles": bool(res.exists)}
+    # the printed pose's distance from each rail axis, against L (reach needs <= L)
+    out["axis_distance_m"] = limb_ik(params, FIG8_POSITION_M).axis_distance
+    if not res.exists:
+        return out
+    dist = np.linalg.norm(res.p - FIG8_POSITION_M, axis=-1)
+    k = int(np.argmin(dist))
+    p = res.p[k]
+    jac = jacobians(params, p, q)
+    n = jac.Jx / params.L
+    out.update({"poses_m": res.p, "distance_m": dist, "nearest": k, "pose_m": p,
+                "rod_rail_cosines": np.einsum("ij,ij->i", n, params.w),
+                "iota_I": float(jac.iota_I), "iota_II": float(jac.iota_II),
+                "type_at_tolerance": SINGULARITY_TYPES[int(classify(jac.iota_I, jac.iota_II))]})
+    return out
+
+
+def fig7_scan(params: Any, levels: np.ndarray = FIG7_LEVELS_M) -> dict[str, Any]:
+    """Fig. 7: the Jacobian at every triple of `levels` (8^3 = 512), FK below the carriages' plane
+    (the assembly the paper draws). Returns the triples sorted by iota_I (the near-type-I ones
+    first) and the count with iota_I or iota_II below 1e-2."""
+    import itertools
+
+    from .parallel import fk, jacobians
+
+    q = np.array(list(itertools.product(levels, levels, levels)))
+    res = fk(params, q)
+    ok = res.exists
+    p = res.p[ok, 0]
+    jac = jacobians(params, p, q[ok])
+    order = np.argsort(jac.iota_I)
+    return {"triples": len(q), "assembled": int(ok.sum()), "q_m": q[ok][order], "p_m": p[order],
+            "iota_I": jac.iota_I[order], "iota_II": jac.iota_II[order],
+            "near_singular": int(np.sum((jac.iota_I < 1e-2) | (jac.iota_II < 1e-2)))}

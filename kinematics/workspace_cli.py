@@ -80,7 +80,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     sing_summary: dict[str, Any]
     sing: Any = None
     if kind == "p2us":
-        from .p2us_scan import PAPER_VOLUME_M3
         from .parallel import MODES
         from .parallel_cli import params_of
         from .singularities import p2us_singularities
@@ -92,8 +91,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=not args.json)
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
-        paper = {"paper_volume_m3": PAPER_VOLUME_M3, "ratio_to_paper": ws.total / PAPER_VOLUME_M3,
-                 "note": paper_volume_note(args.limits)}
+        paper = paper_comparison(robot, args.limits, ws)
     else:
         from .scara import ELBOWS
         from .singularities import scara_singularities
@@ -153,9 +151,33 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
         ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
     ], digits=None))
     if paper:
-        lines += ["", f"paper B: {paper['paper_volume_m3']} m^3 (ours / paper = {paper['ratio_to_paper']:.3f})",
-                  paper["note"]]
+        lines += ["", *paper_comparison_lines(paper)]
     return "\n".join(lines)
+
+
+def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
+    """The report's paper-B keys: `design` (the built-in name or the URDF path) and, for the
+    built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
+    page), `paper_volume_m3` and `ratio_to_paper` (working mode over paper)."""
+    from .paper_b import volume_comparison
+
+    r = ws.result
+    per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
+    c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
+    out: dict[str, Any] = {"design": c.pop("design")}
+    if c:
+        c["note"] = paper_volume_note(out["design"], limits)
+        out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
+    return out
+
+
+def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
+    """Human lines of `paper_comparison`."""
+    from .paper_b import comparison_lines
+
+    c = paper.get("paper_b", {"design": paper["design"]})
+    lines = comparison_lines({**c, "design": paper["design"]})
+    return lines + ([c["note"]] if "note" in c else [])
 
 
 def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
@@ -164,8 +186,14 @@ def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
             for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
 
 
-def paper_volume_note(limits: str) -> str:
-    """Why our volume differs from paper B's 0.13397 m^3."""
+def paper_volume_note(design: str, limits: str) -> str:
+    """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
+    if design == "p2us-results":
+        binding = ("the strokes alone (eq. 30's phi range would remove about 1.5 %, its theta range read as the "
+                   "rod-rail angle nothing)" if limits == "actuators" else
+                   "the strokes and phi (theta, read as the rod-rail angle, never binds in this mode)")
+        return ("The geometry behind paper B's results; its working mode is limited by " + binding + ". The "
+                "remaining difference is within the paper's grid search (see docs/paper-b-reproduction.md).")
     common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
               "joints' zero references nor which working modes it counts. ")
     if limits == "all":
