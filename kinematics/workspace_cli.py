@@ -166,9 +166,19 @@ def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
     c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
     out: dict[str, Any] = {"design": c.pop("design")}
     if c:
+        from .paper_b import binding_limits
+
+        c["binding_limits"] = binding_limits(ws_params(ws))
         c["note"] = paper_volume_note(out["design"], limits)
         out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
     return out
+
+
+def ws_params(ws: Any) -> Any:
+    """The P2USParams a workspace was measured with (from its parameters record)."""
+    from .parallel import P2USParams
+
+    return P2USParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()})
 
 
 def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
@@ -177,6 +187,11 @@ def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
 
     c = paper.get("paper_b", {"design": paper["design"]})
     lines = comparison_lines({**c, "design": paper["design"]})
+    if "binding_limits" in c:
+        b = c["binding_limits"]
+        lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
+            f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
+            for k in ("theta", "phi")))
     return lines + ([c["note"]] if "note" in c else [])
 
 
@@ -189,11 +204,9 @@ def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
 def paper_volume_note(design: str, limits: str) -> str:
     """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
     if design == "p2us-results":
-        binding = ("the strokes alone (eq. 30's phi range would remove about 1.5 %, its theta range read as the "
-                   "rod-rail angle nothing)" if limits == "actuators" else
-                   "the strokes and phi (theta, read as the rod-rail angle, never binds in this mode)")
-        return ("The geometry behind paper B's results; its working mode is limited by " + binding + ". The "
-                "remaining difference is within the paper's grid search (see docs/paper-b-reproduction.md).")
+        return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
+                "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
+                "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
     common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
               "joints' zero references nor which working modes it counts. ")
     if limits == "all":
