@@ -25,13 +25,14 @@ elevation convention the theta bound is not polynomial in z.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
 from .errors import InvalidInputError
 from .p2us_scan import bounding_box, check_limits
-from .parallel import P2USParams, mode_index, rod_rail_bounds
+from .parallel import MODES, P2USParams, mode_index, rod_rail_bounds
 
 
 class ColumnVolume(NamedTuple):
@@ -126,8 +127,7 @@ class _Limb:
         return good
 
 
-def column_length(limbs: list[_Limb], x: float, y: float) -> float:
-    """Length [m] of the admissible z-set on the vertical line through (x, y)."""
+def _column_length(limbs: list[_Limb], x: float, y: float) -> float:
     pts: list[float] = []
     for limb in limbs:
         p, phi_ok = limb.setup(x, y)
@@ -144,27 +144,33 @@ def column_length(limbs: list[_Limb], x: float, y: float) -> float:
     return float(np.sum((z[1:] - z[:-1])[good]))
 
 
+def column_length(P: P2USParams, mode: str = "---", limits: str = "actuators") -> Callable[[float, float], float]:
+    """(x, y) [m] -> length [m] of the z-set where working mode `mode` assembles within `limits`."""
+    passive = check_limits(limits)
+    if passive and P.theta_convention != "rod-rail":
+        raise InvalidInputError("limits", "exact columns need the rod-rail theta convention (or --limits actuators)")
+    roots = [0 if c == "+" else 1 for c in MODES[mode_index(mode)]]
+    limbs = [_Limb(P, i, roots[i], passive) for i in range(3)]
+    return lambda x, y: _column_length(limbs, x, y)
+
+
 def mode_volume(P: P2USParams, mode: str = "---", limits: str = "actuators", *, epsrel: float = 1e-9,
                 limit: int = 400) -> ColumnVolume:
     """Volume [m^3] of working mode `mode` by exact z-extents and nested adaptive quadrature.
 
-    Slow (pure Python, ~10^5-10^6 integrand calls): a reference for tests and docs, not a tool.
+    Slow (pure Python, ~10^6 integrand calls: minutes): a reference for tests and docs, not a tool.
+    The error is quad's outer estimate plus the largest inner one times the x range.
     """
     from scipy import integrate
 
-    passive = check_limits(limits)
-    if passive and P.theta_convention != "rod-rail":
-        raise InvalidInputError("limits", "exact columns need the rod-rail theta convention (or --limits actuators)")
-    m = mode_index(mode)
-    roots = [0 if c == "+" else 1 for c in ("+++", "++-", "+-+", "+--", "-++", "-+-", "--+", "---")[m]]
-    limbs = [_Limb(P, i, roots[i], passive) for i in range(3)]
+    length = column_length(P, mode, limits)
     lo, hi = bounding_box(P)
     count = [0]
     inner_err = [0.0]
 
     def g(y: float, x: float) -> float:
         count[0] += 1
-        return column_length(limbs, x, y)
+        return length(x, y)
 
     def h(x: float) -> float:
         val, err = integrate.quad(g, lo[1], hi[1], args=(x,), epsabs=0.0, epsrel=epsrel, limit=limit)
@@ -172,4 +178,4 @@ def mode_volume(P: P2USParams, mode: str = "---", limits: str = "actuators", *, 
         return val
 
     vol, err = integrate.quad(h, lo[0], hi[0], epsabs=0.0, epsrel=epsrel, limit=limit)
-    return ColumnVolume(vol, err + inner_err[0] * (hi[0] - lo[0]), count[0])
+    return ColumnVolume(vol, float(err + inner_err[0] * (hi[0] - lo[0])), count[0])

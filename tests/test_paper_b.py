@@ -151,12 +151,12 @@ def test_columns_are_exact_along_vertical_lines(results, rng):
     z = np.linspace(-1.2, 0.2, 35_001)
     dz = z[1] - z[0]
     for limits in ("actuators", "all"):
-        limbs = [pc._Limb(results, i, 1, limits == "all") for i in range(3)]
+        length = pc.column_length(results, "---", limits)
         for x, y in rng.uniform(-0.4, 0.4, (15, 2)):
             pts = np.stack([np.full_like(z, x), np.full_like(z, y), z], -1)
             count = par.ik(results, pts, limits=limits == "all").within_limits[:, m].sum() * dz
             # sampling misplaces each of at most 6 interval ends by < dz
-            assert abs(pc.column_length(limbs, x, y) - count) <= 6 * dz
+            assert abs(length(x, y) - count) <= 6 * dz
 
 
 def test_working_mode_volume_against_the_column_reference(results):
@@ -232,3 +232,13 @@ def test_cli_volume_report_names_design_and_paper(capsys, tmp_path):
     code, d = _json(capsys, "workspace-volume", str(tmp_path / "p2us-results.urdf"), "--step", "0.04",
                     "--rtol", "0.02", "--modes=---", "--limits", "actuators")
     assert code == 0 and "paper_b" not in d and d["design"].endswith("p2us-results.urdf")
+
+
+def test_sweep_keeps_the_design_conventions(results):
+    from kinematics import sweep
+
+    grid = sweep.designs(results, [sweep.Axis.parse("L=0.39:0.41:3")])
+    params = [sweep.to_params(d) for d in grid]
+    assert [p.L for p in params] == pytest.approx([0.39, 0.40, 0.41])
+    assert all(p.theta_convention == "rod-rail" and p.theta_limits == results.theta_limits for p in params)
+    assert params[1] == results
