@@ -156,19 +156,18 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
 
 
 def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
-    """The report's paper-B keys: `design` (the built-in name or the URDF path) and, for the
-    built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
+    """The report's paper-B keys: `design` (the built-in name or the URDF path), `binding_limits`
+    (the volume each passive limit removes from the working mode) and, for the built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
     page), `paper_volume_m3` and `ratio_to_paper` (working mode over paper)."""
     from .paper_b import volume_comparison
 
     r = ws.result
     per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
     c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
-    out: dict[str, Any] = {"design": c.pop("design")}
-    if c:
-        from .paper_b import binding_limits
+    from .paper_b import binding_limits
 
-        c["binding_limits"] = binding_limits(ws_params(ws))
+    out: dict[str, Any] = {"design": c.pop("design"), "binding_limits": binding_limits(ws_params(ws))}
+    if c:
         c["note"] = paper_volume_note(out["design"], limits)
         out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
     return out
@@ -187,8 +186,8 @@ def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
 
     c = paper.get("paper_b", {"design": paper["design"]})
     lines = comparison_lines({**c, "design": paper["design"]})
-    if "binding_limits" in c:
-        b = c["binding_limits"]
+    if "binding_limits" in paper:
+        b = paper["binding_limits"]
         lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
             f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
             for k in ("theta", "phi")))
@@ -207,7 +206,8 @@ def paper_volume_note(design: str, limits: str) -> str:
         return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
                 "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
                 "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
-    common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
+    common = ("Table 2's dimensions do not give paper B's computed results; the geometry that does is the "
+              "built-in p2us-results (docs/paper-b-reproduction.md). Paper B defines neither the universal "
               "joints' zero references nor which working modes it counts. ")
     if limits == "all":
         return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "

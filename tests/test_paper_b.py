@@ -224,6 +224,9 @@ def test_cli_volume_report_names_design_and_paper(capsys, tmp_path):
     assert code == 0 and d["design"] == "p2us-results" and c["paper_volume_m3"] == 0.13397
     assert c["compared"] == "working mode ---" and c["page"] == "docs/paper-b-reproduction.md"
     assert c["relative_difference"] == pytest.approx(d["modes"]["---"]["volume"] / 0.13397 - 1, rel=1e-12)
+    # phi removes volume (three vertical slabs |p.t_i| <= L sin 70 deg); the rod-rail theta never binds here
+    b = d["binding_limits"]
+    assert b["theta"]["volume_m3"] == 0 and b["phi"]["volume_m3"] > 5 * b["phi"]["standard_error_m3"]
     # a copy of a built-in is not the built-in: no paper line
     import shutil
 
@@ -231,7 +234,7 @@ def test_cli_volume_report_names_design_and_paper(capsys, tmp_path):
         shutil.copy(URDF_DIR / f, tmp_path / f)
     code, d = _json(capsys, "workspace-volume", str(tmp_path / "p2us-results.urdf"), "--step", "0.04",
                     "--rtol", "0.02", "--modes=---", "--limits", "actuators")
-    assert code == 0 and "paper_b" not in d and d["design"].endswith("p2us-results.urdf")
+    assert code == 0 and "paper_b" not in d and d["design"].endswith("p2us-results.urdf") and "binding_limits" in d
 
 
 def test_sweep_keeps_the_design_conventions(results):
