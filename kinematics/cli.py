@@ -27,7 +27,8 @@ OUTPUTS = {"plot": ("--plot", "figure"), "output": ("-o/--output", "urdf"), "exp
 OUTPUTS_BY_COMMAND = {("fk", "out"): ("--out", "poses")}
 """Where one command's option writes another kind of file than OUTPUTS says."""
 
-ROBOT_HELP = "built-in name (scara, p2us), URDF path, or example-robot-data name (ur5, panda, ...)"
+ROBOT_HELP = ("built-in name (scara, p2us, p2us-results), URDF path, or example-robot-data name "
+              "(ur5, panda, ...)")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -70,8 +71,13 @@ def cmd_info(args: argparse.Namespace) -> int:
     robot = _load(args)
     agree = parser_agreement(robot)
     params: dict[str, Any] = {}
+    sources: dict[str, str] = {}
     if _is_parallel(robot):
         params = _parallel_parameters(robot)
+        if params:
+            from .paper_b import parameter_sources
+
+            sources = parameter_sources(robot.name, robot.urdf_path)
     else:
         from .errors import UnsupportedRobotError
         from .scara import ScaraParams
@@ -100,6 +106,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         "planar": axes is not None,
         "plane_axes": None if axes is None else ["xyz"[i] for i in axes],
         "parameters": params,
+        "parameter_sources": sources,
         "parsers_agree": {
             "frames": agree.frames,
             "max_position_error": agree.max_position_error,
@@ -121,7 +128,10 @@ def cmd_info(args: argparse.Namespace) -> int:
                 [(d.name, d.kind, d.lower, d.upper, unit[d.kind]) for d in robot.dofs],
             ),
         ]
-        if params:
+        if params and sources:
+            parts += ["", "parameters (read from the URDF and its sidecar; source of each number):",
+                      table(["parameter", "value", "source"], [(k, v, sources.get(k, "")) for k, v in params.items()])]
+        elif params:
             parts += ["", "parameters (read from the URDF):", key_values(params.items(), None)]
         if payload["loops"]:
             lp = payload["loops"]
@@ -588,8 +598,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=_non_negative, metavar="S", help=argparse.SUPPRESS)
 
-    p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's by default)")
+    p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's Table 2 "
+                                   "by default)")
     p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")
+    p.add_argument("--design", choices=["table2", "results"], default="table2",
+                   help="the preset the flags below change: table2 (paper B's Table 2, built-in p2us; default) "
+                        "or results (the geometry behind its computed results, built-in p2us-results)")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="URDF to write; the sidecar goes beside it as NAME.loops.yaml")
     p.add_argument("--b", type=_number, metavar="M", help="base radius [m] (default 0.325)")

@@ -10,8 +10,9 @@ in metres, positive inside that mode's workspace:
 
 * reach: (A^2 - G) / 2L (the IK discriminant over 2L; the two roots merge at 0, a type I pose);
 * stroke: q - q_min and q_max - q;
-* theta: L x the cross product of the rod's elevation vector with each end of the allowed arc
-  (the trig-free test of `parallel.passive_limits_ok`), ~ the rod tip's distance from the limit;
+* theta, "elevation" convention: L x the cross product of the rod's elevation vector with each
+  end of the allowed arc (the trig-free test of `parallel.passive_limits_ok`), ~ the rod tip's
+  distance from the limit; "rod-rail" convention: L (n.w - cos theta_max) and L (cos theta_min - n.w);
 * phi: L (sin phi - sin phi_min) and L (sin phi_max - sin phi).
 
 The margin is continuous in the platform position, so its zero set, the workspace boundary, can
@@ -27,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 
 from .errors import UnknownChoiceError
-from .parallel import MODES, P2USParams, _angle_bounds
+from .parallel import MODES, P2USParams, _angle_bounds, rod_rail_bounds
 
 LIMITS = ("all", "actuators")
 """Which limits a scan applies: every limit, or the actuator strokes only."""
@@ -62,7 +63,9 @@ def _geometry(params: P2USParams) -> np.ndarray:
     """Everything the kernel needs, packed in one float array (see `_kernel`)."""
     d_lo, d_hi, narrow, s_lo, s_hi = _angle_bounds(params)
     limbs = np.concatenate([params.e[:, :2], params.w], axis=1).ravel()  # ex ey wx wy wz per limb
-    rest = [params.L, params.d - params.b, *params.stroke, *d_lo, *d_hi, float(narrow), s_lo, s_hi]
+    rod_rail, c_lo, c_hi = rod_rail_bounds(params)
+    rest = [params.L, params.d - params.b, *params.stroke, *d_lo, *d_hi, float(narrow), s_lo, s_hi,
+            float(rod_rail), c_lo, c_hi]
     return np.concatenate([limbs, rest])
 
 
@@ -94,6 +97,9 @@ def _root(q, vx, vy, pz, ex, ey, wx, wy, wz, L, reach, q_lo, q_hi, g, passive): 
         after_lo = g[19] * se - g[20] * ce
         before_hi = ce * g[22] - se * g[21]
         arc = min(after_lo, before_hi) if g[23] > 0.5 else max(after_lo, before_hi)
+        if g[26] > 0.5:  # theta = angle between rod and rail: cos theta = n . w
+            nw = nx * wx + ny * wy + nz * wz
+            arc = min(nw - g[28], g[27] - nw)
         sphi = nx * ey - ny * ex  # -n . t_i = sin(phi)
         slack = min(slack, L * min(arc, sphi - g[24], g[25] - sphi))
     return slack, nx, ny, nz

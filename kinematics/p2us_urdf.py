@@ -21,6 +21,11 @@ theta = mid-range -/+ 90 deg, outside the universal joint's range. The other fiv
 closed onto their anchors by point constraints in the sidecar. Every design number appears
 verbatim in exactly one place, written with 17 significant digits, so generate -> read
 round-trips exactly.
+
+The sidecar's `u_joint_angles` block records what the universal-joint limits bound
+(`parallel.THETA_CONVENTIONS`, `PHI_CONVENTIONS`). Under theta "elevation" the theta range is the
+u_theta joint's URDF limit; under "rod-rail" (the angle between rod and rail, a function of both
+joint coordinates) the URDF joint is unlimited (+/-pi) and the range is written in the sidecar.
 """
 
 from __future__ import annotations
@@ -40,6 +45,27 @@ MECHANISM = "3-[P2(US)]"
 LIMBS = (1, 2, 3)
 RODS = (1, 2)
 SPHERICAL = ("s_1", "s_2", "s_3")
+
+
+DESIGNS: dict[str, P2USParams] = {
+    "table2": P2USParams(),
+    "results": P2USParams(
+        b=0.478, L=0.400, alpha=(math.radians(-90), math.radians(30), math.radians(150)),
+        theta_convention="rod-rail",
+    ),
+}
+"""Presets of the generator (`kinematics urdf p2us --design NAME`), the two built-in designs:
+
+* "table2" (built-in `p2us`): paper B's published dimensions (Table 2) and eq. 30's limits, with
+  theta read as the rod's elevation;
+* "results" (built-in `p2us-results`): the geometry behind paper B's computed results (Table 3,
+  Fig. 8, the workspace volume), reconstructed in docs/paper-b-reproduction.md: b - d = 450 mm
+  (d = 28 mm kept, so b = 478 mm), L = 400 mm (Table 1's rods), limbs at -90, 30, 150 deg (eq. 24's
+  directions), theta read as the rod-rail angle; beta, strokes and limits as published.
+"""
+
+BUILTIN_DESIGNS = {"p2us": "table2", "p2us-results": "results"}
+"""Built-in robot name -> the preset its committed URDF is generated from."""
 
 
 def _f(x: float) -> str:
@@ -75,8 +101,15 @@ def _rot_z(a: float) -> np.ndarray:
 
 
 def theta_centre(params: P2USParams) -> float:
-    """Mid-range of theta: where the platform's spherical joint is farthest from gimbal lock."""
-    return 0.5 * (params.theta_limits[0] + params.theta_limits[1])
+    """The u_theta coordinate where the platform's spherical joint is farthest from gimbal lock:
+    the middle of the rods' allowed swing (`P2USParams.theta_joint_centre`)."""
+    return params.theta_joint_centre
+
+
+def theta_joint_limits(params: P2USParams) -> tuple[float, float]:
+    """The u_theta joint's URDF limits: theta_limits when they bound that coordinate
+    ("elevation"), else unlimited (-pi, pi) (the sidecar holds the rod-rail range)."""
+    return params.theta_limits if params.theta_convention == "elevation" else (-math.pi, math.pi)
 
 
 def _platform_mount(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +178,7 @@ def urdf_text(params: P2USParams, name: str = "p2us") -> str:
                               rpy=(0, -p.beta, 0)))
             out.append(_link(f"mount_{i}_{k}", _visual('<sphere radius="0.012"/>', "joint")))
             out.append(_joint(f"u_theta_{i}_{k}", "revolute", f"mount_{i}_{k}", f"ucross_{i}_{k}",
-                              rpy=(0, p.theta_zero, 0), axis=(0, 1, 0), limit=p.theta_limits))
+                              rpy=(0, p.theta_zero, 0), axis=(0, 1, 0), limit=theta_joint_limits(p)))
             out.append(_link(f"ucross_{i}_{k}"))
             out.append(_joint(f"u_phi_{i}_{k}", "revolute", f"ucross_{i}_{k}", f"rod_{i}_{k}",
                               axis=(0, 0, 1), limit=p.phi_limits))
@@ -232,6 +265,13 @@ def sidecar_text(params: P2USParams, urdf_name: str) -> str:
         f"urdf: {urdf_name}",
         "end_effector: platform",
         "actuated: [" + ", ".join(f"slider_{i}" for i in LIMBS) + "]",
+        "u_joint_angles:  # what the universal-joint limits bound (kinematics.parallel: THETA/PHI_CONVENTIONS)",
+        f"  theta: {params.theta_convention}",
+    ]
+    if params.theta_convention != "elevation":
+        lines.append(f"  theta_limits: [{_f(params.theta_limits[0])}, {_f(params.theta_limits[1])}]  # rad")
+    lines += [
+        f"  phi: {params.phi_convention}",
         "closures:",
     ]
     for i in LIMBS:
@@ -356,12 +396,49 @@ def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> 
             raise UnsupportedRobotError(who, f"joint 'pmount_{i}_joint' must turn by alpha_{i} about z like 'limb_{i}_joint'")
     for name in SPHERICAL:
         need(name, "revolute")
+    conventions = read_conventions(urdf_path, who)
+    if "theta_limits" in conventions:
+        th_lim = [conventions.pop("theta_limits")]
     return P2USParams(
         b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta),  # type: ignore[arg-type]
         alpha=tuple(alpha), stroke=same("stroke", stroke), theta_limits=same("theta limits", th_lim),  # type: ignore[arg-type]
         phi_limits=same("phi limits", ph_lim), theta_zero=same("theta_zero", theta0),  # type: ignore[arg-type]
-        rod_spacing=same("rod spacing", spacing),  # type: ignore[arg-type]
+        rod_spacing=same("rod spacing", spacing), **conventions,  # type: ignore[arg-type]
     )
+
+
+def read_conventions(urdf_path: str | os.PathLike[str], robot: str) -> dict:
+    """The `u_joint_angles` block of the sidecar beside `urdf_path` as P2USParams fields
+    (theta_convention, phi_convention and, for a non-elevation theta, theta_limits); empty (the
+    defaults: elevation, tangential) when the sidecar or the block is absent."""
+    import yaml
+
+    side = sidecar_path(urdf_path)
+    if not side.exists():
+        return {}
+    try:
+        raw = yaml.safe_load(side.read_text())
+    except (yaml.YAMLError, OSError) as exc:
+        raise ModelFileError(side, f"cannot read the loop sidecar ({exc})") from None
+    block = raw.get("u_joint_angles") if isinstance(raw, dict) else None
+    if block is None:
+        return {}
+    if not isinstance(block, dict):
+        raise ModelFileError(side, "u_joint_angles must be a mapping")
+    out: dict = {}
+    if "theta" in block:
+        out["theta_convention"] = str(block["theta"])
+    if "phi" in block:
+        out["phi_convention"] = str(block["phi"])
+    theta = out.get("theta_convention", "elevation")
+    if theta != "elevation":
+        lim = block.get("theta_limits")
+        if not (isinstance(lim, list) and len(lim) == 2 and all(isinstance(x, (int, float)) for x in lim)):
+            raise UnsupportedRobotError(robot, f"u_joint_angles: theta {theta!r} needs theta_limits: [lower, upper] [rad]")
+        out["theta_limits"] = (float(lim[0]), float(lim[1]))
+    elif "theta_limits" in block:
+        raise UnsupportedRobotError(robot, "u_joint_angles: with theta 'elevation' the range is the u_theta joint's URDF limit")
+    return out
 
 
 def _layout_hint() -> str:

@@ -13,12 +13,22 @@ q_i = A_i +/- sqrt(A_i^2 - G_i), A_i = v_i . w_i, G_i = |v_i|^2 - L^2 (paper eq.
 A_i taken along w_i). Root "+" is the larger q (carriage further down the rail), "-" the smaller;
 a working mode is one root per limb, labelled e.g. "+-+" (limbs 1, 2, 3).
 
-Universal-joint angles of rod direction n = (C_i - B_i)/L (both rods of a parallelogram share it):
-theta turns the rod about -t_i, down from the inward horizontal -e_i; phi swings it out of the
-limb's vertical plane towards -t_i. With eps = theta_zero + theta (the rod's elevation below the
-inward horizontal):
+Universal-joint angles of rod direction n = (C_i - B_i)/L (both rods of a parallelogram share it).
+The URDF's joint coordinates: u_theta turns the rod about the tangential axis -t_i, down from the
+inward horizontal -e_i; u_phi swings it out of the limb's vertical plane towards -t_i. With
+eps = theta_zero + u_theta (the rod's elevation below the inward horizontal):
 
     n = cos(phi) [cos(eps) (-e_i) - sin(eps) z] - sin(phi) t_i
+
+The paper's limits (eq. 30) do not say which angles they bound, so the reading is a model choice
+recorded in the loop sidecar (`THETA_CONVENTIONS`, `PHI_CONVENTIONS`) and used by every check:
+
+* theta "elevation": theta = u_theta, the joint coordinate above (its limits are the URDF's);
+* theta "rod-rail": theta = arccos(n . w_i) in [0, pi], the angle between rod and rail (the
+  direction of increasing q); a function of both joint coordinates, so its range lives in the
+  sidecar and the URDF joint is left unlimited;
+* phi "tangential": phi = arcsin(-n . t_i), the rod's angle out of the plane normal to the
+  tangential axis (the U joint's first axis), i.e. the u_phi coordinate.
 
 Velocity (eqs. 25-28): f_i = (|v_i - q_i w_i|^2 - L^2)/2 = 0 gives J_x pdot = J_q qdot with
 J_x = [r_i^T] (r_i = C_i - B_i) and J_q = diag(r_i . w_i); J = J_q^-1 J_x (qdot = J pdot).
@@ -60,6 +70,13 @@ BOUNDARY_TOL = 1e-12
 reach boundary (a type I pose) rounding leaves them at +/-1e-17 m^2."""
 
 
+THETA_CONVENTIONS: tuple[str, ...] = ("elevation", "rod-rail")
+"""Readings of the first universal-joint angle theta (see the module docstring)."""
+
+PHI_CONVENTIONS: tuple[str, ...] = ("tangential",)
+"""Readings of the second universal-joint angle phi (see the module docstring)."""
+
+
 def _check_pair(name: str, pair: tuple[float, float], lo_bound: float = -math.inf) -> None:
     lo, hi = pair
     if not (math.isfinite(lo) and math.isfinite(hi) and lo_bound <= lo < hi):
@@ -79,8 +96,10 @@ class P2USParams:
         stroke: actuator range (q_min, q_max) [m].
         theta_limits: first universal-joint angle range [rad].
         phi_limits: second universal-joint angle range [rad], within (-pi/2, pi/2).
-        theta_zero: rod elevation below the inward horizontal at theta = 0 [rad].
+        theta_zero: rod elevation below the inward horizontal at u_theta = 0 [rad].
         rod_spacing: distance between the two rods of a parallelogram [m] (not in the paper).
+        theta_convention: what theta_limits bound, one of THETA_CONVENTIONS.
+        phi_convention: what phi_limits bound, one of PHI_CONVENTIONS.
     """
 
     b: float = 0.325
@@ -93,8 +112,16 @@ class P2USParams:
     phi_limits: tuple[float, float] = (math.radians(-70), math.radians(70))
     theta_zero: float = 0.0
     rod_spacing: float = 0.05
+    theta_convention: str = "elevation"
+    phi_convention: str = "tangential"
 
     def __post_init__(self) -> None:
+        from .errors import UnknownChoiceError
+
+        if self.theta_convention not in THETA_CONVENTIONS:
+            raise UnknownChoiceError(self.theta_convention, THETA_CONVENTIONS)
+        if self.phi_convention not in PHI_CONVENTIONS:
+            raise UnknownChoiceError(self.phi_convention, PHI_CONVENTIONS)
         for name in ("b", "d", "L", "rod_spacing"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -160,6 +187,15 @@ class P2USParams:
         """A_i = b e_i [m]."""
         return self.b * self.e
 
+    @property
+    def theta_joint_centre(self) -> float:
+        """The u_theta coordinate [rad] at the middle of the rods' allowed swing in the limb plane:
+        mid-range for "elevation"; for "rod-rail" the rod along its rail (eps = beta), the middle
+        of the working branch between the two rod-perpendicular-to-rail (type I) elevations."""
+        if self.theta_convention == "rod-rail":
+            return self.beta - self.theta_zero
+        return 0.5 * (self.theta_limits[0] + self.theta_limits[1])
+
 
 # -- inverse kinematics ----------------------------------------------------------------------
 class LimbSolutions(NamedTuple):
@@ -213,8 +249,17 @@ def passive_angles(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np.nd
     nz = n[..., 2]
     phi = np.arcsin(np.clip(-nt, -1.0, 1.0))
     theta = np.arctan2(-nz, -ne) - params.theta_zero
-    centre = 0.5 * (params.theta_limits[0] + params.theta_limits[1])
-    theta = (theta - centre + math.pi) % (2 * math.pi) + centre - math.pi  # within pi of the range
+    centre = params.theta_joint_centre
+    theta = (theta - centre + math.pi) % (2 * math.pi) + centre - math.pi  # within pi of the centre
+    return theta, phi
+
+
+def limit_angles(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(theta, phi) [rad] as the design's conventions read them, for unit rod directions n (shapes
+    as `passive_angles`): the angles its theta_limits and phi_limits bound."""
+    theta, phi = passive_angles(params, n)
+    if params.theta_convention == "rod-rail":
+        theta = np.arccos(np.clip(np.sum(n * _limb_rails(params, n), axis=-1), -1.0, 1.0))
     return theta, phi
 
 
@@ -223,6 +268,21 @@ def _limb_axes(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np.ndarra
     if n.ndim >= 3 and n.shape[-3:-1] == (3, 2):
         return params.e[:, None, :], params.t[:, None, :]
     return params.e, params.t
+
+
+def _limb_rails(params: P2USParams, n: np.ndarray) -> np.ndarray:
+    """w_i broadcastable against n (as `_limb_axes`)."""
+    return params.w[:, None, :] if n.ndim >= 3 and n.shape[-3:-1] == (3, 2) else params.w
+
+
+def rod_rail_bounds(params: P2USParams) -> tuple[bool, float, float]:
+    """(rod-rail convention?, c_lo, c_hi): theta = arccos(n.w) lies in theta_limits iff
+    c_hi <= n.w <= c_lo, c = cos of the limit clipped to [0, pi]. A limit that cannot bind (lower
+    <= 0, upper >= pi) becomes 2 / -2, so the slack stays finite and positive."""
+    lo, hi = params.theta_limits
+    c_lo = math.cos(lo) if lo > 0 else 2.0
+    c_hi = math.cos(hi) if hi < math.pi else -2.0
+    return params.theta_convention == "rod-rail", c_lo, c_hi
 
 
 def _angle_bounds(params: P2USParams) -> tuple[np.ndarray, np.ndarray, bool, float, float]:
@@ -246,9 +306,14 @@ def passive_limits_ok(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np
     ez = -n[..., 2]
     sphi = -np.sum(n * t, axis=-1)
     d_lo, d_hi, narrow, s_lo, s_hi = _angle_bounds(params)
-    after_lo = d_lo[0] * ez - d_lo[1] * ex  # cross(d_lo, u) >= 0
-    before_hi = ex * d_hi[1] - ez * d_hi[0]  # cross(u, d_hi) >= 0
-    theta_ok = (after_lo >= 0) & (before_hi >= 0) if narrow else (after_lo >= 0) | (before_hi >= 0)
+    rod_rail, c_lo, c_hi = rod_rail_bounds(params)
+    if rod_rail:  # cos(theta) = n.w within [c_hi, c_lo]
+        nw = np.sum(n * _limb_rails(params, n), axis=-1)
+        theta_ok = (nw >= c_hi) & (nw <= c_lo)
+    else:
+        after_lo = d_lo[0] * ez - d_lo[1] * ex  # cross(d_lo, u) >= 0
+        before_hi = ex * d_hi[1] - ez * d_hi[0]  # cross(u, d_hi) >= 0
+        theta_ok = (after_lo >= 0) & (before_hi >= 0) if narrow else (after_lo >= 0) | (before_hi >= 0)
     phi_ok = (sphi >= s_lo) & (sphi <= s_hi)
     return theta_ok, phi_ok
 
@@ -430,8 +495,9 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
         q: (3,) actuator values [m].
         n: (3, 3) unit rod directions, row i for limb i.
     """
-    theta, phi = passive_angles(params, n)
+    theta, phi = limit_angles(params, n)
     theta_ok, phi_ok = passive_limits_ok(params, n)
+    theta_name = "theta (rod-rail angle)" if params.theta_convention == "rod-rail" else "theta"
     out = []
     for i in range(3):
         lim = f"limb {i + 1}: "
@@ -441,7 +507,7 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
             out.append(lim + f"q = {q[i]:.6g} m above the stroke's {params.stroke[1]:g} m")
         if not theta_ok[i]:
             lo, hi = params.theta_limits
-            out.append(lim + f"theta = {_deg(theta[i])} outside [{_deg(lo)}, {_deg(hi)}]")
+            out.append(lim + f"{theta_name} = {_deg(theta[i])} outside [{_deg(lo)}, {_deg(hi)}]")
         if not phi_ok[i]:
             lo, hi = params.phi_limits
             out.append(lim + f"phi = {_deg(phi[i])} outside [{_deg(lo)}, {_deg(hi)}]")

@@ -233,10 +233,10 @@ def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 def cmd_urdf(args: argparse.Namespace) -> int:
     """`kinematics urdf p2us [design flags] -o FILE`: write the URDF and its loop sidecar."""
-    from .p2us_urdf import write
+    from .p2us_urdf import DESIGNS, write
 
     conv = math.radians if args.degrees else float
-    base = P2USParams()
+    base = DESIGNS[getattr(args, "design", "table2")]
     changes: dict[str, Any] = {}
     for flag in ("b", "d", "L", "rod_spacing"):
         if getattr(args, flag) is not None:

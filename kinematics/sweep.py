@@ -108,13 +108,16 @@ def designs(base: P2USParams, axes: Sequence[Axis], step: float | None = None) -
 def _flat(p: P2USParams) -> dict[str, float]:
     return {"b": p.b, "d": p.d, "L": p.L, "beta": p.beta, "theta_zero": p.theta_zero,
             "rod_spacing": p.rod_spacing, "stroke_min": p.stroke[0], "stroke_max": p.stroke[1],
-            "alpha": list(p.alpha), "theta_limits": list(p.theta_limits), "phi_limits": list(p.phi_limits)}
+            "alpha": list(p.alpha), "theta_limits": list(p.theta_limits), "phi_limits": list(p.phi_limits),
+            "theta_convention": p.theta_convention, "phi_convention": p.phi_convention}  # type: ignore[dict-item]
 
 
 def to_params(d: dict[str, Any]) -> P2USParams:
     return P2USParams(b=d["b"], d=d["d"], L=d["L"], beta=d["beta"], alpha=tuple(d["alpha"]),
                       stroke=(d["stroke_min"], d["stroke_max"]), theta_limits=tuple(d["theta_limits"]),
-                      phi_limits=tuple(d["phi_limits"]), theta_zero=d["theta_zero"], rod_spacing=d["rod_spacing"])
+                      phi_limits=tuple(d["phi_limits"]), theta_zero=d["theta_zero"], rod_spacing=d["rod_spacing"],
+                      theta_convention=d.get("theta_convention", "elevation"),
+                      phi_convention=d.get("phi_convention", "tangential"))
 
 
 def one_kernel_thread() -> int:

@@ -75,7 +75,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     sing_summary: dict[str, Any]
     sing: Any = None
     if kind == "p2us":
-        from .p2us_scan import PAPER_VOLUME_M3
         from .parallel import MODES
         from .parallel_cli import params_of
         from .singularities import p2us_singularities
@@ -87,8 +86,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
-        paper = {"paper_volume_m3": PAPER_VOLUME_M3, "ratio_to_paper": ws.total / PAPER_VOLUME_M3,
-                 "note": paper_volume_note(args.limits)}
+        paper = paper_comparison(robot, args.limits, ws)
     else:
         from .scara import ELBOWS
         from .singularities import scara_singularities
@@ -148,9 +146,47 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
         ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
     ], digits=None))
     if paper:
-        lines += ["", f"paper B: {paper['paper_volume_m3']} m^3 (ours / paper = {paper['ratio_to_paper']:.3f})",
-                  paper["note"]]
+        lines += ["", *paper_comparison_lines(paper)]
     return "\n".join(lines)
+
+
+def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
+    """The report's paper-B keys: `design` (the built-in name or the URDF path), `binding_limits`
+    (the volume each passive limit removes from the working mode) and, for the built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
+    page), `paper_volume_m3` and `ratio_to_paper` (working mode over paper)."""
+    from .paper_b import volume_comparison
+
+    r = ws.result
+    per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
+    c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
+    from .paper_b import binding_limits
+
+    out: dict[str, Any] = {"design": c.pop("design"), "binding_limits": binding_limits(ws_params(ws))}
+    if c:
+        c["note"] = paper_volume_note(out["design"], limits)
+        out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
+    return out
+
+
+def ws_params(ws: Any) -> Any:
+    """The P2USParams a workspace was measured with (from its parameters record)."""
+    from .parallel import P2USParams
+
+    return P2USParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()})
+
+
+def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
+    """Human lines of `paper_comparison`."""
+    from .paper_b import comparison_lines
+
+    c = paper.get("paper_b", {"design": paper["design"]})
+    lines = comparison_lines({**c, "design": paper["design"]})
+    if "binding_limits" in paper:
+        b = paper["binding_limits"]
+        lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
+            f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
+            for k in ("theta", "phi")))
+    return lines + ([c["note"]] if "note" in c else [])
 
 
 def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
@@ -159,9 +195,14 @@ def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
             for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
 
 
-def paper_volume_note(limits: str) -> str:
-    """Why our volume differs from paper B's 0.13397 m^3."""
-    common = ("Paper B reports 0.13397 m^3 with the limits of its eq. 30 but defines neither the universal "
+def paper_volume_note(design: str, limits: str) -> str:
+    """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
+    if design == "p2us-results":
+        return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
+                "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
+                "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
+    common = ("Table 2's dimensions do not give paper B's computed results; the geometry that does is the "
+              "built-in p2us-results (docs/paper-b-reproduction.md). Paper B defines neither the universal "
               "joints' zero references nor which working modes it counts. ")
     if limits == "all":
         return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "
