@@ -38,7 +38,7 @@ CASES: list[tuple[list[str], str]] = [
     (["info", "adir"], "adir"),
     (["info", "scara", "--frame", "x"], "unrecognized arguments"),
     # fk
-    (["fk", "scara"], "required: --q"),
+    (["fk", "scara"], "needs joint values"),
     (["fk", "scara", "--q"], "expected at least one argument"),
     (["fk", "scara", "--q", "0"], "2"),
     (["fk", "scara", "--q", "0", "0", "0"], "2"),
