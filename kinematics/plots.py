@@ -11,6 +11,15 @@ from typing import Any
 
 import numpy as np
 
+SINGULAR_STYLE = {1: ("tab:blue", "o", "type I"), 2: ("tab:red", "^", "type II"), 3: ("black", "s", "type III")}
+"""Singularity type -> (colour, marker, label), shared by every plot and the Meshcat views."""
+RADIUS_CMAP = "magma"
+"""Colour map of the smallest manipulability radius (SCARA plots and views)."""
+CONDITIONING_CMAP = "viridis"
+"""Colour map of the 3-[P2(US)] conditioning min(iota_I, iota_II) and mode counts."""
+SCARA_SINGULAR_COLOUR = "cyan"
+"""The theta2 = 0 singular arc: stands out on magma and on the views' light background."""
+
 
 def headless() -> None:
     """Switch matplotlib to the file-only Agg backend (for the CLI: no window, no display needed)."""
