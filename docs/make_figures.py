@@ -152,8 +152,7 @@ def _guidance(number: int, virtual: bool) -> plt.Figure:
 
     sp = ScaraParams.from_robot(load_robot("scara"))
     run = run_experiment(number, sp, GuidanceParams(virtual_impedance=virtual))
-    vi = "with" if virtual else "WITHOUT"
-    return plots.guidance_run(run, f"experiment {number}: {EXPERIMENTS[number].title} ({vi} virtual impedance)")
+    return plots.guidance_run(run, plots.guidance_title(EXPERIMENTS[number], run))
 
 
 FIGURES = {

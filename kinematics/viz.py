@@ -130,7 +130,8 @@ class Scene:
         self.warnings: list[str] = []
         """What the reader must know about the picture (a singular pose, skipped meshes)."""
         self.legend: list[tuple[str, str]] = []
-        """(label, CSS background: a colour or a gradient) for every coloured overlay."""
+        """(label, CSS background: a colour, or a colour map's gradient) for every coloured overlay;
+        a colour map's label starts with its range "lo → hi"."""
         self.camera_pose: tuple[np.ndarray, np.ndarray, float] | None = None
         """(position, target, ground height) of the last `camera()` call [m]."""
         self.grid_square: float | None = None
@@ -303,7 +304,7 @@ class Scene:
                    vrange: tuple[float, float] | None = None, label: str | None = None,
                    opacity: float = 1.0) -> None:
         """A point cloud [m], coloured by `values` through a matplotlib colour map (or one colour);
-        `label` names it in the legend (with the colour bar's range for `values`)."""
+        `label` names it in the legend (after the colour bar's range, for `values`)."""
         import meshcat.geometry as mg
 
         P = np.asarray(points, dtype=float)
@@ -322,7 +323,7 @@ class Scene:
             C = colormaps[cmap]((v - lo) / (hi - lo if hi > lo else 1.0))[:, :3]
             stops = ", ".join(_css(colormaps[cmap](x)) for x in np.linspace(0, 1, 9))
             entry = f"linear-gradient(to right, {stops})"
-            label = f"{label or name}: {lo:.3g} \u2192 {hi:.3g}"
+            label = f"{lo:.3g} \u2192 {hi:.3g}: {label or name}"
         self.vis[name].set_object(mg.Points(mg.PointsGeometry(P.T.astype(np.float32), C.T.astype(np.float32)),
                                             _points_material(size, opacity)))
         self._include(P)
@@ -419,6 +420,9 @@ class _Embedded:
     def _repr_html_(self) -> str:
         return self.markup
 
+    def __repr__(self) -> str:
+        return "<Meshcat scene: shown as HTML in Jupyter>"
+
 
 def _points_material(size: float, opacity: float) -> Any:
     """meshcat's PointsMaterial, with the opacity 0.3.2's lacks."""
@@ -487,7 +491,7 @@ def _corners(geometry: Any, data: Any) -> np.ndarray:
 
 
 def _css(rgb: Sequence[float]) -> str:
-    return "#{:06x}".format(_hex(rgb))
+    return f"#{_hex(rgb):06x}"
 
 
 def _hex(rgb: Sequence[float]) -> int:
@@ -562,7 +566,7 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
         if workspace:
             r = manipulability(sp, Q).radii[:, 0]
             scene.add_points(np.hstack([xy, np.full((len(xy), 1), tool[2])]), r, "overlays/workspace",
-                             cmap=RADIUS_CMAP, label="reachable points, smallest radius [m]")
+                             cmap=RADIUS_CMAP, label="reachable points, coloured by the smallest radius [m per rad/s]")
         if singularities:
             from matplotlib.colors import to_rgb
 
@@ -620,7 +624,7 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
     from .p2us_urdf import joint_values_at, reference_pose
     from .parallel import SINGULARITY_TYPES, classify, ik, jacobian_inverse, jacobians, mode_index
     from .parallel_cli import params_of
-    from .plots import CONDITIONING_CMAP
+    from .plots import CONDITIONING_CMAP, LIMITS_TEXT
 
     scene = scene or Scene()
     P = params_of(robot)
@@ -665,7 +669,7 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
         # small, half-transparent points: the robot stays visible inside its workspace
         scene.add_points(pts[keep], cond[keep], "overlays/workspace", size=step * 0.35, cmap=CONDITIONING_CMAP,
                          vrange=(0.0, 1.0), opacity=0.5,
-                         label=f"workspace ({limits} limits), min(iota_I, iota_II): 0 singular")
+                         label=f"workspace ({LIMITS_TEXT[limits]}), coloured by min(\u03b9_I, \u03b9_II), 0 = singular")
     if singularities:
         from .singularities import p2us_singularities
 
