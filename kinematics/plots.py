@@ -77,7 +77,8 @@ def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_
     fig.colorbar(im, ax=ax[:-1], shrink=0.8, label="working modes within limits")
     inside = pts3[(margin >= 0).any(axis=1)]
     sub = inside[:: max(1, len(inside) // 20000)]
-    ax[-1].scatter(sub[:, 0], sub[:, 1], sub[:, 2], s=1, c="0.75", alpha=0.08)
+    # grey, and faint under singular points so that they show
+    ax[-1].scatter(sub[:, 0], sub[:, 1], sub[:, 2], s=1, c="0.45", alpha=0.08 if singular is not None else 0.3)
     if singular is not None:
         # only the singular points in the workspace (type I: on its boundary); the full loci
         # fill the bounding box and are drawn by `p2us_singular_loci`
@@ -102,8 +103,9 @@ def _singular_scatter(ax: Any, points: np.ndarray, kind: np.ndarray, select: np.
         sel = (kind == k) if select is None else (kind == k) & select
         pts = points[sel][:: max(1, counts[k] // cap)]
         xyz = (pts[:, 0], pts[:, 1], pts[:, 2]) if dims == 3 else (pts[:, 0], pts[:, 2])
-        # type I covers the workspace's boundary: faint, so the II / III points inside show through
-        ax.scatter(*xyz, s=size * (3 if k == 1 else 4), c=colour, marker=marker, alpha=0.3 if k == 1 else 0.8,
+        # type I covers the workspace's boundary: faint when numerous, so II / III inside show through
+        faint = k == 1 and counts[k] > 1000
+        ax.scatter(*xyz, s=size * (3 if k == 1 else 4), c=colour, marker=marker, alpha=0.3 if faint else 0.8,
                    linewidths=0, label=f"{label}: {counts[k]}")
     if dims == 3:
         ax.computed_zorder = False  # draw in call order: by depth, the boundary hides the interior

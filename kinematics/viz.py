@@ -38,7 +38,7 @@ default sky is blue and swallows blue parts."""
 FOV_DEG = 75.0
 """meshcat 0.3.2's default camera: vertical field of view [deg]."""
 
-GRID_SQUARES = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
+GRID_SQUARES = (1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01)
 """Side of the ground grid's squares [m], the largest that fits (see `Scene.camera`)."""
 
 
@@ -132,8 +132,8 @@ class Scene:
         self.legend: list[tuple[str, str]] = []
         """(label, CSS background: a colour, or a colour map's gradient) for every coloured overlay;
         a colour map's label starts with its range "lo → hi"."""
-        self.camera_pose: tuple[np.ndarray, np.ndarray, float] | None = None
-        """(position, target, ground height) of the last `camera()` call [m]."""
+        self.camera_pose: tuple[np.ndarray, np.ndarray, float, float] | None = None
+        """(position, target, ground height, grid extent) of the last `camera()` call [m]."""
         self.grid_square: float | None = None
         """Side of the grid's squares [m] (set by `camera()`)."""
         self._extent: list[np.ndarray] = []
@@ -163,32 +163,40 @@ class Scene:
 
     # -- camera ---------------------------------------------------------------------------------
     def camera(self, position: Sequence[float], target: Sequence[float] = (0.0, 0.0, 0.0),
-               ground: float | None = None) -> None:
-        """Look at `target` from `position` (world z up) [m], over a grid at height `ground`
-        (default: the target's) centred under the target.
+               ground: float | None = None, extent: float | None = None) -> None:
+        """Look at `target` from `position` (world z up) [m], over a ground grid at height
+        `ground` (default: the target's) reaching `extent` [m] around the target (default: as far
+        as it stays in front of the camera).
 
         meshcat 0.3.2's orbit controls always look at the viewer's origin (Pinocchio's camera
         setters fail, and the camera node cannot be given a target), so the scene is moved
-        instead: the `/meshcat` root, the grid and the axes shift by -target, and the camera sits at
-        position - target. The camera node is y-up: a world vector (x, y, z) is (x, z, -y) there.
-        meshcat's grid (20 m, 0.5 m squares) is scaled down to the largest of GRID_SQUARES whose
-        grid stays in front of the camera: software WebGL (SwiftShader) drops the lines that cross
-        the camera's plane, which left only the far edge of the grid on screen.
+        instead: the `/meshcat` root, the ground and the axes shift by -target, and the camera
+        sits at position - target. The camera node is y-up: a world vector (x, y, z) is (x, z, -y)
+        there. meshcat's own grid (20 m) is hidden: software WebGL (SwiftShader) drops the lines
+        that cross the camera's plane, which left only its far edge on screen; ours has lines at
+        multiples of the largest of GRID_SQUARES that gives it at least 5 squares each way.
         """
+        import meshcat.geometry as mg
         import meshcat.transformations as tf
 
         t = np.asarray(target, dtype=float)
         p = np.asarray(position, dtype=float) - t
         z0 = t[2] if ground is None else float(ground)
-        reach = 0.8 * max(float(np.hypot(p[0], p[1])), 1e-3)  # half-width the grid may have [m]
-        square = next((a for a in GRID_SQUARES if 20 * a <= reach), GRID_SQUARES[-1])
-        grid = tf.translation_matrix([-t[0], -t[1], z0 - t[2]]) @ tf.scale_matrix(square / 0.5)
+        reach = 0.8 * max(float(np.hypot(p[0], p[1])), 1e-3)  # farther, the grid reaches behind the camera
+        half = min(reach, extent) if extent else reach
+        square = next((a for a in GRID_SQUARES if 5 * a <= half), GRID_SQUARES[-1])
+        ticks = np.arange(-np.floor(half / square), np.floor(half / square) + 1) * square
+        x, y = ticks + round(t[0] / square) * square, ticks + round(t[1] / square) * square
+        segments = [((a, y[0]), (a, y[-1])) for a in x] + [((x[0], b), (x[-1], b)) for b in y]
+        pts = np.array([(*q, z0) for seg in segments for q in seg]) - t
+        self.vis["/Grid"].set_property("visible", False)
+        self.vis["/Ground"].set_object(mg.LineSegments(mg.PointsGeometry(pts.T.astype(np.float32)),
+                                                       mg.LineBasicMaterial(color=0x8C8C96)))
         self.vis["/meshcat"].set_transform(tf.translation_matrix(-t))
-        self.vis["/Axes"].set_transform(tf.translation_matrix(-t) @ tf.scale_matrix(8 * square))  # 4 squares long
-        self.vis["/Grid"].set_transform(grid)
+        self.vis["/Axes"].set_transform(tf.translation_matrix(-t) @ tf.scale_matrix(2 * square))  # 1 square long
         self.vis["/Cameras/default"].set_transform(np.eye(4))
         self.vis["/Cameras/default/rotated/<object>"].set_property("position", [float(p[0]), float(p[2]), float(-p[1])])
-        self.camera_pose = (np.asarray(position, dtype=float), t, z0)
+        self.camera_pose = (np.asarray(position, dtype=float), t, z0, half)
         self.grid_square = square
 
     def fit_camera(self, direction: Sequence[float] = (1.0, -1.4, 0.9), fill: float = 0.85,
@@ -215,7 +223,8 @@ class Scene:
         tan_v = fill * np.tan(np.radians(FOV_DEG) / 2)
         need = np.maximum(np.abs(P @ up) / tan_v, np.abs(P @ right) / (aspect * tan_v))
         distance = max(float(np.max(P @ u + need)), 0.1)
-        self.camera(centre + distance * u, centre, float(lo[2]))
+        footprint = float(np.max(hi[:2] - lo[:2])) / 2
+        self.camera(centre + distance * u, centre, float(lo[2]), 1.3 * footprint + 0.05)
 
     def _include(self, points: np.ndarray) -> None:
         """Points [m, world] the camera must frame."""
@@ -679,7 +688,7 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
             if sel.any():
                 # type I outlines the whole boundary: small and faint, so II / III and the robot show
                 scene.add_points(loc.points[sel], name=f"overlays/singular_{k}", colour=rgb,
-                                 size=0.006 if k == 1 else 0.012, opacity=0.35 if k == 1 else 1.0,
+                                 size=0.006 if k == 1 else 0.009, opacity=0.35 if k == 1 else 1.0,
                                  label=f"{label} singular points {'on' if k == 1 else 'in'} the workspace: "
                                        f"{int(sel.sum())}")
     scene.fit_camera()

@@ -179,10 +179,10 @@ def _robot_pixels(scene: viz.Scene, tmp: Path) -> tuple[np.ndarray, np.ndarray, 
 
 # Thresholds of the picture test, from screenshots of this renderer (SwiftShader, 800 x 600):
 # before issue 15, `show p2us` covered 1.9 % of the view and `show scara` 0.9 %; the fitted camera
-# gives 11.6 % and 7.2 %. MIN_COVER sits at twice the old p2us figure and below the smallest new one.
+# gives 11.6 % and 7.3 %. MIN_COVER sits at twice the old p2us figure and below the smallest new one.
 MIN_COVER = 0.04
 # Median RGB distance (0..sqrt 3) between a robot pixel and the background behind it: the
-# all-blue p2us on meshcat's blue sky measured 0.15; on the grey sky 0.58 (p2us) and 0.83 (scara).
+# all-blue p2us on meshcat's blue sky measured 0.15; on the grey sky 0.59 (p2us) and 0.85 (scara).
 MIN_CONTRAST = 0.3
 # Saturated hues (12 bins of 30 deg, S > 0.35) that each cover 3 % of the robot's pixels: the old
 # one-colour robots showed 1; the URDF colours show 2 (p2us: orange carriages, blue rods; its red
