@@ -209,7 +209,7 @@ class Scene:
         tan(angle) = |P . axis| / (d - P . u) off the view's axis, so d >= P . u + |P . axis| /
         (fill tan(half-angle)) for both screen axes."""
         if not self._extent:
-            self.camera((3.0, 1.0, 0.0))
+            self.camera((3.0, 0.0, 1.0))  # meshcat's default view
             return
         pts = np.vstack(self._extent)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -280,7 +280,8 @@ class Scene:
         self.vis.set_animation(anim, play=True, repetitions=1)
 
     # -- overlays ------------------------------------------------------------------------------
-    def add_ellipsoid(self, centre: Sequence[float], radii: Sequence[float], directions: np.ndarray,
+    def add_ellipsoid(self, centre: Sequence[float] | np.ndarray, radii: Sequence[float] | np.ndarray,
+                      directions: np.ndarray,
                       name: str = "overlays/ellipsoid", colour: Sequence[float] = (0.55, 0.2, 0.85),
                       opacity: float = 0.5, label: str = "velocity ellipsoid") -> None:
         """An ellipsoid with semi-axes radii[k] along directions[k] (unit rows) at `centre` [m].
