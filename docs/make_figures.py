@@ -58,9 +58,9 @@ def p2us_conventions() -> plt.Figure:
     side.plot(h(B[0]), B[0, 2], "s", color="tab:orange", label=f"carriage B1 (q1 = {q[0]:.3f} m)")
     side.plot(h(C[0]), C[0, 2], "o", color="tab:red", label="platform joint C1 = p + d e1")
     side.axhline(0, color="0.8", lw=1)
-    side.annotate("beta: rail below horizontal", (h(A1) - 0.12, -0.05))
+    side.annotate("beta: rail below horizontal", (h(A1) - 0.30, -0.04))
     theta, _ = par.passive_angles(P, (C - B)[None] / P.L)
-    side.annotate(f"theta1 = {np.degrees(theta[0, 0]):.1f} deg\n(below the inward horizontal)",
+    side.annotate(f"theta1 = {np.degrees(theta[0, 0]):.1f} deg\n(below the inward\nhorizontal)",
                   (h(B[0]) - 0.05, B[0, 2] - 0.12))
     side.plot([h(B[0]), h(B[0]) - 0.12], [B[0, 2], B[0, 2]], ":", color="tab:blue")
     side.set_title("limb 1 in its vertical plane (horizontal axis: along e1)")
@@ -152,8 +152,45 @@ def _guidance(number: int, virtual: bool) -> plt.Figure:
 
     sp = ScaraParams.from_robot(load_robot("scara"))
     run = run_experiment(number, sp, GuidanceParams(virtual_impedance=virtual))
-    vi = "with" if virtual else "WITHOUT"
-    return plots.guidance_run(run, f"experiment {number}: {EXPERIMENTS[number].title} ({vi} virtual impedance)")
+    return plots.guidance_run(run, plots.guidance_title(EXPERIMENTS[number], run))
+
+
+def _view(make) -> Path:
+    """A Meshcat view as `kinematics show` exports it, screenshot by headless Chromium (800 x 600,
+    software WebGL): the picture a new user sees first."""
+    from tempfile import mkdtemp
+
+    png = Path(mkdtemp()) / "view.png"
+    make().screenshot(png)
+    return png
+
+
+def view_scara():
+    """`kinematics show scara --ellipsoid --workspace --singularities`."""
+    from kinematics import viz
+
+    return _view(lambda: viz.scara_view(load_robot("scara"), ellipse=True, workspace=True, singularities=True))
+
+
+def view_p2us():
+    """`kinematics show p2us --ellipsoid`."""
+    from kinematics import viz
+
+    return _view(lambda: viz.p2us_view(load_robot("p2us"), ellipsoid=True))
+
+
+def view_p2us_workspace():
+    """`kinematics show p2us --workspace --singularities --limits actuators`."""
+    from kinematics import viz
+
+    return _view(lambda: viz.p2us_view(load_robot("p2us"), workspace=True, singularities=True, limits="actuators"))
+
+
+def view_ur5():
+    """`kinematics show ur5 --ellipsoid` (example-robot-data meshes, default pose)."""
+    from kinematics import viz
+
+    return _view(lambda: viz.serial_view(load_robot("ur5"), ellipsoid=True))
 
 
 FIGURES = {
@@ -168,6 +205,10 @@ FIGURES = {
     "guidance_exp2": lambda: _guidance(2, True),
     "guidance_exp3": lambda: _guidance(3, True),
     "guidance_exp3_baseline": lambda: _guidance(3, False),
+    "view_scara": view_scara,
+    "view_p2us": view_p2us,
+    "view_p2us_workspace": view_p2us_workspace,
+    "view_ur5": view_ur5,
 }
 
 
@@ -175,8 +216,12 @@ def main(names: list[str]) -> None:
     OUT.mkdir(exist_ok=True)
     for name in names or list(FIGURES):
         fig = FIGURES[name]()
-        fig.savefig(OUT / f"{name}.png", dpi=90, bbox_inches="tight")
-        plt.close(fig)
+        if isinstance(fig, Path):  # a screenshot, already a PNG
+            fig.replace(OUT / f"{name}.png")
+            fig.parent.rmdir()
+        else:
+            fig.savefig(OUT / f"{name}.png", dpi=90, bbox_inches="tight")
+            plt.close(fig)
         print(f"wrote {OUT / (name + '.png')}")
 
 

@@ -30,9 +30,7 @@ def run(args: argparse.Namespace, out: Out) -> int:
         from . import plots
 
         plots.headless()
-        vi = "with" if params.virtual_impedance else "WITHOUT"
-        plots.save(plots.guidance_run(res, f"experiment {ex.number}: {ex.title} ({vi} virtual impedance)"),
-                   args.plot)
+        plots.save(plots.guidance_run(res, plots.guidance_title(ex, res)), args.plot)
     payload = {"experiment": ex.number, "title": ex.title, "robot": robot.name, "start": list(ex.start),
                "params": {k: getattr(params, k) for k in params.__dataclass_fields__}, **summary}
 

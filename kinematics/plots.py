@@ -11,6 +11,17 @@ from typing import Any
 
 import numpy as np
 
+SINGULAR_STYLE = {1: ("tab:blue", "o", "type I"), 2: ("tab:red", "^", "type II"), 3: ("black", "s", "type III")}
+"""Singularity type -> (colour, marker, label), shared by every plot and the Meshcat views."""
+RADIUS_CMAP = "magma"
+"""Colour map of the smallest manipulability radius (SCARA plots and views)."""
+CONDITIONING_CMAP = "viridis"
+"""Colour map of the 3-[P2(US)] conditioning min(iota_I, iota_II) and mode counts."""
+LIMITS_TEXT = {"all": "all limits", "actuators": "actuator strokes only"}
+"""How the 3-[P2(US)] `limits` choices read in titles."""
+SCARA_SINGULAR_COLOUR = "cyan"
+"""The theta2 = 0 singular arc: stands out on magma and on the views' light background."""
+
 
 def headless() -> None:
     """Switch matplotlib to the file-only Agg backend (for the CLI: no window, no display needed)."""
@@ -22,7 +33,7 @@ def headless() -> None:
 def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: list[str | None] | None = None) -> Any:
     import matplotlib.pyplot as plt
 
-    fig = plt.figure(figsize=(size[0] * ncols, size[1]))
+    fig = plt.figure(figsize=(size[0] * ncols, size[1]), layout="constrained")
     axes = [fig.add_subplot(1, ncols, k + 1, projection=(projection or [None] * ncols)[k]) for k in range(ncols)]
     return fig, axes
 
@@ -57,7 +68,8 @@ def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_
     fig, ax = _figure(slices_z + 1, (4.2, 4.0), [None] * slices_z + ["3d"])
     for a, z in zip(ax[:-1], zs, strict=True):
         k = int(np.argmin(np.abs(axes[2] - z)))
-        im = a.pcolormesh(X, Y, np.ma.masked_equal(count[:, :, k], 0), vmin=0, vmax=8, cmap="viridis", shading="auto")
+        im = a.pcolormesh(X, Y, np.ma.masked_equal(count[:, :, k], 0), vmin=0, vmax=8, cmap=CONDITIONING_CMAP,
+                          shading="auto")
         a.set_title(f"z = {z:.3f} m")
         a.set_aspect("equal")
         a.set_xlabel("x [m]")
@@ -65,41 +77,61 @@ def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_
     fig.colorbar(im, ax=ax[:-1], shrink=0.8, label="working modes within limits")
     inside = pts3[(margin >= 0).any(axis=1)]
     sub = inside[:: max(1, len(inside) // 20000)]
-    ax[-1].scatter(sub[:, 0], sub[:, 1], sub[:, 2], s=1, c=sub[:, 2], cmap="viridis", alpha=0.3)
+    # grey, and faint under singular points so that they show
+    ax[-1].scatter(sub[:, 0], sub[:, 1], sub[:, 2], s=1, c="0.45", alpha=0.08 if singular is not None else 0.3)
     if singular is not None:
         # only the singular points in the workspace (type I: on its boundary); the full loci
         # fill the bounding box and are drawn by `p2us_singular_loci`
-        for kind, colour in ((1, "tab:blue"), (2, "red"), (3, "black")):
-            sel = (singular.kind == kind) & singular.inside
-            pts = singular.points[sel]
-            ax[-1].scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=4, c=colour,
-                           label=f"type {'I' * kind if kind < 3 else 'III'}: {int(sel.sum())}")
-        ax[-1].legend(loc="upper left", fontsize=7, title="singular points in/on the workspace", title_fontsize=7)
-    ax[-1].set_title(f"workspace ({limits} limits)")
+        _singular_scatter(ax[-1], singular.points, singular.kind, singular.inside, 3, size=2.0)
+        ax[-1].legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), fontsize=7, markerscale=2, ncols=2,
+                      title="singular points in / on the workspace", title_fontsize=7)
+    ax[-1].set_title(f"workspace ({LIMITS_TEXT[limits]})")
     ax[-1].set_xlabel("x [m]")
     ax[-1].set_ylabel("y [m]")
     ax[-1].set_zlabel("z [m]")
     return fig
 
 
+def _singular_scatter(ax: Any, points: np.ndarray, kind: np.ndarray, select: np.ndarray | None, dims: int,
+                      cap: int = 4000, size: float = 1.0) -> None:
+    """Singular points by type (`SINGULAR_STYLE` colour and marker, count in the label), the most
+    numerous type first so that the rarer ones stay on top; at most `cap` drawn per type, marker
+    areas scaled by `size`."""
+    counts = {k: int(((kind == k) if select is None else (kind == k) & select).sum()) for k in SINGULAR_STYLE}
+    for k in sorted(counts, key=lambda k: -counts[k]):
+        colour, marker, label = SINGULAR_STYLE[k]
+        sel = (kind == k) if select is None else (kind == k) & select
+        pts = points[sel][:: max(1, counts[k] // cap)]
+        xyz = (pts[:, 0], pts[:, 1], pts[:, 2]) if dims == 3 else (pts[:, 0], pts[:, 2])
+        # type I covers the workspace's boundary: faint when numerous, so II / III inside show through
+        faint = k == 1 and counts[k] > 1000
+        ax.scatter(*xyz, s=size * (3 if k == 1 else 4), c=colour, marker=marker, alpha=0.3 if faint else 0.8,
+                   linewidths=0, label=f"{label}: {counts[k]}")
+    if dims == 3:
+        ax.computed_zorder = False  # draw in call order: by depth, the boundary hides the interior
+
+
 def p2us_singular_loci(scan_result: Any) -> Any:
-    """Type I / II / III locus points in 3D and projected on x-z, those in the workspace highlighted."""
+    """Type I / II / III locus points in 3D and projected on x-z; the points in (type II / III) or
+    on (type I) the workspace get a panel of their own, so the closure does not hide the loci."""
     loc = scan_result.locus
-    fig, ax = _figure(2, (5.5, 5.0), ["3d", None])
-    styles = {1: ("tab:blue", "type I"), 2: ("tab:red", "type II"), 3: ("black", "type III")}
-    for kind, (colour, label) in styles.items():
-        sel = loc.kind == kind
-        pts = loc.points[sel][:: max(1, int(sel.sum()) // 4000)]
-        ax[0].scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=1, c=colour, alpha=0.4, label=label)
-        ax[1].scatter(pts[:, 0], pts[:, 2], s=1, c=colour, alpha=0.3, label=label)
-    inside = loc.points[loc.inside]
-    if len(inside):
-        ax[1].scatter(inside[:, 0], inside[:, 2], s=6, facecolors="none", edgecolors="orange",
-                      label="in the workspace (closure)")
-    ax[0].set_title(f"singular loci (step {scan_result.step:g} m)")
-    ax[1].set_xlabel("x [m]")
-    ax[1].set_ylabel("z [m]")
-    ax[1].legend(markerscale=4, fontsize=7)
+    fig, ax = _figure(3, (4.6, 4.4), ["3d", None, None])
+    _singular_scatter(ax[0], loc.points, loc.kind, None, 3)
+    _singular_scatter(ax[1], loc.points, loc.kind, None, 2)
+    _singular_scatter(ax[2], loc.points, loc.kind, loc.inside, 2)
+    ax[0].set_title(f"singular loci over the strokes (step {scan_result.step:g} m)", fontsize=9)
+    ax[1].set_title("the same, side view (x-z)", fontsize=9)
+    ax[2].set_title(f"in / on the workspace ({LIMITS_TEXT[scan_result.limits]})", fontsize=9)
+    ax[0].set_xlabel("x [m]")
+    ax[0].set_ylabel("y [m]")
+    ax[0].set_zlabel("z [m]")
+    for a in ax[1:]:
+        a.set_xlabel("x [m]")
+        a.set_ylabel("z [m]")
+        a.set_aspect("equal")
+        a.legend(markerscale=3, fontsize=7, loc="lower left")
+    ax[2].sharex(ax[1])
+    ax[2].sharey(ax[1])
     return fig
 
 
@@ -118,37 +150,53 @@ def volume_convergence(workspace: Any, uniform: list[tuple[float, float]] | None
     a.set_xscale("log")
     a.invert_xaxis()
     a.set_xlabel("cell size [m]")
-    a.set_ylabel("m^2" if workspace.planar else "volume [m^3]")
-    a.set_title(f"{workspace.robot}: convergence ({workspace.limits} limits)")
+    a.set_ylabel("area [m^2]" if workspace.planar else "volume [m^3]")
+    a.set_title(f"{workspace.robot}: convergence ({LIMITS_TEXT.get(workspace.limits, workspace.limits)})")
     a.legend()
     return fig
 
 
 def scara_workspace(sp: Any, sing: dict[str, Any]) -> Any:
     """SCARA: the smallest manipulability radius over the joint grid, and the reachable area in the
-    plane coloured by it, with the theta2 = 0 singular arc."""
+    plane coloured by it (one colour bar for both), with the theta2 = 0 singular arc."""
     from .scara import fk
 
-    fig, ax = _figure(2, (5.2, 4.6))
+    fig, ax = _figure(2, (5.0, 4.6))
     t1, t2 = np.degrees(sing["theta1"]), np.degrees(sing["theta2"])
-    im = ax[0].pcolormesh(t1, t2, sing["min_radius"].T, shading="auto", cmap="magma")
-    fig.colorbar(im, ax=ax[0], label="smallest radius [m]")
+    r = sing["min_radius"]
+    norm = {"vmin": float(np.min(r)), "vmax": float(np.max(r)), "cmap": RADIUS_CMAP}
+    im = ax[0].pcolormesh(t1, t2, r.T, shading="auto", **norm)
+    ax[0].axhline(0.0, color=SCARA_SINGULAR_COLOUR, lw=1.5, label="theta2 = 0 (singular)")
     ax[0].set_xlabel("theta1 [deg]")
     ax[0].set_ylabel("theta2 [deg]")
-    ax[0].axhline(0.0, color="cyan", lw=1, label="theta2 = 0 (singular)")
-    ax[0].legend(fontsize=7)
+    ax[0].set_title("joint space", fontsize=10)
+    ax[0].legend(fontsize=7, loc="upper right")
     Q = np.stack(np.meshgrid(sing["theta1"], sing["theta2"], indexing="ij"), axis=-1)
     xy = fk(sp, Q)
-    sc = ax[1].scatter(xy[..., 0].ravel(), xy[..., 1].ravel(), c=sing["min_radius"].ravel(), s=1, cmap="magma")
-    fig.colorbar(sc, ax=ax[1], label="smallest radius [m]")
+    ax[1].scatter(xy[..., 0].ravel(), xy[..., 1].ravel(), c=r.ravel(), s=1, **norm)
     pts = sing["singular_points"]
     if len(pts):
-        ax[1].plot(pts[:, 0], pts[:, 1], "c.", ms=2, label="singular (theta2 = 0)")
-        ax[1].legend(fontsize=7)
+        ax[1].plot(pts[:, 0], pts[:, 1], ".", color=SCARA_SINGULAR_COLOUR, ms=2,
+                   label=f"singular (theta2 = 0): {len(pts)} points")
+        ax[1].legend(fontsize=7, loc="upper right")
     ax[1].set_aspect("equal")
     ax[1].set_xlabel("x [m]")
     ax[1].set_ylabel("y [m]")
+    ax[1].set_title("task space (reachable points)", fontsize=10)
+    fig.colorbar(im, ax=ax, shrink=0.85, label="smallest manipulability radius [m per rad/s]")
     return fig
+
+
+def guidance_title(experiment: Any, run: Any) -> str:
+    """A title for a run of a paper A experiment: what the experiment shows (with the virtual
+    impedance), then what this run did, from its data."""
+    s = run.summary()
+    head = f"experiment {experiment.number}: {experiment.title}"
+    if not s["virtual_impedance"]:
+        head = f"experiment {experiment.number}, baseline WITHOUT virtual impedance (with it: {experiment.title})"
+    outcome = "reached the singularity" if s["reached_singularity"] else "stayed clear of the singularity"
+    return (f"{head}\nthis run: {outcome} (smallest radius {s['min_radius']:.3g} m), "
+            f"peak speed {s['max_speed']:.3g} m/s")
 
 
 def guidance_run(run: Any, title: str = "") -> Any:
@@ -177,6 +225,7 @@ def guidance_run(run: Any, title: str = "") -> Any:
         for s in (-1, 1):
             a.axhline(s * run.params.v_max, color="0.6", ls=":", lw=1)
     ax[2, 0].axhline(run.params.threshold, color="tab:red", ls="--", lw=1, label="threshold")
+    ax[2, 0].legend(fontsize=7, loc="best")
     ax[2, 1].plot(t, run.k_v, color="tab:purple")
     ax[2, 1].set_ylabel("K_v = B_v [N/m, N s/m]", fontsize=8)
     for a in ax[-1]:

@@ -14,6 +14,7 @@ from .report import Out
 
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import signal
+    import sys
 
     from . import viz
     from .parallel_cli import _is_p2us
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             if args.position is not None:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
             q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
-                if args.q is not None else np.zeros(robot.nv)
+                if args.q is not None else None
             if _planar(robot):
                 viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
                                singularities=args.singularities, guide=args.guide, scene=scene)
@@ -53,22 +54,24 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 if args.workspace or args.singularities or args.guide is not None:
                     raise InvalidInputError("--workspace/--singularities/--guide",
                                             "available for the planar arm and the 3-[P2(US)]")
-                _serial(scene, robot, q, args.ellipsoid)
+                viz.serial_view(robot, q, ellipsoid=args.ellipsoid, scene=scene)
         else:
             from .closedloop import ClosedLoop
 
             loop = ClosedLoop(robot)
             sol = loop.solve(np.array(args.q, dtype=float)) if args.q is not None else None
             scene.add_robot(robot, loop.reference if sol is None else sol.q)
+            scene.fit_camera()
+        print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
+              end="", file=sys.stderr)
+        notes = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
         if args.export:
             scene.export(args.export)
-            payload = {"robot": robot.name, "export": args.export}
+            payload = {"robot": robot.name, "export": args.export, **notes}
             out(args, payload, lambda: f"wrote {args.export}")
             return 0
-        payload = {"robot": robot.name, "url": scene.url}
+        payload = {"robot": robot.name, "url": scene.url, **notes}
         out(args, payload, lambda: f"Meshcat viewer for {robot.name}: {scene.url}\n(serving; Ctrl-C to stop)")
-        import sys
-
         sys.stdout.flush()
         try:
             if args.serve_seconds is not None:
@@ -127,16 +130,3 @@ def _planar(robot: Any) -> bool:
     except UnsupportedRobotError:
         return False
     return True
-
-
-def _serial(scene: Any, robot: Any, values: np.ndarray, ellipsoid: bool) -> None:
-    from .manipulability import ellipsoid as ellipsoid_of
-    from .serial import forward_kinematics, frame_jacobian
-
-    q = robot.configuration(values)
-    scene.add_robot(robot, q)
-    if ellipsoid:
-        J = frame_jacobian(robot, q)[:3]
-        e = ellipsoid_of(J)
-        scene.add_ellipsoid(forward_kinematics(robot, q).position, e.radii, e.directions, "overlays/ellipsoid")
-    scene.camera((1.5, -1.5, 1.0), (0.0, 0.0, 0.3))

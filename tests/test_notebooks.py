@@ -23,5 +23,9 @@ def test_notebook_runs(path, tmp_path):
     NotebookClient(nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.output_type == "error"]
+    assert not [o.text for o in outputs if o.output_type == "stream" and o.name == "stderr"], "warnings shown"
+    text = "".join(o.get("text", "") + o.get("data", {}).get("text/plain", "") for o in outputs)
+    assert "np.float64(" not in text and " at 0x" not in text, "raw reprs printed"
+    assert nb.cells[0].cell_type == nb.cells[-1].cell_type == "markdown", "opens with what it shows, ends with findings"
     assert any("image/png" in o.get("data", {}) for o in outputs), "plots are drawn inline"
     assert any("text/html" in o.get("data", {}) for o in outputs), "the Meshcat view is embedded"
