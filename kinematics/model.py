@@ -45,7 +45,7 @@ def _urdf_dir() -> Path:
 URDF_DIR = _urdf_dir()
 """Where the built-in URDFs live (the repository's top-level `urdf/`)."""
 
-BUILTIN = {"scara": "scara.urdf", "p2us": "p2us.urdf"}
+BUILTIN = {"scara": "scara.urdf", "p2us": "p2us.urdf", "delta": "delta.urdf"}
 """Built-in robots: name -> file in `URDF_DIR`."""
 
 ERD_ALIASES = {
