@@ -15,9 +15,11 @@ Frame and sign convention (docs/delta.md has the figure):
 IK. With v_i = p + (r - R) e_i = C_i - A_i, x = v.e_i, h = v.z, y = v.t_i:
 |v - l_a d(theta)|^2 = l_b^2 gives x cos(theta) - h sin(theta) = K,
 K = (|v|^2 + l_a^2 - l_b^2) / (2 l_a). With rho = hypot(x, h), phi0 = atan2(-h, x):
-theta = phi0 +/- atan2(sqrt(rho^2 - K^2), K). Root "+" is the larger theta (elbow turned
-further down and in), "-" the smaller (the usual elbow-out Delta); a working mode is one root
-per limb, e.g. "--+" (limbs 1, 2, 3). The limb reaches iff |K| <= rho.
+theta = phi0 +/- atan2(sqrt(rho^2 - K^2), K). Root "+" turns the arm from the in-plane line
+actuator axis -> platform joint towards increasing theta ((E - A) x (C - A) . t_i <= 0), "-"
+the other way (below the base, "-" is the usual elbow-out Delta); a working mode is one root per
+limb, e.g. "--+" (limbs 1, 2, 3). The limb reaches iff |K| <= rho. Angles are reported within
+pi of the middle of the actuator range.
 
 FK. The platform centre is at distance l_b from c_i = E_i - r e_i: three spheres,
 `parallel.intersect_spheres`, assembly modes "below"/"above" the centres' plane.

@@ -4,7 +4,7 @@ A `Robot` bundles the Pinocchio model with what the rest of the toolkit needs to
 its source file, a default tool frame, the per-degree-of-freedom joint table (names, limits) and,
 for closed-loop mechanisms, the loop-closure sidecar (see `kinematics.loops`).
 
-Resolution order for `load_robot(spec)`: a built-in name (`scara`, `p2us`), an existing path,
+Resolution order for `load_robot(spec)`: a built-in name (`scara`, `p2us`, `delta`), an existing path,
 an example-robot-data name (curated aliases such as `ur5`, `panda`, or any URDF file stem in that
 package). Robots are loaded with a fixed base.
 """
