@@ -61,7 +61,7 @@ def _p2us_fk_reason(params: P2USParams, res: Any) -> str:
 
 def families() -> dict[str, Family]:
     """The mechanism families with closed forms, by the sidecar's `mechanism:` value."""
-    from . import delta, delta_urdf, parallel, p2us_urdf
+    from . import delta, delta_urdf, p2us_urdf, parallel
 
     return {
         MECHANISM: Family(MECHANISM, read_params, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,

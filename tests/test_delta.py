@@ -68,7 +68,7 @@ def test_ik_matches_scipy_roots(rng):
             if not reach[i]:
                 continue
             C = p + P.r * np.array([math.cos(P.alpha[i]), math.sin(P.alpha[i]), 0.0])
-            g = lambda th, C=C, i=i: np.linalg.norm(C - elbow(P, i, th)) - P.lb  # noqa: E731
+            g = lambda th, C=C, i=i: np.linalg.norm(C - elbow(P, i, th)) - P.lb
             grid = np.radians(np.arange(-180.0, 181.0, 1.0)) + 0.5 * sum(P.theta_limits)
             vals = np.array([g(t) for t in grid])
             k = np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))
@@ -130,7 +130,7 @@ def _sphere_roots(P, q):
     from scipy.optimize import root
 
     c = np.array([elbow(P, i, q[i]) - P.r * P.e[i] for i in range(3)])
-    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.lb**2  # noqa: E731
+    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.lb**2
     roots: list[np.ndarray] = []
     for start in np.concatenate([np.eye(3), -np.eye(3)]) * 2 * P.lb + c.mean(axis=0):
         sol = root(f, start, method="lm", options={"xtol": 1e-15, "ftol": 1e-15}).x
