@@ -279,9 +279,9 @@ def test_type_two_forearms_parallel():
 
 
 def test_type_three_both():
-    """Forearms vertical (type II) with every upper arm horizontal-inward-free: choose the
-    design so that the vertical forearm is also along the arm-axis plane, i.e. the arm points
-    straight down (theta = 90 deg, R + 0 = r) and the forearm continues it: stretched (type I)."""
+    """Type III built from geometry: a design with r = R puts each elbow straight above its
+    platform joint when the arm points down (theta = 90 deg); the forearms then hang vertically
+    (parallel: type II) and continue their arms (stretched: type I)."""
     D = P.replace(r=P.R)  # elbows above the platform joints at theta = 90 deg
     p = np.array([0.0, 0.0, -D.la - D.lb])
     jac = dl.jacobians(D, p, np.full(3, math.pi / 2))
