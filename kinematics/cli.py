@@ -27,7 +27,7 @@ OUTPUTS = {"plot": ("--plot", "figure"), "output": ("-o/--output", "urdf"), "exp
 OUTPUTS_BY_COMMAND = {("fk", "out"): ("--out", "poses")}
 """Where one command's option writes another kind of file than OUTPUTS says."""
 
-ROBOT_HELP = ("built-in name (scara, p2us, p2us-results), URDF path, or example-robot-data name "
+ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or example-robot-data name "
               "(ur5, panda, ...)")
 
 
@@ -158,11 +158,10 @@ def _loops_payload(robot: Any) -> dict[str, Any] | None:
 
 
 def _parallel_parameters(robot: Any) -> dict[str, Any]:
-    from .p2us_urdf import MECHANISM, read_params
+    from .parallel_cli import family_of
 
-    if robot.loops.mechanism != MECHANISM:
-        return {}
-    return read_params(robot.urdf_path, robot.name).as_dict()
+    found = family_of(robot)
+    return {} if found is None else found[1].as_dict()
 
 
 def _values(args: argparse.Namespace, robot: Any) -> Any:
@@ -205,7 +204,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
 
 
 def cmd_ik(args: argparse.Namespace) -> int:
-    """Closed-form inverse kinematics: planar 2R arms and the 3-[P2(US)]."""
+    """Closed-form inverse kinematics: planar 2R arms, the 3-[P2(US)] and the Delta."""
     robot = _load(args)
     if _is_parallel(robot):
         return _parallel_ik(args, robot)
@@ -218,7 +217,7 @@ def cmd_ik(args: argparse.Namespace) -> int:
     except UnsupportedRobotError as exc:
         raise UnsupportedRobotError(
             robot.name,
-            "closed-form IK is available for planar 2R arms (scara) and 3-[P2(US)] robots (p2us); "
+            "closed-form IK is available for planar 2R arms (scara), 3-[P2(US)] (p2us) and Delta robots (delta); "
             f"this one is not: {exc.problem}",
         ) from None
     if len(args.position) != 2:
@@ -495,19 +494,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --q-file: one row per configuration: x y z [m] then the rotation matrix "
                         "row-major (9 entries) for spatial robots; the plane coordinates for planar arms")
 
-    p = command("ik", cmd_ik, "closed-form inverse kinematics (scara, p2us): all solutions")
+    p = command("ik", cmd_ik, "closed-form inverse kinematics (scara, p2us, delta): all solutions")
     robot_arg(p)
     p.add_argument("--position", nargs="+", type=_number, required=True, metavar="X",
-                   help="target position [m]: X Y for a planar arm, X Y Z for p2us")
+                   help="target position [m]: X Y for a planar arm, X Y Z for p2us and delta")
 
-    p = command("jacobian", cmd_jacobian, "world-aligned Jacobian at a configuration (p2us: at a position)")
+    p = command("jacobian", cmd_jacobian, "world-aligned Jacobian at a configuration (p2us, delta: at a position)")
     robot_arg(p)
     q_args(p, required=False, p2us="not used, give --position")
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
                    help="task-space rows (default auto: x-y for planar arms, x-y-z otherwise)")
-    p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"), help="p2us: platform position [m]")
-    p.add_argument("--mode", help="p2us: working mode label such as +++ (default: the first mode within the "
+    p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"), help="p2us, delta: platform position [m]")
+    p.add_argument("--mode", help="p2us, delta: working mode label such as +++ (default: the first mode within the "
                                   "limits, else the first that assembles)")
 
     p = command("manipulability", cmd_manipulability, "manipulability ellipsoid at a configuration")
@@ -519,8 +518,8 @@ def build_parser() -> argparse.ArgumentParser:
     robot_arg(p)
     q_args(p, required=False, p2us="the 3 actuator values (closed-loop solved)")
     p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"),
-                   help="p2us: platform position [m] (default: the sidecar's reference configuration)")
-    p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
+                   help="p2us, delta: platform position [m] (default: the sidecar's reference configuration)")
+    p.add_argument("--mode", help="p2us, delta: working mode for --position (default ---)")
 
     def scan_args(p: argparse.ArgumentParser, step: float) -> None:
         p.add_argument("--step", type=_positive, default=step, metavar="M",
@@ -598,28 +597,38 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=_non_negative, metavar="S", help=argparse.SUPPRESS)
 
-    p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] design (paper B's Table 2 "
-                                   "by default)")
-    p.add_argument("robot", metavar="ROBOT", choices=["p2us"], help="the mechanism: p2us")
-    p.add_argument("--design", choices=["table2", "results"], default="table2",
-                   help="the preset the flags below change: table2 (paper B's Table 2, built-in p2us; default) "
-                        "or results (the geometry behind its computed results, built-in p2us-results)")
+    p = command("urdf", cmd_urdf, "write the URDF + loop sidecar of a 3-[P2(US)] (paper B's by default) or "
+                                   "Delta design")
+    p.add_argument("robot", metavar="ROBOT", choices=["p2us", "delta"], help="the mechanism: p2us or delta")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="URDF to write; the sidecar goes beside it as NAME.loops.yaml")
-    p.add_argument("--b", type=_number, metavar="M", help="base radius [m] (default 0.325)")
-    p.add_argument("--d", type=_number, metavar="M", help="platform radius [m] (default 0.028)")
-    p.add_argument("--L", type=_number, metavar="M", help="rod length [m] (default 0.34)")
-    p.add_argument("--beta", type=_number, metavar="A", help="rail angle below horizontal [rad] (default 40 deg)")
+    p.add_argument("--design", choices=["table2", "results"], default="table2",
+                   help="p2us: the preset the flags below change: table2 (paper B's Table 2, built-in p2us; "
+                        "default) or results (the geometry behind its computed results, built-in p2us-results)")
+    p.add_argument("--b", type=_number, metavar="M", help="base radius [m] (default p2us 0.325, delta 0.2)")
+    p.add_argument("--d", type=_number, metavar="M", help="platform radius [m] (default p2us 0.028, delta 0.05)")
+    p.add_argument("--L", type=_number, metavar="M", help="p2us: rod length [m] (default 0.34)")
+    p.add_argument("--beta", type=_number, metavar="A", help="p2us: rail angle below horizontal [rad] (default 40 deg)")
     p.add_argument("--alpha", type=_number, nargs=3, metavar="A", help="limb angles [rad] (default 0, 120, 240 deg)")
-    p.add_argument("--stroke", type=_number, nargs=2, metavar=("MIN", "MAX"), help="actuator range [m] (default 0.1 0.6)")
+    p.add_argument("--stroke", type=_number, nargs=2, metavar=("MIN", "MAX"),
+                   help="p2us: actuator range [m] (default 0.1 0.6)")
     p.add_argument("--theta", type=_number, nargs=2, metavar=("MIN", "MAX"),
-                   help="universal joint theta range [rad] (default -10 100 deg)")
+                   help="p2us: universal joint theta range [rad] (default -10 100 deg); delta: actuator range "
+                        "below the horizontal [rad] (default -40 90 deg)")
     p.add_argument("--phi", type=_number, nargs=2, metavar=("MIN", "MAX"),
-                   help="universal joint phi range [rad] (default -70 70 deg)")
+                   help="p2us: universal joint phi range [rad] (default -70 70 deg)")
     p.add_argument("--theta-zero", type=_number, metavar="A",
-                   help="rod elevation below the inward horizontal at theta = 0 [rad] (default 0)")
-    p.add_argument("--rod-spacing", type=_number, metavar="M", help="parallelogram rod spacing [m] (default 0.05)")
-    p.add_argument("--degrees", action="store_true", help="angles (beta, alpha, theta, phi, theta-zero) in degrees")
+                   help="p2us: rod elevation below the inward horizontal at theta = 0 [rad] (default 0)")
+    p.add_argument("--rod-spacing", type=_number, metavar="M",
+                   help="parallelogram rod spacing [m] (default p2us 0.05, delta 0.08)")
+    p.add_argument("--upper-arm", type=_number, metavar="M", help="delta: upper-arm length [m] (default 0.3)")
+    p.add_argument("--forearm", type=_number, metavar="M", help="delta: forearm (rod) length [m] (default 0.8)")
+    p.add_argument("--cone", type=_number, metavar="A", help="delta: ball-joint cone half-angle [rad] (default 45 deg)")
+    p.add_argument("--elbow-socket", type=_number, metavar="A",
+                   help="delta: elbow socket axis below the upper arm [rad] (default 90 deg)")
+    p.add_argument("--platform-socket", type=_number, metavar="A",
+                   help="delta: platform socket axis tilt outward from vertical [rad] (default 20 deg)")
+    p.add_argument("--degrees", action="store_true", help="angle flags in degrees")
     return parser
 
 

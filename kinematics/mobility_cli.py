@@ -15,7 +15,7 @@ from .report import fmt, key_values, table
 def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, str]:
     """The configuration to analyse and a description of where it came from.
 
-    Loop robots: --position (3-[P2(US)] closed forms), --q (actuated values, closed-loop solve)
+    Loop robots: --position (the mechanism family's closed forms), --q (actuated values, closed-loop solve)
     or the sidecar's reference; serial robots: --q (every joint) or a seeded random regular
     configuration within the ranges (`mobility.regular_configuration`).
     """
@@ -35,11 +35,11 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     if args.position is not None and args.q is not None:
         raise InvalidInputError("--position/--q", "give one of them, not both")
     if args.position is not None:
-        from .p2us_urdf import joint_values_at
-        from .parallel_cli import _position, params_of
+        from .parallel_cli import _position, require_family
 
+        fam, params = require_family(robot)
         p = _position(args)
-        values = joint_values_at(params_of(robot), p, args.mode or "---")
+        values = fam.joint_values_at(params, p, args.mode or "---")
         q = robot.configuration([values[n] for n in robot.joint_names])
         return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
     if args.q is not None:

@@ -4,7 +4,7 @@ A `Robot` bundles the Pinocchio model with what the rest of the toolkit needs to
 its source file, a default tool frame, the per-degree-of-freedom joint table (names, limits) and,
 for closed-loop mechanisms, the loop-closure sidecar (see `kinematics.loops`).
 
-Resolution order for `load_robot(spec)`: a built-in name (`scara`, `p2us`, `p2us-results`), an
+Resolution order for `load_robot(spec)`: a built-in name (`scara`, `p2us`, `p2us-results`, `delta`), an
 existing path, an example-robot-data name (curated aliases such as `ur5`, `panda`, or any URDF
 file stem in that package). Robots are loaded with a fixed base.
 """
@@ -45,7 +45,8 @@ def _urdf_dir() -> Path:
 URDF_DIR = _urdf_dir()
 """Where the built-in URDFs live (the repository's top-level `urdf/`)."""
 
-BUILTIN = {"scara": "scara.urdf", "p2us": "p2us.urdf", "p2us-results": "p2us-results.urdf"}
+BUILTIN = {"scara": "scara.urdf", "p2us": "p2us.urdf", "p2us-results": "p2us-results.urdf",
+           "delta": "delta.urdf"}
 """Built-in robots: name -> file in `URDF_DIR`."""
 
 ERD_ALIASES = {

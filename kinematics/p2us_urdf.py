@@ -40,6 +40,17 @@ import numpy as np
 from .errors import InvalidInputError, ModelFileError, UnsupportedRobotError
 from .parallel import MODES as MODES_BY_INDEX
 from .parallel import P2USParams, limb_ik, passive_angles
+from .urdf_xml import axis_of as _axis
+from .urdf_xml import fmt17 as _f
+from .urdf_xml import joint as _joint
+from .urdf_xml import limit_of as _limit
+from .urdf_xml import link as _link
+from .urdf_xml import origin_of as _origin
+from .urdf_xml import rot_y as _rot_y
+from .urdf_xml import rot_z as _rot_z
+from .urdf_xml import rpy_of as _rpy
+from .urdf_xml import vec as _v
+from .urdf_xml import visual as _visual
 
 MECHANISM = "3-[P2(US)]"
 LIMBS = (1, 2, 3)
@@ -68,36 +79,9 @@ BUILTIN_DESIGNS = {"p2us": "table2", "p2us-results": "results"}
 """Built-in robot name -> the preset its committed URDF is generated from."""
 
 
-def _f(x: float) -> str:
-    """A float with 17 significant digits (exact round trip through text)."""
-    return format(float(x) + 0.0, ".17g")  # + 0.0: no "-0"
-
-
-def _v(*xs: float) -> str:
-    return " ".join(_f(x) for x in xs)
-
-
 def _rod_offset(k: int, s: float) -> float:
     """Lateral offset of rod k along the mount frame's y = -t_i: rod 1 sits on the +t_i side."""
     return -0.5 * s if k == 1 else 0.5 * s
-
-
-def _rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw (R = Rz(y) Ry(p) Rx(r)) of a rotation matrix."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    roll = math.atan2(R[2, 1], R[2, 2])
-    yaw = math.atan2(R[1, 0], R[0, 0])
-    return roll, pitch, yaw
-
-
-def _rot_y(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def _rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
 def theta_centre(params: P2USParams) -> float:
@@ -119,29 +103,6 @@ def _platform_mount(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
     e, t = params.e[0], params.t[0]
     anchor = params.d * e + 0.5 * params.rod_spacing * t  # anchor_1_1 in platform (= world) axes
     return R_s3.T @ (-anchor), R_s3.T
-
-
-def _joint(name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
-           axis: tuple[float, float, float] | None = None, limit: tuple[float, float] | None = None) -> str:
-    lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>',
-             f'    <child link="{child}"/>', f'    <origin xyz="{_v(*xyz)}" rpy="{_v(*rpy)}"/>']
-    if axis is not None:
-        lines.append(f'    <axis xyz="{_v(*axis)}"/>')
-    if limit is not None:
-        lines.append(f'    <limit lower="{_f(limit[0])}" upper="{_f(limit[1])}" effort="1000" velocity="10"/>')
-    lines.append("  </joint>")
-    return "\n".join(lines)
-
-
-def _link(name: str, *visuals: str) -> str:
-    if not visuals:
-        return f'  <link name="{name}"/>'
-    return "\n".join([f'  <link name="{name}">', *visuals, "  </link>"])
-
-
-def _visual(geometry: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0)) -> str:
-    return (f'    <visual><origin xyz="{_v(*xyz)}" rpy="{_v(*rpy)}"/>'
-            f"<geometry>{geometry}</geometry><material name=\"{material}\"/></visual>")
 
 
 def urdf_text(params: P2USParams, name: str = "p2us") -> str:
@@ -310,25 +271,6 @@ def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = N
 
 
 # -- reader -------------------------------------------------------------------------------------
-def _origin(joint: ET.Element) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    o = joint.find("origin")
-    xyz = tuple(float(x) for x in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split())
-    rpy = tuple(float(x) for x in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split())
-    return xyz, rpy
-
-
-def _axis(joint: ET.Element) -> tuple[float, ...]:
-    a = joint.find("axis")
-    return tuple(float(x) for x in (a.get("xyz", "1 0 0") if a is not None else "1 0 0").split())
-
-
-def _limit(joint: ET.Element) -> tuple[float, float]:
-    lim = joint.find("limit")
-    if lim is None:
-        return (-math.inf, math.inf)
-    return float(lim.get("lower", "0")), float(lim.get("upper", "0"))
-
-
 def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> P2USParams:
     """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes).
 

@@ -407,7 +407,13 @@ def sphere_centres(params: P2USParams, q: np.ndarray) -> np.ndarray:
 
 
 def fk(params: P2USParams, q: np.ndarray) -> FKResult:
-    """Forward kinematics (paper eqs. 19-21): intersect three spheres of radius L.
+    """Forward kinematics (paper eqs. 19-21): intersect three spheres of radius L around the
+    centres c_i = B_i - d e_i (`intersect_spheres`)."""
+    return intersect_spheres(sphere_centres(params, q), params.L)
+
+
+def intersect_spheres(c: np.ndarray, L: float) -> FKResult:
+    """Both points at distance L [m] from three centres c, shape S + (3, 3) (row i: centre i).
 
     In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = +/-(ex x ey) turned
     to point up (ex x ey points down when the limbs are numbered clockwise), p = c1 + x ex + y ey
@@ -417,7 +423,6 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     If the centres' plane is vertical (never for rails inclined below the horizontal) "below"
     and "above" are ex x ey's -/+ side.
     """
-    c = sphere_centres(params, q)
     c1, c2, c3 = c[..., 0, :], c[..., 1, :], c[..., 2, :]
     d12 = c2 - c1
     D = np.linalg.norm(d12, axis=-1)
@@ -432,13 +437,13 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
         ez *= np.where(ez[..., 2:] < 0, -1.0, 1.0)  # up, whatever the limbs' numbering
         x = 0.5 * D
         y = (i * i + j * j - 2.0 * i * x) / (2.0 * j)
-        h2 = params.L**2 - x * x - y * y
-    exists = np.isfinite(h2) & (h2 >= -BOUNDARY_TOL * params.L**2)
+        h2 = L**2 - x * x - y * y
+    exists = np.isfinite(h2) & (h2 >= -BOUNDARY_TOL * L**2)
     h = np.sqrt(np.where(exists, np.maximum(h2, 0.0), np.nan))
     base = c1 + x[..., None] * ex + y[..., None] * ey
     p = np.stack([base - h[..., None] * ez, base + h[..., None] * ez], axis=-2)
     with np.errstate(invalid="ignore"):
-        short = np.hypot(x, y) - params.L  # circumradius - L; inf for collinear centres (j = 0)
+        short = np.hypot(x, y) - L  # circumradius - L; inf for collinear centres (j = 0)
     return FKResult(p, exists, np.where(exists, 0.0, np.where(np.isnan(short), np.inf, short)))
 
 

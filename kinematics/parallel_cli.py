@@ -1,11 +1,13 @@
-"""CLI handlers for closed-loop robots: the 3-[P2(US)] closed forms, and the generic Pinocchio
-closed-loop solver for any other URDF + loop sidecar. Called from `kinematics.cli`."""
+"""CLI handlers for closed-loop robots: the closed forms of the mechanism families (3-[P2(US)],
+Delta; see `FAMILIES`), and the generic Pinocchio closed-loop solver for any other URDF + loop
+sidecar. Called from `kinematics.cli`."""
 
 from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -19,16 +21,7 @@ from .parallel import (
     SINGULARITY_TYPES,
     P2USParams,
     classify,
-    jacobians,
     mode_index,
-    rod_vectors,
-    violations,
-)
-from .parallel import (
-    fk as p2us_fk,
-)
-from .parallel import (
-    ik as p2us_ik,
 )
 from .report import Out, key_values, matrix, table
 
@@ -37,6 +30,65 @@ EXIT_OK, EXIT_NO = 0, 1
 
 def _is_p2us(robot: Robot) -> bool:
     return robot.loops is not None and robot.loops.mechanism == MECHANISM
+
+
+class Family(NamedTuple):
+    """A mechanism family with closed forms: what the ik/fk/jacobian/mobility commands need.
+
+    The functions take the family's parameters first; shapes and result fields are the same
+    for every family (8 working modes, 2 assembly modes, Jacobians with iota_I / iota_II).
+    """
+
+    mechanism: str
+    read_params: Callable[..., Any]
+    ik: Callable[..., Any]
+    fk: Callable[..., Any]
+    jacobians: Callable[..., Any]
+    rod_vectors: Callable[..., Any]
+    violations: Callable[..., list[str]]
+    limb_reasons: Callable[..., list[dict[str, Any]]]
+    fk_reason: Callable[..., str]
+    joint_values_at: Callable[..., dict[str, float]]
+    rod_length: Callable[[Any], float]
+    q_unit: str
+    iota_I: str
+
+
+def _p2us_fk_reason(params: P2USParams, res: Any) -> str:
+    return (f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
+            f"(the rods would need to be {float(res.gap):.6g} m longer)")
+
+
+def families() -> dict[str, Family]:
+    """The mechanism families with closed forms, by the sidecar's `mechanism:` value."""
+    from . import delta, delta_urdf, p2us_urdf, parallel
+
+    return {
+        MECHANISM: Family(MECHANISM, read_params, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,
+                          parallel.violations, limb_reasons, _p2us_fk_reason, p2us_urdf.joint_values_at,
+                          lambda p: p.L, "m", "iota_I = min |n.w|"),
+        delta.MECHANISM: Family(delta.MECHANISM, delta_urdf.read_params, delta.ik, delta.fk, delta.jacobians,
+                                delta.rod_vectors, delta.violations, delta.limb_reasons, delta.fk_reason,
+                                delta_urdf.joint_values_at, lambda p: p.lb, "rad", "iota_I = min |n.b|"),
+    }
+
+
+def family_of(robot: Robot) -> tuple[Family, Any] | None:
+    """The robot's mechanism family and its parameters read from its URDF, or None when it has
+    no closed forms (then the generic closed-loop solver answers)."""
+    if robot.loops is None or robot.loops.mechanism not in families():
+        return None
+    fam = families()[robot.loops.mechanism]
+    return fam, fam.read_params(robot.urdf_path, robot.name)
+
+
+def require_family(robot: Robot) -> tuple[Family, Any]:
+    found = family_of(robot)
+    if found is None:
+        raise UnsupportedRobotError(robot.name, "closed-form IK needs a mechanism with closed forms ("
+                                    + ", ".join(families()) + "); its sidecar declares mechanism "
+                                    f"{robot.loops.mechanism if robot.loops else None!r}")
+    return found
 
 
 def params_of(robot: Robot) -> P2USParams:
@@ -85,18 +137,18 @@ def _solutions_report(title: str, key: str, columns: list[str], digits: int,
 
 
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    """`kinematics ik p2us --position X Y Z`: all working modes, limits, reasons."""
-    params = params_of(robot)
+    """`kinematics ik p2us|delta --position X Y Z`: all working modes, limits, reasons."""
+    fam, params = require_family(robot)
     p = _position(args)
-    res = p2us_ik(params, p)
-    limbs = limb_reasons(params, res.limbs)
+    res = fam.ik(params, p)
+    limbs = fam.limb_reasons(params, res.limbs)
     solutions = []
     for m, mode in enumerate(MODES):
         if not res.reachable[m]:
             continue
         roots = [0 if c == "+" else 1 for c in mode]
         n = res.limbs.n[np.arange(3), roots]
-        viol = violations(params, res.q[m], n)
+        viol = fam.violations(params, res.q[m], n)
         solutions.append({"q": res.q[m], "mode": mode, "within_limits": not viol, "violations": viol})
     reachable = any(s["within_limits"] for s in solutions)
     if reachable:
@@ -109,7 +161,8 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     def human() -> str:
         title = f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
-        return _solutions_report(title, "q", ["q1 [m]", "q2 [m]", "q3 [m]"], 9, solutions, reason)
+        u = fam.q_unit
+        return _solutions_report(title, "q", [f"q1 [{u}]", f"q2 [{u}]", f"q3 [{u}]"], 9, solutions, reason)
 
     out(args, payload, human)
     return EXIT_OK if reachable else EXIT_NO
@@ -132,27 +185,26 @@ def _actuated(args: argparse.Namespace, robot: Robot) -> np.ndarray:
 
 
 def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    """`kinematics fk p2us --q Q1 Q2 Q3`: both assembly modes (closed form); other loop robots
-    through the Pinocchio closed-loop solver."""
+    """`kinematics fk p2us|delta --q Q1 Q2 Q3`: both assembly modes (closed form); other loop
+    robots through the Pinocchio closed-loop solver."""
     q = _actuated(args, robot)
-    if not _is_p2us(robot):
+    found = family_of(robot)
+    if found is None:
         return _generic_fk(args, robot, q, out)
-    params = params_of(robot)
-    res = p2us_fk(params, q)
+    fam, params = found
+    res = fam.fk(params, q)
     solutions = []
     if res.exists:
         for k, mode in enumerate(ASSEMBLY_MODES):
             pos = res.p[k]
-            n = rod_vectors(params, pos, q) / params.L
-            viol = violations(params, q, n)
+            n = fam.rod_vectors(params, pos, q) / fam.rod_length(params)
+            viol = fam.violations(params, q, n)
             solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
-    reason = None if res.exists else (
-        f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
-        f"(the rods would need to be {float(res.gap):.6g} m longer)")
+    reason = None if res.exists else fam.fk_reason(params, res)
     payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
 
     def human() -> str:
-        return _solutions_report(f"actuators q = {q.tolist()} m", "position", ["x [m]", "y [m]", "z [m]"], 12,
+        return _solutions_report(f"actuators q = {q.tolist()} {fam.q_unit}", "position", ["x [m]", "y [m]", "z [m]"], 12,
                                  solutions, reason)
 
     out(args, payload, human)
@@ -175,27 +227,29 @@ def _generic_fk(args: argparse.Namespace, robot: Robot, q: np.ndarray, out: Out)
 
 
 def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    """`kinematics jacobian p2us --position X Y Z [--mode M]`: J, J_x, J_q and the singularity type."""
-    if not _is_p2us(robot):
+    """`kinematics jacobian p2us|delta --position X Y Z [--mode M]`: J, J_x, J_q and the
+    singularity type."""
+    found = family_of(robot)
+    if found is None:
         return _generic_jacobian(args, robot, out)
-    params = params_of(robot)
+    fam, params = found
     if args.q is not None:
         raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
     p = _position(args)
-    res = p2us_ik(params, p)
+    res = fam.ik(params, p)
     if args.mode is not None:
         m = mode_index(args.mode)
     else:  # the first mode within limits, else the first that assembles
         ok = np.flatnonzero(res.within_limits) if res.within_limits.any() else np.flatnonzero(res.reachable)
         m = int(ok[0]) if ok.size else 0
-    limbs = limb_reasons(params, res.limbs)
+    limbs = fam.limb_reasons(params, res.limbs)
     if not res.reachable[m]:
         payload = {"position": p, "mode": MODES[m], "reachable": False,
                    "reason": "; ".join(lb["reason"] for lb in limbs if lb["reason"])}
         out(args, payload, lambda: f"platform at {p.tolist()} m is NOT reachable: {payload['reason']}")
         return EXIT_NO
     q = res.q[m]
-    jac = jacobians(params, p, q)
+    jac = fam.jacobians(params, p, q)
     kind = SINGULARITY_TYPES[int(classify(jac.iota_I, jac.iota_II))]
     J = jac.J if np.all(np.isfinite(jac.J)) else None
     payload = {
@@ -207,11 +261,11 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     def human() -> str:
         return "\n".join([
-            f"platform at {p.tolist()} m, mode {MODES[m]}, q = {np.round(q, 9).tolist()} m",
+            f"platform at {p.tolist()} m, mode {MODES[m]}, q = {np.round(q, 9).tolist()} {fam.q_unit}",
             "J = Jq^-1 Jx (qdot = J pdot):", matrix(jac.J, 9) if J is not None else "  (infinite: type I)",
             "Jx:", matrix(jac.Jx, 9), "Jq (diagonal):", matrix(np.diag(jac.Jq), 9),
             key_values([("det Jx", payload["det_Jx"]), ("det Jq", payload["det_Jq"]),
-                        ("iota_I = min |n.w|", jac.iota_I), ("iota_II = |det n|", jac.iota_II),
+                        (fam.iota_I, jac.iota_I), ("iota_II = |det n|", jac.iota_II),
                         ("singularity", f"{kind} (tolerance {SINGULAR_TOL:g})")], 9),
         ])
 
@@ -231,26 +285,41 @@ def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     return EXIT_OK
 
 
+URDF_FLAGS: dict[str, dict[str, str]] = {
+    # CLI flag (argparse dest) -> parameter name, per mechanism; angles marked by ANGLES
+    "p2us": {"b": "b", "d": "d", "L": "L", "beta": "beta", "alpha": "alpha", "stroke": "stroke",
+             "theta": "theta_limits", "phi": "phi_limits", "theta_zero": "theta_zero", "rod_spacing": "rod_spacing"},
+    "delta": {"b": "R", "d": "r", "upper_arm": "la", "forearm": "lb", "alpha": "alpha", "theta": "theta_limits",
+              "cone": "cone", "elbow_socket": "elbow_socket", "platform_socket": "platform_socket",
+              "rod_spacing": "rod_spacing"},
+}
+ANGLES = {"beta", "alpha", "theta", "phi", "theta_zero", "cone", "elbow_socket", "platform_socket"}
+
+
 def cmd_urdf(args: argparse.Namespace) -> int:
-    """`kinematics urdf p2us [design flags] -o FILE`: write the URDF and its loop sidecar."""
-    from .p2us_urdf import DESIGNS, write
+    """`kinematics urdf p2us|delta [design flags] -o FILE`: write the URDF and its loop sidecar."""
+    from . import delta_urdf, p2us_urdf
+    from .delta import DeltaParams
 
     conv = math.radians if args.degrees else float
-    base = DESIGNS[getattr(args, "design", "table2")]
+    flags = URDF_FLAGS[args.robot]
+    for other, names in URDF_FLAGS.items():
+        for flag in set(names) - set(flags):
+            if getattr(args, flag, None) is not None:
+                raise InvalidInputError(f"--{flag.replace('_', '-')}", f"applies to {other} only, not {args.robot}")
+    design = getattr(args, "design", "table2")
+    if args.robot != "p2us" and design != "table2":
+        raise InvalidInputError("--design", f"presets are for p2us only, not {args.robot}")
     changes: dict[str, Any] = {}
-    for flag in ("b", "d", "L", "rod_spacing"):
-        if getattr(args, flag) is not None:
-            changes[flag] = float(getattr(args, flag))
-    for flag in ("beta", "theta_zero"):
-        if getattr(args, flag) is not None:
-            changes[flag] = conv(getattr(args, flag))
-    if args.alpha is not None:
-        changes["alpha"] = tuple(conv(a) for a in args.alpha)
-    if args.stroke is not None:
-        changes["stroke"] = tuple(float(x) for x in args.stroke)
-    for flag, key in (("theta", "theta_limits"), ("phi", "phi_limits")):
-        if getattr(args, flag) is not None:
-            changes[key] = tuple(conv(x) for x in getattr(args, flag))
+    for flag, key in flags.items():
+        value = getattr(args, flag)
+        if value is None:
+            continue
+        f = conv if flag in ANGLES else float
+        changes[key] = tuple(f(x) for x in value) if isinstance(value, list) else f(value)
+    base: Any = p2us_urdf.DESIGNS[design] if args.robot == "p2us" else DeltaParams()
+    module: Any = p2us_urdf if args.robot == "p2us" else delta_urdf
+    write, read_params = module.write, module.read_params
     params = base.replace(**changes)  # validates every value
     urdf_path, side = write(params, args.output)
     back = read_params(urdf_path)
