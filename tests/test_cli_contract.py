@@ -416,9 +416,21 @@ def _interrupt(argv: list[str], after: float, group: bool = False) -> subprocess
     return subprocess.CompletedProcess(argv, proc.returncode, out, err)
 
 
+# The guide command with every control step slowed by 1 ms: 30,000 steps take at least 30 s, so
+# the interrupt at 6 s lands inside the computation however fast the machine (and after start-up
+# however loaded it is), which a fixed step count cannot promise.
+SLOW_GUIDE = """
+import sys, time
+from kinematics import guidance
+step = guidance.Controller.step
+guidance.Controller.step = lambda self, *a, **k: (time.sleep(1e-3), step(self, *a, **k))[1]
+from kinematics.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def test_ctrl_c_is_one_line():
-    # 900,000 control steps: far longer than the interrupt delay
-    proc = _interrupt(_kinematics("guide", "--experiment", "3", "--dt", "1e-5"), 4.0)
+    proc = _interrupt([sys.executable, "-c", SLOW_GUIDE, "guide", "--experiment", "3"], 6.0)
     assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr
 
 
