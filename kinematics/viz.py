@@ -622,6 +622,19 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
     return scene
 
 
+def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, scene: Scene | None = None) -> Scene:
+    """Any URDF + loop sidecar through the generic Pinocchio closed-loop solver: at the sidecar's
+    reference configuration, or assembled from actuator values [rad or m]; camera framed on it."""
+    from .closedloop import ClosedLoop
+
+    scene = scene or Scene()
+    loop = ClosedLoop(robot)
+    q = loop.reference if actuators is None else loop.solve(np.asarray(actuators, dtype=float)).q
+    scene.add_robot(robot, q)
+    scene.fit_camera()
+    return scene
+
+
 def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---", actuators: np.ndarray | None = None,
               *, ellipsoid: bool = False, workspace: bool = False, singularities: bool = False,
               limits: str = "all", step: float = 0.02, scene: Scene | None = None) -> Scene:
@@ -692,5 +705,6 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
                                  size=0.006 if k == 1 else 0.009, opacity=0.35 if k == 1 else 1.0,
                                  label=f"{label} singular points {'on' if k == 1 else 'in'} the workspace: "
                                        f"{int(sel.sum())}")
-    scene.fit_camera()
+    # a low camera: the base disk hangs above the mechanism and hides it from the usual 30 deg
+    scene.fit_camera(direction=(1.0, -1.4, 0.2))
     return scene

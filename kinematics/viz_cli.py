@@ -56,12 +56,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                                             "available for the planar arm and the 3-[P2(US)]")
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, scene=scene)
         else:
-            from .closedloop import ClosedLoop
-
-            loop = ClosedLoop(robot)
-            sol = loop.solve(np.array(args.q, dtype=float)) if args.q is not None else None
-            scene.add_robot(robot, loop.reference if sol is None else sol.q)
-            scene.fit_camera()
+            viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float), scene=scene)
         print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
               end="", file=sys.stderr)
         notes = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}

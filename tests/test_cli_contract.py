@@ -406,7 +406,10 @@ def test_full_disk_is_one_line():
 
 
 def _interrupt(argv: list[str], after: float, group: bool = False) -> subprocess.CompletedProcess[str]:
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    # SIGINT back to its default in the child: a shell running the suite in the background starts
+    # it with SIGINT ignored, and Python then installs no KeyboardInterrupt handler
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(after)
     if group:  # what a terminal's Ctrl-C does: SIGINT to the whole process group
         os.killpg(proc.pid, signal.SIGINT)

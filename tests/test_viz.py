@@ -200,7 +200,12 @@ def test_builtin_robot_reads_well_in_a_real_browser(tmp_path, name):
 
     assert BROWSER is not None, "KINEMATICS_REQUIRE_BROWSER=1 but chromium-headless-shell is missing"
     robot = load_robot(name)
-    scene = viz.p2us_view(robot) if robot.loops is not None else viz.scara_view(robot)
+    if robot.loops is None:
+        scene = viz.scara_view(robot)
+    elif robot.loops.mechanism == "3-[P2(US)]":
+        scene = viz.p2us_view(robot)
+    else:
+        scene = viz.closed_loop_view(robot)
     a, b, mask = _robot_pixels(scene, tmp_path)
     h, w = mask.shape
     assert mask.mean() > MIN_COVER, f"the robot covers {mask.mean():.1%} of the view"
