@@ -1,0 +1,593 @@
+"""Reachable workspace of a frame's position for any serial arm, with guaranteed bounds.
+
+W = f(Q), f the frame position and Q the box of joint limits. The method (derivation in
+docs/serial-workspace.md) partitions Q into boxes, evaluates f and its Jacobian J at each box's
+centre s with the compiled batched kinematics, and keeps two sets of task-space cells of side h:
+
+* **inside** (a lower bound): Graves' surjection theorem. With sigma = sigma_min(J(s)) (position
+  rows), M a bound on the second derivative of f over Q (`hessian_bound`) and any r with the
+  joint ball B(s, r) inside the limits, f(B(s, r)) contains the task ball B(f(s), (sigma - M r) r);
+  r = min(sigma / 2M, distance to the limits). Cells lying wholly in such a ball are in W.
+* **touched** (an upper bound): Taylor with the same M. For q in a box of half-widths d,
+  |f(q) - f(s)| <= eps = sum_i |J_i(s)| d_i + M |d|^2 / 2, so the box's image lies in B(f(s), eps).
+  A box whose ball lies in the inside set is settled; the others are split (the joints that
+  dominate eps) until eps <= h / 2, and the cells their balls touch are marked.
+
+W lies between the two cell sets whatever the sampling: lower <= |W| <= upper, up to rounding
+(~1e-15 relative). The estimate is their midpoint, the error estimate their half-gap. Reductions
+(exact): joints that never move the point are fixed; when the first joint of the chain is a
+revolution about a fixed axis with a full turn of range, W is a solid of revolution and the
+measure is 2 pi int rho d(rho) dz over the reachable (rho, z) profile (Pappus); a planar arm's
+measure is the area in its plane.
+
+Dexterity (Yoshikawa index, condition number, smallest radius of the position Jacobian's
+ellipsoid) is aggregated per cell as the best over the evaluated configurations reaching it.
+Boxes with sigma_min(J(s)) <= M |d| may contain a configuration where J loses rank (sigma_min is
+M-Lipschitz in q); those that cannot are singular-free. The singular set's image lies within the
+reported balls.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from itertools import product
+from typing import Any, Literal
+
+import numpy as np
+from numba import njit
+
+from .batched import PRISMATIC, BatchedKinematics, configurations
+from .errors import InvalidInputError, UnsupportedRobotError
+from .model import Robot
+from .serial import plane
+
+Mode = Literal["planar", "revolved", "spatial"]
+
+_DEAD_TOL = 1e-12
+"""A joint whose position-Jacobian column is below this [m/rad] at every probe never moves the point."""
+
+
+@dataclass(frozen=True)
+class CellGrid:
+    """A regular grid of task-space cells (side `cell` [m]) from `origin`: cell (i, j[, k]) spans
+    origin + (i, j[, k]) * cell to origin + (i + 1, j + 1[, k + 1]) * cell. Coordinates are the
+    plane axes (planar), (rho, z) about the base axis (revolved) or x, y, z (spatial)."""
+
+    origin: np.ndarray
+    cell: float
+    shape: tuple[int, ...]
+
+    def centres(self, index: np.ndarray) -> np.ndarray:
+        """Centres [m] of cells given as (K, d) integer indices."""
+        return self.origin + (np.asarray(index) + 0.5) * self.cell
+
+
+@dataclass(frozen=True)
+class SerialWorkspace:
+    """Reachable set of a frame's position, with guaranteed bounds and per-cell dexterity.
+
+    Attributes:
+        robot, frame: what was measured.
+        mode: "planar" (area in the plane axes `axes`, m^2), "revolved" (solid of revolution
+            about the first joint's axis, m^3) or "spatial" (m^3).
+        axes: world axes of the plane (planar); for revolved, `axis_origin` and `axis_direction`.
+        measure: the estimate, (lower + upper) / 2 [m^2 or m^3].
+        lower, upper: guaranteed bounds on the measure.
+        error_estimate: (upper - lower) / 2, a bound on |measure - true|.
+        rtol: the requested relative tolerance; converged: error_estimate <= rtol * measure.
+        points_evaluated: configurations at which FK and the Jacobian were evaluated.
+        seconds: wall time.
+        joints: the degrees of freedom sampled; fixed: those that never move the point.
+        lipschitz: bound on |df/dq_i| per sampled joint [m/rad or m/m].
+        hessian_bound: M, bound on the second derivative of the position over the joint box.
+        grid: the cells; inside: cells certified in W; touched: cells that may meet W (a
+            superset of W's cells; inside implies touched).
+        yoshikawa, condition_number, smallest_radius: per cell, best over the configurations
+            evaluated there (max, min, max); NaN where none was.
+        singular_points: (K, d) task coordinates of boxes that may hold a rank-deficient
+            Jacobian; singular_radius: (K,) the box's image lies within this distance [m];
+            singular_configurations: (K, nv) the boxes' centres (joint values).
+    """
+
+    robot: str
+    frame: str
+    mode: Mode
+    measure: float
+    lower: float
+    upper: float
+    error_estimate: float
+    rtol: float
+    converged: bool
+    points_evaluated: int
+    seconds: float
+    joints: tuple[str, ...]
+    fixed: tuple[str, ...]
+    lipschitz: np.ndarray
+    hessian_bound: float
+    grid: CellGrid
+    inside: np.ndarray
+    touched: np.ndarray
+    yoshikawa: np.ndarray
+    condition_number: np.ndarray
+    smallest_radius: np.ndarray
+    singular_points: np.ndarray
+    singular_radius: np.ndarray
+    singular_configurations: np.ndarray
+    axes: tuple[int, ...] = ()
+    axis_origin: np.ndarray | None = None
+    axis_direction: np.ndarray | None = None
+    levels: tuple[dict[str, float], ...] = field(default=())
+
+    @property
+    def planar(self) -> bool:
+        return self.mode == "planar"
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready summary with the issue's stable keys (volume_m3 or area_m2,
+        error_estimate, points_evaluated, seconds)."""
+        key = "area_m2" if self.planar else "volume_m3"
+        out: dict[str, Any] = {
+            "robot": self.robot,
+            "frame": self.frame,
+            "mode": self.mode,
+            key: self.measure,
+            "error_estimate": self.error_estimate,
+            "bounds": [self.lower, self.upper],
+            "rtol": self.rtol,
+            "converged": self.converged,
+            "points_evaluated": self.points_evaluated,
+            "seconds": self.seconds,
+            "cell_m": self.grid.cell,
+            "joints": list(self.joints),
+            "fixed_joints": list(self.fixed),
+            "singular_boxes": int(len(self.singular_radius)),
+            "levels": list(self.levels),
+        }
+        if self.axis_direction is not None and self.axis_origin is not None:
+            out["axis"] = {"origin": self.axis_origin.tolist(), "direction": self.axis_direction.tolist()}
+        if self.axes:
+            out["plane_axes"] = list(self.axes)
+        return out
+
+
+# -- bounds on the derivatives -------------------------------------------------------------------
+def _distal_lengths(kin: BatchedKinematics, robot: Robot) -> np.ndarray:
+    """R_k >= |p - p_k| over the joint box, p the frame point, p_k chain joint k's origin:
+    the lengths of the fixed offsets after joint k plus the travel of the prismatic joints after it."""
+    n = len(kin.kind)
+    seg = np.linalg.norm(kin.translation, axis=1)
+    travel = np.zeros(n)
+    for k in range(n):
+        if kin.kind[k] == PRISMATIC:
+            d = robot.dofs[_dof_of(robot, int(kin.idx_v[k]))]
+            travel[k] = max(abs(d.lower), abs(d.upper))
+    tail = float(np.linalg.norm(kin.frame_translation))
+    R = np.empty(n)
+    for k in range(n):
+        R[k] = tail + seg[k + 1 :].sum() + travel[k + 1 :].sum()
+    return R
+
+
+def _dof_of(robot: Robot, idx_v: int) -> int:
+    for i, d in enumerate(robot.dofs):
+        if d.idx_v == idx_v:
+            return i
+    raise InvalidInputError("joint", f"no degree of freedom at velocity index {idx_v}")  # pragma: no cover
+
+
+def _hessian_bound(prismatic: np.ndarray, R: np.ndarray) -> float:
+    """M >= |d^2 f (u, v)| / (|u| |v|) over the box for the chain joints given (root first).
+
+    For revolute i <= j: d^2 p / dq_i dq_j = w_i x (w_j x (p - p_j)), norm <= R_j; a revolute
+    before a prismatic gives w_i x w_j (<= 1), a prismatic before anything 0 (taken as 1 when
+    mixed, to be safe), two prismatics 0. M is the spectral norm of that nonnegative matrix."""
+    n = len(R)
+    B = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            a, b = min(i, j), max(i, j)
+            if not prismatic[a] and not prismatic[b]:
+                B[i, j] = R[b]
+            elif prismatic[a] != prismatic[b]:
+                B[i, j] = 1.0
+    return float(np.linalg.norm(B, 2)) if n else 0.0
+
+
+# -- cell kernels ------------------------------------------------------------------------------------
+@njit(cache=True)
+def _mark_within(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
+    """Set grid cells lying wholly inside the ball B(y_k, rad_k)."""
+    nx, ny, nz = grid.shape
+    for k in range(y.shape[0]):
+        r = rad[k]
+        if not r > 0.0:
+            continue
+        lo = np.empty(3, np.int64)
+        hi = np.empty(3, np.int64)
+        ext = (nx, ny, nz)
+        for a in range(3):
+            if a >= d:
+                lo[a] = 0
+                hi[a] = 0
+                continue
+            lo[a] = max(0, int(math.floor((y[k, a] - r - origin[a]) / h)))
+            hi[a] = min(ext[a] - 1, int(math.floor((y[k, a] + r - origin[a]) / h)))
+        r2 = r * r
+        for i in range(lo[0], hi[0] + 1):
+            x0 = origin[0] + i * h - y[k, 0]
+            dx = max(abs(x0), abs(x0 + h))
+            for j in range(lo[1], hi[1] + 1):
+                y0 = origin[1] + j * h - y[k, 1]
+                dy = max(abs(y0), abs(y0 + h))
+                for m in range(lo[2], hi[2] + 1):
+                    dz = 0.0
+                    if d == 3:
+                        z0 = origin[2] + m * h - y[k, 2]
+                        dz = max(abs(z0), abs(z0 + h))
+                    if dx * dx + dy * dy + dz * dz <= r2:
+                        grid[i, j, m] = 1
+
+
+@njit(cache=True)
+def _mark_touching(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
+    """Set grid cells that meet the closed ball B(y_k, rad_k)."""
+    nx, ny, nz = grid.shape
+    for k in range(y.shape[0]):
+        r = rad[k]
+        lo = np.empty(3, np.int64)
+        hi = np.empty(3, np.int64)
+        ext = (nx, ny, nz)
+        for a in range(3):
+            if a >= d:
+                lo[a] = 0
+                hi[a] = 0
+                continue
+            lo[a] = max(0, int(math.floor((y[k, a] - r - origin[a]) / h)))
+            hi[a] = min(ext[a] - 1, int(math.floor((y[k, a] + r - origin[a]) / h)))
+        r2 = r * r
+        for i in range(lo[0], hi[0] + 1):
+            x0 = origin[0] + i * h - y[k, 0]
+            dx = max(0.0, x0, -(x0 + h))
+            for j in range(lo[1], hi[1] + 1):
+                y0 = origin[1] + j * h - y[k, 1]
+                dy = max(0.0, y0, -(y0 + h))
+                for m in range(lo[2], hi[2] + 1):
+                    dz = 0.0
+                    if d == 3:
+                        z0 = origin[2] + m * h - y[k, 2]
+                        dz = max(0.0, z0, -(z0 + h))
+                    if dx * dx + dy * dy + dz * dz <= r2:
+                        grid[i, j, m] = 1
+
+
+@njit(cache=True)
+def _aggregate(idx, w, cond, rmin, gw, gc, gr):  # pragma: no cover - compiled
+    for k in range(idx.shape[0]):
+        i, j, m = idx[k, 0], idx[k, 1], idx[k, 2]
+        if not gw[i, j, m] >= w[k]:
+            gw[i, j, m] = w[k]
+        if not gc[i, j, m] <= cond[k]:
+            gc[i, j, m] = cond[k]
+        if not gr[i, j, m] >= rmin[k]:
+            gr[i, j, m] = rmin[k]
+
+
+# -- the measurement -----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Setup:
+    mode: Mode
+    rows: tuple[int, ...]
+    active: np.ndarray  # dof indices sampled
+    lo: np.ndarray
+    hi: np.ndarray
+    periodic: np.ndarray
+    base: np.ndarray  # (nv,) values of the joints not sampled
+    L: np.ndarray
+    M: float
+    graves_cols: np.ndarray  # velocity columns entering sigma_min (active, + the base yaw when revolved)
+    sample_cols: np.ndarray  # velocity columns of the sampled joints
+    axes: tuple[int, ...]
+    axis_origin: np.ndarray | None
+    axis_direction: np.ndarray | None
+    fixed: tuple[str, ...]
+
+
+def _setup(robot: Robot, kin: BatchedKinematics) -> _Setup:
+    nv = robot.nv
+    chain_v = [int(v) for v in kin.idx_v]
+    dof_idx = [_dof_of(robot, v) for v in chain_v]
+    # Joints that never move the point: a zero position column at every probe configuration.
+    rng = np.random.default_rng(0)
+    lo_all = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
+    hi_all = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
+    probe = rng.uniform(lo_all, hi_all, (64, nv))
+    Jp = kin.jacobian(configurations(robot, probe))[:, :3, :]
+    moving = np.abs(Jp).max(axis=(0, 1)) > _DEAD_TOL
+    R = _distal_lengths(kin, robot)
+    prismatic = kin.kind == PRISMATIC
+    pl = plane(robot)
+    base = np.clip(np.zeros(nv), lo_all, hi_all)
+    fixed = tuple(robot.dofs[i].name for i, v in zip(dof_idx, chain_v, strict=True) if not moving[v])
+    keep = [k for k, v in enumerate(chain_v) if moving[v]]
+    if not keep:
+        raise UnsupportedRobotError(robot.name, f"no joint moves frame {kin.frame!r}: its workspace is a point")
+    for k in keep:
+        d = robot.dofs[dof_idx[k]]
+        if d.kind == "prismatic" and not (math.isfinite(d.lower) and math.isfinite(d.upper)):
+            raise UnsupportedRobotError(robot.name, f"prismatic joint {d.name!r} has no finite limits")
+    lo = np.array([lo_all[dof_idx[k]] for k in keep])
+    hi = np.array([hi_all[dof_idx[k]] for k in keep])
+    kinds = [robot.dofs[dof_idx[k]].kind for k in keep]
+    periodic = np.array([kd == "continuous" or (kd == "revolute" and h - l >= 2 * math.pi - 1e-9)
+                         for kd, l, h in zip(kinds, lo, hi, strict=True)])
+    hi = np.where(periodic, lo + 2 * math.pi, hi)  # f is 2 pi periodic in these: one turn suffices
+    M = _hessian_bound(prismatic[keep], R[keep])
+    L = np.where(prismatic[keep], 1.0, R[keep])
+    active = np.array([dof_idx[k] for k in keep])
+    cols = np.array([chain_v[k] for k in keep])
+    if pl is not None:
+        return _Setup("planar", pl, active, lo, hi, periodic, base, L, M, cols, cols, pl, None, None, fixed)
+    if keep[0] == 0 and kin.kind[0] != PRISMATIC and periodic[0]:
+        direction = kin.rotation[0] @ kin.axis[0]
+        origin = kin.translation[0].copy()
+        return _Setup("revolved", (0, 1, 2), active[1:], lo[1:], hi[1:], periodic[1:], base, L[1:], M, cols,
+                      cols[1:], (), origin, direction, fixed)
+    return _Setup("spatial", (0, 1, 2), active, lo, hi, periodic, base, L, M, cols, cols, (), None, None, fixed)
+
+
+def serial_workspace(
+    robot: Robot,
+    frame: str | None = None,
+    *,
+    rtol: float = 0.02,
+    cell: float | None = None,
+    resolution: int | None = None,
+    max_points: int = 20_000_000,
+    progress: bool = False,
+) -> SerialWorkspace:
+    """Reachable set of `frame`'s origin (default: the tool) within the joint limits.
+
+    Args:
+        robot: a loaded serial robot (`kinematics.model.load_robot`).
+        frame: the frame whose position is measured.
+        rtol: stop refining once error_estimate <= rtol * measure (checked after each level).
+        cell: task-space cell side h [m]; default: the bounding box's largest side / resolution.
+        resolution: cells along that side (default 400 for a plane or profile, 128 in space).
+        max_points: budget of configurations; when it runs out the remaining boxes are counted
+            with their (larger) balls, so the bounds stay valid but widen.
+        progress: show a bar on stderr (for the CLI on a terminal).
+
+    Returns:
+        A `SerialWorkspace` with guaranteed bounds (see the module docstring).
+
+    Raises:
+        UnsupportedRobotError: closed-loop robots, joints the batched kinematics cannot compile,
+            unbounded prismatic joints, a frame no joint moves.
+        InvalidInputError: rtol, cell, resolution or max_points out of range.
+    """
+    t0 = time.perf_counter()
+    if robot.loops is not None:
+        raise UnsupportedRobotError(robot.name, "closed-loop robot: the serial workspace needs an open chain")
+    if not (rtol > 0 and math.isfinite(rtol)):
+        raise InvalidInputError("rtol", f"must be positive, got {rtol}")
+    if cell is not None and not (cell > 0 and math.isfinite(cell)):
+        raise InvalidInputError("cell", f"must be a positive length [m], got {cell}")
+    if resolution is not None and resolution < 4:
+        raise InvalidInputError("resolution", f"must be at least 4 cells, got {resolution}")
+    if max_points < 1000:
+        raise InvalidInputError("max_points", f"must be at least 1000, got {max_points}")
+    kin = BatchedKinematics.from_robot(robot, frame)
+    s = _setup(robot, kin)
+    d = 2 if s.mode in ("planar", "revolved") else 3
+    n = len(s.active)
+    rows = list(s.rows)
+
+    def evaluate(centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        values = np.repeat(s.base[None, :], len(centre), axis=0)
+        values[:, s.active] = centre
+        poses, J = kin.fk_jacobian(configurations(robot, values))
+        p = poses.position
+        Jt = J[:, rows, :]
+        if s.mode == "planar":
+            y = p[:, rows]
+        elif s.mode == "revolved":
+            assert s.axis_origin is not None and s.axis_direction is not None
+            rel = p - s.axis_origin
+            z = rel @ s.axis_direction
+            rho = np.linalg.norm(rel - z[:, None] * s.axis_direction, axis=1)
+            y = np.stack([rho, z], axis=1)
+        else:
+            y = p
+        return y, Jt[:, :, s.graves_cols], Jt[:, :, s.sample_cols]
+
+    # Level 0: about 8 boxes per joint, finer along joints that move the point more.
+    span = s.hi - s.lo
+    weight = s.L * span
+    per = np.maximum(1, np.round(8 * weight / max(weight.max(), 1e-300) ** 1.0)).astype(int) if n else np.zeros(0, int)
+    axes_1d = [s.lo[i] + (np.arange(per[i]) + 0.5) * span[i] / per[i] for i in range(n)]
+    centre = np.array(list(product(*axes_1d)), dtype=float).reshape(-1, n)
+    half = np.repeat((span / per / 2)[None, :], len(centre), axis=0)
+
+    y, Jg, Ja = evaluate(centre)
+    eps = _eps(Ja, half, s.M)
+    lo_box = (y - eps[:, None]).min(axis=0)
+    hi_box = (y + eps[:, None]).max(axis=0)
+    if s.mode == "revolved":
+        lo_box[0] = 0.0
+    side = float((hi_box - lo_box).max())
+    if cell is None:
+        res = resolution if resolution is not None else (400 if d == 2 else 128)
+        h = side / res
+    else:
+        h = float(cell)
+    origin = lo_box - h if s.mode != "revolved" else np.array([0.0, lo_box[1] - h])
+    shape3 = tuple(int(math.ceil((hi_box[a] + h - origin[a]) / h)) + 1 if a < d else 1 for a in range(3))
+    if np.prod(shape3) > 400_000_000:
+        raise InvalidInputError("cell", f"{h:.3g} m makes {np.prod(shape3):.3g} cells; choose a larger cell")
+    inside = np.zeros(shape3, np.uint8)
+    touched = np.zeros(shape3, np.uint8)
+    gw = np.full(shape3, np.nan)
+    gc = np.full(shape3, np.nan)
+    gr = np.full(shape3, np.nan)
+    origin3 = np.zeros(3)
+    origin3[:d] = origin
+    weight_cells = _cell_measure(s.mode, origin, h, shape3)
+
+    from scipy.ndimage import distance_transform_edt
+
+    sing_pts: list[np.ndarray] = []
+    sing_rad: list[np.ndarray] = []
+    sing_cfg: list[np.ndarray] = []
+    points = 0
+    levels: list[dict[str, float]] = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=max_points, desc="workspace", unit="cfg", unit_scale=True, delay=1.0, leave=False)
+    try:
+        while True:
+            points += len(centre)
+            if bar is not None:
+                bar.update(len(centre))
+            y3 = np.zeros((len(y), 3))
+            y3[:, :d] = y
+            # Singular values of the position Jacobian (with the base yaw when revolved).
+            lam = np.linalg.eigvalsh(np.einsum("kij,klj->kil", Jg, Jg))
+            lam_max = lam[:, -1]
+            sig_min = np.sqrt(np.maximum(lam[:, 0] - 1e-13 * lam_max, 0.0))  # rounding of eigvalsh, to be safe
+            sig_max = np.sqrt(lam_max)
+            # Graves: the largest certified task ball at each centre.
+            r_lim = _room(centre, s)
+            if s.M > 0:
+                r = np.minimum(sig_min / (2 * s.M), r_lim)
+            else:
+                r = np.where(np.isfinite(r_lim), r_lim, 1.0)
+            ball = (sig_min - s.M * r) * r
+            # Cap the marking to what settling this box needs (keeps the work ~ one cover per level).
+            _mark_within(y3, np.minimum(ball, eps + 2 * h * math.sqrt(d)), origin3, h, d, inside)
+            idx = np.clip(np.floor((y3 - origin3) / h).astype(np.int64), 0, np.array(shape3) - 1)
+            idx[:, d:] = 0
+            with np.errstate(divide="ignore"):
+                cond = np.where(sig_min > 0, sig_max / np.where(sig_min > 0, sig_min, 1.0), np.inf)
+            yosh = np.sqrt(np.maximum(np.prod(lam, axis=1), 0.0)) if lam.shape[1] else np.zeros(len(lam))
+            _aggregate(idx, yosh, cond, sig_min, gw, gc, gr)
+            # Which boxes are settled (image ball inside the certified cells)?
+            pad = np.pad(inside.astype(bool), 1)
+            dist = distance_transform_edt(pad)[1:-1, 1:-1, 1:-1] if d == 3 else \
+                distance_transform_edt(pad[:, :, 1])[1:-1, 1:-1][:, :, None]
+            room_task = dist[idx[:, 0], idx[:, 1], idx[:, 2]] * h - h * math.sqrt(d)
+            settled = (inside[idx[:, 0], idx[:, 1], idx[:, 2]] == 1) & (eps <= room_task)
+            leaf = ~settled & (eps <= h / 2)
+            rest = ~settled & ~leaf
+            children = None
+            if rest.any():
+                children = _split(centre[rest], half[rest], Ja[rest], s.M)
+                if points + len(children[0]) > max_points:  # out of budget: count the rest by their balls
+                    children = None
+                    leaf |= rest
+            final = settled | leaf
+            maybe_singular = final & (sig_min <= s.M * np.linalg.norm(half, axis=1))
+            if maybe_singular.any():
+                sing_pts.append(y[maybe_singular])
+                sing_rad.append(eps[maybe_singular])
+                cfg = np.repeat(s.base[None, :], int(maybe_singular.sum()), axis=0)
+                cfg[:, s.active] = centre[maybe_singular]
+                sing_cfg.append(cfg)
+            _mark_touching(y3[leaf], eps[leaf], origin3, h, d, touched)
+            levels.append({"boxes": float(len(centre)), "settled": float(settled.sum()), "leaves": float(leaf.sum()),
+                           "max_eps_m": float(eps.max()),
+                           "lower": float((weight_cells * inside).sum()),
+                           "upper_so_far": float((weight_cells * (touched | inside)).sum())})
+            if children is None:
+                break
+            centre, half = children
+            y, Jg, Ja = evaluate(centre)
+            eps = _eps(Ja, half, s.M)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    touched |= inside
+    lower = float((weight_cells * inside).sum())
+    upper = float((weight_cells * touched).sum())
+    measure = 0.5 * (lower + upper)
+    err = 0.5 * (upper - lower)
+    sl = (slice(None), slice(None), 0) if d == 2 else (slice(None),) * 3
+    return SerialWorkspace(
+        robot=robot.name,
+        frame=kin.frame,
+        mode=s.mode,
+        measure=measure,
+        lower=lower,
+        upper=upper,
+        error_estimate=err,
+        rtol=rtol,
+        converged=bool(err <= rtol * measure),
+        points_evaluated=points,
+        seconds=time.perf_counter() - t0,
+        joints=tuple(robot.dofs[i].name for i in s.active),
+        fixed=s.fixed,
+        lipschitz=s.L.copy(),
+        hessian_bound=s.M,
+        grid=CellGrid(origin=origin.copy(), cell=h, shape=tuple(shape3[:d])),
+        inside=inside[sl].astype(bool),
+        touched=touched[sl].astype(bool),
+        yoshikawa=gw[sl],
+        condition_number=gc[sl],
+        smallest_radius=gr[sl],
+        singular_points=np.concatenate(sing_pts) if sing_pts else np.zeros((0, d)),
+        singular_radius=np.concatenate(sing_rad) if sing_rad else np.zeros(0),
+        singular_configurations=np.concatenate(sing_cfg) if sing_cfg else np.zeros((0, robot.nv)),
+        axes=s.axes,
+        axis_origin=s.axis_origin,
+        axis_direction=s.axis_direction,
+        levels=tuple(levels),
+    )
+
+
+def _eps(Ja: np.ndarray, half: np.ndarray, M: float) -> np.ndarray:
+    """Radius of a ball holding the box's image: sum_i |J_i(s)| d_i + M |d|^2 / 2 [m]."""
+    return (np.linalg.norm(Ja, axis=1) * half).sum(axis=1) + 0.5 * M * (half * half).sum(axis=1)
+
+
+def _room(centre: np.ndarray, s: _Setup) -> np.ndarray:
+    """Radius of the largest joint-space ball around each centre inside the limits (periodic
+    joints have none; in revolved mode the base joint is periodic)."""
+    if not (~s.periodic).any():
+        return np.full(len(centre), np.inf)
+    c = centre[:, ~s.periodic]
+    return np.minimum(c - s.lo[~s.periodic], s.hi[~s.periodic] - c).min(axis=1)
+
+
+def _split(centre: np.ndarray, half: np.ndarray, Ja: np.ndarray, M: float) -> tuple[np.ndarray, np.ndarray]:
+    """Halve each box along the joints contributing at least half of its largest eps term."""
+    n = centre.shape[1]
+    contrib = np.linalg.norm(Ja, axis=1) * half + 0.5 * M * half * np.linalg.norm(half, axis=1, keepdims=True)
+    mask = contrib >= 0.5 * contrib.max(axis=1, keepdims=True)
+    codes = mask @ (1 << np.arange(n))
+    out_c, out_h = [], []
+    for code in np.unique(codes):
+        sel = codes == code
+        dims = [i for i in range(n) if code >> i & 1]
+        c0, h0 = centre[sel], half[sel].copy()
+        h0[:, dims] /= 2
+        for signs in product((-1.0, 1.0), repeat=len(dims)):
+            c = c0.copy()
+            c[:, dims] += np.array(signs) * h0[:, dims]
+            out_c.append(c)
+            out_h.append(h0)
+    return np.concatenate(out_c), np.concatenate(out_h)
+
+
+def _cell_measure(mode: Mode, origin: np.ndarray, h: float, shape3: tuple[int, ...]) -> np.ndarray:
+    """Measure of each cell: h^2 (planar), h^3 (spatial), 2 pi rho_c h^2 (revolved: the cell's
+    ring, exact since the grid starts at rho = 0)."""
+    if mode == "planar":
+        return np.full(shape3, h * h)
+    if mode == "spatial":
+        return np.full(shape3, h**3)
+    rho_c = origin[0] + (np.arange(shape3[0]) + 0.5) * h
+    return np.broadcast_to((2 * math.pi * rho_c * h * h)[:, None, None], shape3).copy()
