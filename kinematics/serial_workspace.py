@@ -435,7 +435,23 @@ def serial_workspace(
     origin3[:d] = origin
     weight_cells = _cell_measure(s.mode, origin, h, shape3)
 
-    from scipy.ndimage import distance_transform_edt
+    from scipy.ndimage import distance_transform_edt, label
+
+    boundary_leaves = np.zeros(shape3, np.uint8)  # balls of final boxes that may map onto the boundary
+
+    def fill_components(current_y3: np.ndarray, current_eps: np.ndarray) -> None:
+        # dW lies in f(limit faces) u f(rank-deficient set): inside the balls of the boxes that
+        # may hold such points. A face-connected component of the other cells is disjoint from dW,
+        # hence wholly in W or wholly out; it is in W if it holds a reached point.
+        cover = boundary_leaves.copy()
+        _mark_touching(current_y3, current_eps, origin3, h, d, cover)
+        free = cover == 0
+        labels, _ = label(free if d == 3 else free[:, :, 0])
+        if d == 2:
+            labels = labels[:, :, None]
+        seeds = np.unique(labels[(inside == 1) | ~np.isnan(gw)])
+        seeds = seeds[seeds > 0]
+        inside[np.isin(labels, seeds)] = 1
 
     sing_pts: list[np.ndarray] = []
     sing_rad: list[np.ndarray] = []
@@ -474,6 +490,13 @@ def serial_workspace(
                 cond = np.where(sig_min > 0, sig_max / np.where(sig_min > 0, sig_min, 1.0), np.inf)
             yosh = np.sqrt(np.maximum(np.prod(lam, axis=1), 0.0)) if lam.shape[1] else np.zeros(len(lam))
             _aggregate(idx, yosh, cond, sig_min, gw, gc, gr)
+            # Boxes that may hold a limit-face or rank-deficient configuration (sigma_min is
+            # M-Lipschitz in q: sigma_min(J(s)) > M |d| rules out a singular point in the box).
+            radius = np.linalg.norm(half, axis=1)
+            maybe_singular = sig_min <= s.M * radius
+            on_face = _on_face(centre, half, s)
+            critical = maybe_singular | on_face
+            fill_components(y3[critical], eps[critical])
             # Which boxes are settled (image ball inside the certified cells)?
             pad = np.pad(inside.astype(bool), 1)
             dist = distance_transform_edt(pad)[1:-1, 1:-1, 1:-1] if d == 3 else \
@@ -489,7 +512,8 @@ def serial_workspace(
                     children = None
                     leaf |= rest
             final = settled | leaf
-            maybe_singular = final & (sig_min <= s.M * np.linalg.norm(half, axis=1))
+            maybe_singular &= final
+            _mark_touching(y3[leaf & critical], eps[leaf & critical], origin3, h, d, boundary_leaves)
             if maybe_singular.any():
                 sing_pts.append(y[maybe_singular])
                 sing_rad.append(eps[maybe_singular])
@@ -510,6 +534,7 @@ def serial_workspace(
         if bar is not None:
             bar.close()
 
+    fill_components(np.zeros((0, 3)), np.zeros(0))
     touched |= inside
     lower = float((weight_cells * inside).sum())
     upper = float((weight_cells * touched).sum())
@@ -560,6 +585,16 @@ def _room(centre: np.ndarray, s: _Setup) -> np.ndarray:
         return np.full(len(centre), np.inf)
     c = centre[:, ~s.periodic]
     return np.minimum(c - s.lo[~s.periodic], s.hi[~s.periodic] - c).min(axis=1)
+
+
+def _on_face(centre: np.ndarray, half: np.ndarray, s: _Setup) -> np.ndarray:
+    """Boxes whose closure meets a face of a (non-periodic) joint limit."""
+    np_ = ~s.periodic
+    if not np_.any():
+        return np.zeros(len(centre), bool)
+    tol = 1e-9 * (s.hi - s.lo)[np_]
+    c, d = centre[:, np_], half[:, np_]
+    return ((c - d <= s.lo[np_] + tol) | (c + d >= s.hi[np_] - tol)).any(axis=1)
 
 
 def _split(centre: np.ndarray, half: np.ndarray, Ja: np.ndarray, M: float) -> tuple[np.ndarray, np.ndarray]:
