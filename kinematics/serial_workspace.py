@@ -45,6 +45,9 @@ from .serial import plane
 
 Mode = Literal["planar", "revolved", "spatial"]
 
+SPLIT = 0.5
+"""A box is halved along every joint contributing at least SPLIT x the largest share of eps."""
+
 _DEAD_TOL = 1e-12
 """A joint whose position-Jacobian column is below this [m/rad] at every probe never moves the point."""
 
@@ -178,6 +181,10 @@ def _dof_of(robot: Robot, idx_v: int) -> int:
 
 
 def _hessian_bound(prismatic: np.ndarray, R: np.ndarray) -> float:
+    return float(np.linalg.norm(_hessian_matrix(prismatic, R), 2)) if len(R) else 0.0
+
+
+def _hessian_matrix(prismatic: np.ndarray, R: np.ndarray) -> np.ndarray:
     """M >= |d^2 f (u, v)| / (|u| |v|) over the box for the chain joints given (root first).
 
     For revolute i <= j: d^2 p / dq_i dq_j = w_i x (w_j x (p - p_j)), norm <= R_j; a revolute
@@ -192,7 +199,7 @@ def _hessian_bound(prismatic: np.ndarray, R: np.ndarray) -> float:
                 B[i, j] = R[b]
             elif prismatic[a] != prismatic[b]:
                 B[i, j] = 1.0
-    return float(np.linalg.norm(B, 2)) if n else 0.0
+    return B
 
 
 # -- cell kernels ------------------------------------------------------------------------------------
@@ -263,6 +270,110 @@ def _mark_touching(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _stats(J, Ja, half, B, sig_min, sig_max, yosh, eps):  # pragma: no cover - compiled
+    """Per configuration: singular values of the m x k position Jacobian J (m = 2 or 3) and the
+    image-ball radius eps = sum_i |Ja_i| d_i + sum_ij B_ij d_i d_j / 2 of its box.
+
+    det(J J^T) and e2 (sum of its 2 x 2 principal minors) come from Cauchy-Binet as sums of
+    squared minors of J (no cancellation); lambda_max from the trigonometric solution (m = 3) or
+    the quadratic (m = 2); lambda_min = det / (product of the others), accurate near a singularity."""
+    N, m, k = J.shape
+    for t in range(N):
+        tr = 0.0
+        for r in range(m):
+            for c in range(k):
+                tr += J[t, r, c] * J[t, r, c]
+        if m == 2:
+            det = 0.0
+            for i in range(k):
+                for j in range(i + 1, k):
+                    mnr = J[t, 0, i] * J[t, 1, j] - J[t, 0, j] * J[t, 1, i]
+                    det += mnr * mnr
+            a = 0.0
+            b = 0.0
+            c2 = 0.0
+            for c in range(k):
+                a += J[t, 0, c] * J[t, 0, c]
+                b += J[t, 0, c] * J[t, 1, c]
+                c2 += J[t, 1, c] * J[t, 1, c]
+            lmax = 0.5 * (a + c2) + math.sqrt(0.25 * (a - c2) ** 2 + b * b)
+            lmin = det / lmax if lmax > 0 else 0.0
+        else:
+            det = 0.0
+            for i in range(k):
+                for j in range(i + 1, k):
+                    for l in range(j + 1, k):
+                        mnr = (J[t, 0, i] * (J[t, 1, j] * J[t, 2, l] - J[t, 1, l] * J[t, 2, j])
+                               - J[t, 0, j] * (J[t, 1, i] * J[t, 2, l] - J[t, 1, l] * J[t, 2, i])
+                               + J[t, 0, l] * (J[t, 1, i] * J[t, 2, j] - J[t, 1, j] * J[t, 2, i]))
+                        det += mnr * mnr
+            e2 = 0.0
+            for r1 in range(3):
+                for r2 in range(r1 + 1, 3):
+                    for i in range(k):
+                        for j in range(i + 1, k):
+                            mnr = J[t, r1, i] * J[t, r2, j] - J[t, r1, j] * J[t, r2, i]
+                            e2 += mnr * mnr
+            A = np.zeros((3, 3))
+            for r1 in range(3):
+                for r2 in range(3):
+                    acc = 0.0
+                    for c in range(k):
+                        acc += J[t, r1, c] * J[t, r2, c]
+                    A[r1, r2] = acc
+            q = tr / 3.0
+            p1 = A[0, 1] ** 2 + A[0, 2] ** 2 + A[1, 2] ** 2
+            p2 = (A[0, 0] - q) ** 2 + (A[1, 1] - q) ** 2 + (A[2, 2] - q) ** 2 + 2 * p1
+            pp = math.sqrt(p2 / 6.0)
+            if pp > 0:
+                C = (A - q * np.eye(3)) / pp
+                hdet = 0.5 * (C[0, 0] * (C[1, 1] * C[2, 2] - C[1, 2] * C[2, 1])
+                              - C[0, 1] * (C[1, 0] * C[2, 2] - C[1, 2] * C[2, 0])
+                              + C[0, 2] * (C[1, 0] * C[2, 1] - C[1, 1] * C[2, 0]))
+                phi = math.acos(min(1.0, max(-1.0, hdet))) / 3.0
+                lmax = q + 2 * pp * math.cos(phi)
+                l1 = q + 2 * pp * math.cos(phi + 2 * math.pi / 3)
+            else:
+                lmax = q
+                l1 = q
+            l1 = max(l1, 0.0)
+            rest = e2 - l1 * (tr - l1)  # product of the two larger eigenvalues
+            lmin = det / rest if rest > 0 else 0.0
+        # det and e2 are sums of squares (relative error ~ k eps) and so is lambda_min = det / rest:
+        # a relative margin of 1e-10 keeps sigma_min from being overstated by rounding.
+        lmin = max(lmin * (1.0 - 1e-10), 0.0)
+        sig_min[t] = math.sqrt(lmin)
+        sig_max[t] = math.sqrt(max(lmax, 0.0))
+        yosh[t] = math.sqrt(det)
+        e = 0.0
+        h2 = 0.0
+        for c in range(Ja.shape[2]):
+            n2 = 0.0
+            for r in range(m):
+                n2 += Ja[t, r, c] * Ja[t, r, c]
+            e += math.sqrt(n2) * half[t, c]
+            for c2 in range(Ja.shape[2]):
+                h2 += half[t, c] * B[c, c2] * half[t, c2]
+        eps[t] = e + 0.5 * h2
+
+
+def radii(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Smallest and largest singular values and Yoshikawa's index of a stack of 2 x k or 3 x k
+    position Jacobians (N, m, k), by the kernel the workspace uses (sigma_min is lowered by a
+    relative 5e-11 against rounding, never raised).
+
+    Returns:
+        sigma_min, sigma_max [m/rad], w = sqrt(det(J J^T)), each (N,).
+    """
+    J = np.ascontiguousarray(J, dtype=float)
+    if J.ndim != 3 or J.shape[1] not in (2, 3) or J.shape[2] < J.shape[1]:
+        raise InvalidInputError("jacobian", f"expected (N, 2 or 3, k >= rows), got shape {J.shape}")
+    out = [np.empty(len(J)) for _ in range(4)]
+    _stats(J, J, np.zeros((len(J), J.shape[2])), np.zeros((J.shape[2], J.shape[2])), *out)
+    return out[0], out[1], out[2]
+
+
+@njit(cache=True)
 def _aggregate(idx, w, cond, rmin, gw, gc, gr):  # pragma: no cover - compiled
     for k in range(idx.shape[0]):
         i, j, m = idx[k, 0], idx[k, 1], idx[k, 2]
@@ -286,12 +397,16 @@ class _Setup:
     base: np.ndarray  # (nv,) values of the joints not sampled
     L: np.ndarray
     M: float
+    B: np.ndarray  # (k, k) bounds on |d^2 f / dq_i dq_j| over the sampled joints
+    Bcol: np.ndarray  # (k,) bounds on |dJ / dq_i| (spectral <= Frobenius) over the sampled joints
     graves_cols: np.ndarray  # velocity columns entering sigma_min (active, + the base yaw when revolved)
     sample_cols: np.ndarray  # velocity columns of the sampled joints
     axes: tuple[int, ...]
     axis_origin: np.ndarray | None
     axis_direction: np.ndarray | None
     fixed: tuple[str, ...]
+    reach_centre: np.ndarray  # in task coordinates: |y - reach_centre| <= reach over the joint box
+    reach: float
 
 
 def _setup(robot: Robot, kin: BatchedKinematics) -> _Setup:
@@ -324,17 +439,23 @@ def _setup(robot: Robot, kin: BatchedKinematics) -> _Setup:
                          for kd, l, h in zip(kinds, lo, hi, strict=True)])
     hi = np.where(periodic, lo + 2 * math.pi, hi)  # f is 2 pi periodic in these: one turn suffices
     M = _hessian_bound(prismatic[keep], R[keep])
+    Bfull = _hessian_matrix(prismatic[keep], R[keep])
+    Bcol = np.sqrt((Bfull**2).sum(axis=0))
     L = np.where(prismatic[keep], 1.0, R[keep])
     active = np.array([dof_idx[k] for k in keep])
+    first = robot.dofs[dof_idx[0]]
+    reach = float(R[0] + (max(abs(first.lower), abs(first.upper)) if kin.kind[0] == PRISMATIC else 0.0))
+    o1 = kin.translation[0].copy()  # the first joint's origin, fixed in the world
     cols = np.array([chain_v[k] for k in keep])
     if pl is not None:
-        return _Setup("planar", pl, active, lo, hi, periodic, base, L, M, cols, cols, pl, None, None, fixed)
+        return _Setup("planar", pl, active, lo, hi, periodic, base, L, M, Bfull, Bcol, cols, cols, pl, None, None, fixed,
+                      o1[list(pl)], reach)
     if keep[0] == 0 and kin.kind[0] != PRISMATIC and periodic[0]:
         direction = kin.rotation[0] @ kin.axis[0]
         origin = kin.translation[0].copy()
-        return _Setup("revolved", (0, 1, 2), active[1:], lo[1:], hi[1:], periodic[1:], base, L[1:], M, cols,
-                      cols[1:], (), origin, direction, fixed)
-    return _Setup("spatial", (0, 1, 2), active, lo, hi, periodic, base, L, M, cols, cols, (), None, None, fixed)
+        return _Setup("revolved", (0, 1, 2), active[1:], lo[1:], hi[1:], periodic[1:], base, L[1:], M, Bfull[1:, 1:], Bcol[1:], cols,
+                      cols[1:], (), origin, direction, fixed, np.zeros(2), reach)
+    return _Setup("spatial", (0, 1, 2), active, lo, hi, periodic, base, L, M, Bfull, Bcol, cols, cols, (), None, None, fixed, o1, reach)
 
 
 def serial_workspace(
@@ -402,21 +523,26 @@ def serial_workspace(
             y = p
         return y, Jt[:, :, s.graves_cols], Jt[:, :, s.sample_cols]
 
-    # Level 0: about 8 boxes per joint, finer along joints that move the point more.
+    # Level 0: boxes whose images span about a quarter of the reach along each joint.
     span = s.hi - s.lo
-    weight = s.L * span
-    per = np.maximum(1, np.round(8 * weight / max(weight.max(), 1e-300) ** 1.0)).astype(int) if n else np.zeros(0, int)
+    per = np.maximum(2, np.ceil(s.L * span / (s.reach / 4))).astype(int)
     axes_1d = [s.lo[i] + (np.arange(per[i]) + 0.5) * span[i] / per[i] for i in range(n)]
     centre = np.array(list(product(*axes_1d)), dtype=float).reshape(-1, n)
     half = np.repeat((span / per / 2)[None, :], len(centre), axis=0)
 
+    def stats(Jg: np.ndarray, Ja: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, ...]:
+        out = [np.empty(len(Jg)) for _ in range(4)]
+        _stats(np.ascontiguousarray(Jg), np.ascontiguousarray(Ja), half, s.B, *out)
+        return tuple(out)
+
     y, Jg, Ja = evaluate(centre)
-    eps = _eps(Ja, half, s.M)
-    lo_box = (y - eps[:, None]).min(axis=0)
-    hi_box = (y + eps[:, None]).max(axis=0)
+    eps = stats(Jg, Ja, half)[3]
+    # W lies in the level-0 balls and in the reach ball: the grid covers their common box.
+    lo_box = np.maximum((y - eps[:, None]).min(axis=0), s.reach_centre - s.reach)
+    hi_box = np.minimum((y + eps[:, None]).max(axis=0), s.reach_centre + s.reach)
     if s.mode == "revolved":
         lo_box[0] = 0.0
-    side = float((hi_box - lo_box).max())
+    side = float((y.max(axis=0) - y.min(axis=0)).max())  # the reached extent sets the cell
     if cell is None:
         res = resolution if resolution is not None else (400 if d == 2 else 128)
         h = side / res
@@ -470,11 +596,7 @@ def serial_workspace(
                 bar.update(len(centre))
             y3 = np.zeros((len(y), 3))
             y3[:, :d] = y
-            # Singular values of the position Jacobian (with the base yaw when revolved).
-            lam = np.linalg.eigvalsh(np.einsum("kij,klj->kil", Jg, Jg))
-            lam_max = lam[:, -1]
-            sig_min = np.sqrt(np.maximum(lam[:, 0] - 1e-13 * lam_max, 0.0))  # rounding of eigvalsh, to be safe
-            sig_max = np.sqrt(lam_max)
+            sig_min, sig_max, yosh, eps = stats(Jg, Ja, half)
             # Graves: the largest certified task ball at each centre.
             r_lim = _room(centre, s)
             if s.M > 0:
@@ -488,12 +610,11 @@ def serial_workspace(
             idx[:, d:] = 0
             with np.errstate(divide="ignore"):
                 cond = np.where(sig_min > 0, sig_max / np.where(sig_min > 0, sig_min, 1.0), np.inf)
-            yosh = np.sqrt(np.maximum(np.prod(lam, axis=1), 0.0)) if lam.shape[1] else np.zeros(len(lam))
             _aggregate(idx, yosh, cond, sig_min, gw, gc, gr)
             # Boxes that may hold a limit-face or rank-deficient configuration (sigma_min is
             # M-Lipschitz in q: sigma_min(J(s)) > M |d| rules out a singular point in the box).
             radius = np.linalg.norm(half, axis=1)
-            maybe_singular = sig_min <= s.M * radius
+            maybe_singular = sig_min <= half @ s.Bcol  # |J(q) - J(s)| <= sum_i d_i |dJ/dq_i|
             on_face = _on_face(centre, half, s)
             critical = maybe_singular | on_face
             fill_components(y3[critical], eps[critical])
@@ -507,7 +628,7 @@ def serial_workspace(
             rest = ~settled & ~leaf
             children = None
             if rest.any():
-                children = _split(centre[rest], half[rest], Ja[rest], s.M)
+                children = _split(centre[rest], half[rest], Ja[rest], s.B)
                 if points + len(children[0]) > max_points:  # out of budget: count the rest by their balls
                     children = None
                     leaf |= rest
@@ -529,12 +650,12 @@ def serial_workspace(
                 break
             centre, half = children
             y, Jg, Ja = evaluate(centre)
-            eps = _eps(Ja, half, s.M)
     finally:
         if bar is not None:
             bar.close()
 
     fill_components(np.zeros((0, 3)), np.zeros(0))
+    touched &= _meets_ball(origin, h, shape3, d, s.reach_centre, s.reach)  # W lies in the reach ball
     touched |= inside
     lower = float((weight_cells * inside).sum())
     upper = float((weight_cells * touched).sum())
@@ -573,9 +694,17 @@ def serial_workspace(
     )
 
 
-def _eps(Ja: np.ndarray, half: np.ndarray, M: float) -> np.ndarray:
-    """Radius of a ball holding the box's image: sum_i |J_i(s)| d_i + M |d|^2 / 2 [m]."""
-    return (np.linalg.norm(Ja, axis=1) * half).sum(axis=1) + 0.5 * M * (half * half).sum(axis=1)
+def _meets_ball(origin: np.ndarray, h: float, shape3: tuple[int, ...], d: int, centre: np.ndarray,
+                radius: float) -> np.ndarray:
+    """uint8 grid: 1 where the cell meets the closed ball B(centre, radius)."""
+    gap2 = np.zeros(shape3)
+    for a in range(d):
+        lo = origin[a] + np.arange(shape3[a]) * h - centre[a]
+        g = np.maximum(0.0, np.maximum(lo, -(lo + h))) ** 2
+        shape = [1, 1, 1]
+        shape[a] = shape3[a]
+        gap2 = gap2 + g.reshape(shape)
+    return (gap2 <= radius * radius).astype(np.uint8)
 
 
 def _room(centre: np.ndarray, s: _Setup) -> np.ndarray:
@@ -597,11 +726,11 @@ def _on_face(centre: np.ndarray, half: np.ndarray, s: _Setup) -> np.ndarray:
     return ((c - d <= s.lo[np_] + tol) | (c + d >= s.hi[np_] - tol)).any(axis=1)
 
 
-def _split(centre: np.ndarray, half: np.ndarray, Ja: np.ndarray, M: float) -> tuple[np.ndarray, np.ndarray]:
+def _split(centre: np.ndarray, half: np.ndarray, Ja: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Halve each box along the joints contributing at least half of its largest eps term."""
     n = centre.shape[1]
-    contrib = np.linalg.norm(Ja, axis=1) * half + 0.5 * M * half * np.linalg.norm(half, axis=1, keepdims=True)
-    mask = contrib >= 0.5 * contrib.max(axis=1, keepdims=True)
+    contrib = np.linalg.norm(Ja, axis=1) * half + 0.5 * half * (half @ B)
+    mask = contrib >= SPLIT * contrib.max(axis=1, keepdims=True)
     codes = mask @ (1 << np.arange(n))
     out_c, out_h = [], []
     for code in np.unique(codes):
