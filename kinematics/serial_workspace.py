@@ -145,7 +145,7 @@ class SerialWorkspace:
             "cell_m": self.grid.cell,
             "joints": list(self.joints),
             "fixed_joints": list(self.fixed),
-            "singular_boxes": int(len(self.singular_radius)),
+            "singular_boxes": len(self.singular_radius),
             "levels": list(self.levels),
         }
         if self.axis_direction is not None and self.axis_origin is not None:
@@ -219,8 +219,8 @@ def _mark_within(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
                 lo[a] = 0
                 hi[a] = 0
                 continue
-            lo[a] = max(0, int(math.floor((y[k, a] - r - origin[a]) / h)))
-            hi[a] = min(ext[a] - 1, int(math.floor((y[k, a] + r - origin[a]) / h)))
+            lo[a] = max(0, math.floor((y[k, a] - r - origin[a]) / h))
+            hi[a] = min(ext[a] - 1, math.floor((y[k, a] + r - origin[a]) / h))
         r2 = r * r
         for i in range(lo[0], hi[0] + 1):
             x0 = origin[0] + i * h - y[k, 0]
@@ -251,8 +251,8 @@ def _mark_touching(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
                 lo[a] = 0
                 hi[a] = 0
                 continue
-            lo[a] = max(0, int(math.floor((y[k, a] - r - origin[a]) / h)))
-            hi[a] = min(ext[a] - 1, int(math.floor((y[k, a] + r - origin[a]) / h)))
+            lo[a] = max(0, math.floor((y[k, a] - r - origin[a]) / h))
+            hi[a] = min(ext[a] - 1, math.floor((y[k, a] + r - origin[a]) / h))
         r2 = r * r
         for i in range(lo[0], hi[0] + 1):
             x0 = origin[0] + i * h - y[k, 0]
@@ -549,7 +549,7 @@ def serial_workspace(
     else:
         h = float(cell)
     origin = lo_box - h if s.mode != "revolved" else np.array([0.0, lo_box[1] - h])
-    shape3 = tuple(int(math.ceil((hi_box[a] + h - origin[a]) / h)) + 1 if a < d else 1 for a in range(3))
+    shape3 = tuple(math.ceil((hi_box[a] + h - origin[a]) / h) + 1 if a < d else 1 for a in range(3))
     if np.prod(shape3) > 400_000_000:
         raise InvalidInputError("cell", f"{h:.3g} m makes {np.prod(shape3):.3g} cells; choose a larger cell")
     inside = np.zeros(shape3, np.uint8)
@@ -612,8 +612,7 @@ def serial_workspace(
                 cond = np.where(sig_min > 0, sig_max / np.where(sig_min > 0, sig_min, 1.0), np.inf)
             _aggregate(idx, yosh, cond, sig_min, gw, gc, gr)
             # Boxes that may hold a limit-face or rank-deficient configuration (sigma_min is
-            # M-Lipschitz in q: sigma_min(J(s)) > M |d| rules out a singular point in the box).
-            radius = np.linalg.norm(half, axis=1)
+            # Lipschitz in q: sigma_min(J(s)) > sum_i d_i |dJ/dq_i| rules out a singular point in the box).
             maybe_singular = sig_min <= half @ s.Bcol  # |J(q) - J(s)| <= sum_i d_i |dJ/dq_i|
             on_face = _on_face(centre, half, s)
             critical = maybe_singular | on_face
