@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit
 
 from .batched import PRISMATIC, BatchedKinematics, configurations
+from .chunks import slices
 from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
 from .serial import plane
@@ -505,23 +506,34 @@ def serial_workspace(
     n = len(s.active)
     rows = list(s.rows)
 
-    def evaluate(centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        values = np.repeat(s.base[None, :], len(centre), axis=0)
-        values[:, s.active] = centre
-        poses, J = kin.fk_jacobian(configurations(robot, values))
-        p = poses.position
-        Jt = J[:, rows, :]
-        if s.mode == "planar":
-            y = p[:, rows]
-        elif s.mode == "revolved":
-            assert s.axis_origin is not None and s.axis_direction is not None
-            rel = p - s.axis_origin
-            z = rel @ s.axis_direction
-            rho = np.linalg.norm(rel - z[:, None] * s.axis_direction, axis=1)
-            y = np.stack([rho, z], axis=1)
-        else:
-            y = p
-        return y, Jt[:, :, s.graves_cols], Jt[:, :, s.sample_cols]
+    def evaluate(centre: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Task point y, sigma_min, sigma_max, Yoshikawa index, image-ball radius eps and the
+        sampled joints' column norms at the box centres, in chunks (memory stays bounded)."""
+        N = len(centre)
+        y = np.empty((N, 2 if s.mode != "spatial" else 3))
+        stats = [np.empty(N) for _ in range(4)]
+        norms = np.empty((N, len(s.sample_cols)))
+        for sl in slices(N, 1 << 18):
+            values = np.repeat(s.base[None, :], sl.stop - sl.start, axis=0)
+            values[:, s.active] = centre[sl]
+            poses, J = kin.fk_jacobian(configurations(robot, values))
+            p = poses.position
+            Jt = J[:, rows, :]
+            if s.mode == "planar":
+                y[sl] = p[:, rows]
+            elif s.mode == "revolved":
+                assert s.axis_origin is not None and s.axis_direction is not None
+                rel = p - s.axis_origin
+                z = rel @ s.axis_direction
+                y[sl, 0] = np.linalg.norm(rel - z[:, None] * s.axis_direction, axis=1)
+                y[sl, 1] = z
+            else:
+                y[sl] = p
+            Ja = np.ascontiguousarray(Jt[:, :, s.sample_cols])
+            _stats(np.ascontiguousarray(Jt[:, :, s.graves_cols]), Ja, np.ascontiguousarray(half[sl]), s.B,
+                   *(a[sl] for a in stats))
+            norms[sl] = np.linalg.norm(Ja, axis=1)
+        return (y, *stats, norms)
 
     # Level 0: boxes whose images span about a quarter of the reach along each joint.
     span = s.hi - s.lo
@@ -530,13 +542,7 @@ def serial_workspace(
     centre = np.array(list(product(*axes_1d)), dtype=float).reshape(-1, n)
     half = np.repeat((span / per / 2)[None, :], len(centre), axis=0)
 
-    def stats(Jg: np.ndarray, Ja: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, ...]:
-        out = [np.empty(len(Jg)) for _ in range(4)]
-        _stats(np.ascontiguousarray(Jg), np.ascontiguousarray(Ja), half, s.B, *out)
-        return tuple(out)
-
-    y, Jg, Ja = evaluate(centre)
-    eps = stats(Jg, Ja, half)[3]
+    y, sig_min, sig_max, yosh, eps, norms = evaluate(centre, half)
     # W lies in the level-0 balls and in the reach ball: the grid covers their common box.
     lo_box = np.maximum((y - eps[:, None]).min(axis=0), s.reach_centre - s.reach)
     hi_box = np.minimum((y + eps[:, None]).max(axis=0), s.reach_centre + s.reach)
@@ -596,7 +602,6 @@ def serial_workspace(
                 bar.update(len(centre))
             y3 = np.zeros((len(y), 3))
             y3[:, :d] = y
-            sig_min, sig_max, yosh, eps = stats(Jg, Ja, half)
             # Graves: the largest certified task ball at each centre.
             r_lim = _room(centre, s)
             if s.M > 0:
@@ -627,7 +632,7 @@ def serial_workspace(
             rest = ~settled & ~leaf
             children = None
             if rest.any():
-                children = _split(centre[rest], half[rest], Ja[rest], s.B)
+                children = _split(centre[rest], half[rest], norms[rest], s.B)
                 if points + len(children[0]) > max_points:  # out of budget: count the rest by their balls
                     children = None
                     leaf |= rest
@@ -648,7 +653,7 @@ def serial_workspace(
             if children is None:
                 break
             centre, half = children
-            y, Jg, Ja = evaluate(centre)
+            y, sig_min, sig_max, yosh, eps, norms = evaluate(centre, half)
     finally:
         if bar is not None:
             bar.close()
@@ -725,10 +730,10 @@ def _on_face(centre: np.ndarray, half: np.ndarray, s: _Setup) -> np.ndarray:
     return ((c - d <= s.lo[np_] + tol) | (c + d >= s.hi[np_] - tol)).any(axis=1)
 
 
-def _split(centre: np.ndarray, half: np.ndarray, Ja: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _split(centre: np.ndarray, half: np.ndarray, norms: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Halve each box along the joints contributing at least half of its largest eps term."""
     n = centre.shape[1]
-    contrib = np.linalg.norm(Ja, axis=1) * half + 0.5 * half * (half @ B)
+    contrib = norms * half + 0.5 * half * (half @ B)
     mask = contrib >= SPLIT * contrib.max(axis=1, keepdims=True)
     codes = mask @ (1 << np.arange(n))
     out_c, out_h = [], []
