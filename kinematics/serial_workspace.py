@@ -632,10 +632,17 @@ def serial_workspace(
             rest = ~settled & ~leaf
             children = None
             if rest.any():
-                children = _split(centre[rest], half[rest], norms[rest], s.B)
-                if points + len(children[0]) > max_points:  # out of budget: count the rest by their balls
-                    children = None
-                    leaf |= rest
+                # Within the budget, split the boxes with the largest balls first; the others
+                # become leaves counted by their balls (the bounds stay valid, only wider).
+                mask = _split_mask(half[rest], norms[rest], s.B)
+                count = 2 ** mask.sum(axis=1)
+                order = np.argsort(-eps[rest], kind="stable")
+                fits = np.cumsum(count[order]) <= max_points - points
+                chosen = np.flatnonzero(rest)[order[fits]]
+                leaf |= rest
+                leaf[chosen] = False
+                if len(chosen):
+                    children = _split(centre[chosen], half[chosen], _split_mask(half[chosen], norms[chosen], s.B))
             final = settled | leaf
             maybe_singular &= final
             _mark_touching(y3[leaf & critical], eps[leaf & critical], origin3, h, d, boundary_leaves)
@@ -730,11 +737,15 @@ def _on_face(centre: np.ndarray, half: np.ndarray, s: _Setup) -> np.ndarray:
     return ((c - d <= s.lo[np_] + tol) | (c + d >= s.hi[np_] - tol)).any(axis=1)
 
 
-def _split(centre: np.ndarray, half: np.ndarray, norms: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Halve each box along the joints contributing at least half of its largest eps term."""
-    n = centre.shape[1]
+def _split_mask(half: np.ndarray, norms: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The joints to halve: those contributing at least SPLIT x the largest share of eps."""
     contrib = norms * half + 0.5 * half * (half @ B)
-    mask = contrib >= SPLIT * contrib.max(axis=1, keepdims=True)
+    return contrib >= SPLIT * contrib.max(axis=1, keepdims=True)
+
+
+def _split(centre: np.ndarray, half: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Halve each box along the joints its mask row selects."""
+    n = centre.shape[1]
     codes = mask @ (1 << np.arange(n))
     out_c, out_h = [], []
     for code in np.unique(codes):
