@@ -205,69 +205,61 @@ def _hessian_matrix(prismatic: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 # -- cell kernels ------------------------------------------------------------------------------------
 @njit(cache=True)
-def _mark_within(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
-    """Set grid cells lying wholly inside the ball B(y_k, rad_k)."""
+def _span(c, r, o, h, n, inner):  # pragma: no cover - compiled
+    """Cells [o + jh, o + (j+1)h] of a row of n within distance r of coordinate c: all of the
+    cell within r (inner) or any of it (not inner). Returns (first, last), last < first if none."""
+    if inner:
+        lo = math.ceil((c - r - o) / h)
+        hi = math.floor((c + r - o) / h) - 1
+    else:
+        lo = math.ceil((c - r - o) / h) - 1
+        hi = math.floor((c + r - o) / h)
+    return max(lo, 0), min(hi, n - 1)
+
+
+@njit(cache=True)
+def _mark(y, rad, origin, h, d, grid, inner):  # pragma: no cover - compiled
+    """Set the cells wholly inside (inner) or meeting (not inner) the closed balls B(y_k, rad_k),
+    one row span at a time."""
     nx, ny, nz = grid.shape
     for k in range(y.shape[0]):
         r = rad[k]
         if not r > 0.0:
-            continue
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        ext = (nx, ny, nz)
-        for a in range(3):
-            if a >= d:
-                lo[a] = 0
-                hi[a] = 0
+            if inner or not r == 0.0:
                 continue
-            lo[a] = max(0, math.floor((y[k, a] - r - origin[a]) / h))
-            hi[a] = min(ext[a] - 1, math.floor((y[k, a] + r - origin[a]) / h))
-        r2 = r * r
-        for i in range(lo[0], hi[0] + 1):
+        i0, i1 = _span(y[k, 0], r, origin[0], h, nx, False)
+        for i in range(i0, i1 + 1):
             x0 = origin[0] + i * h - y[k, 0]
-            dx = max(abs(x0), abs(x0 + h))
-            for j in range(lo[1], hi[1] + 1):
+            dx = max(abs(x0), abs(x0 + h)) if inner else max(0.0, x0, -(x0 + h))
+            ry2 = r * r - dx * dx
+            if ry2 < 0.0:
+                continue
+            ry = math.sqrt(ry2)
+            if d == 2:
+                j0, j1 = _span(y[k, 1], ry, origin[1], h, ny, inner)
+                for j in range(j0, j1 + 1):
+                    grid[i, j, 0] = 1
+                continue
+            j0, j1 = _span(y[k, 1], ry, origin[1], h, ny, False)
+            for j in range(j0, j1 + 1):
                 y0 = origin[1] + j * h - y[k, 1]
-                dy = max(abs(y0), abs(y0 + h))
-                for m in range(lo[2], hi[2] + 1):
-                    dz = 0.0
-                    if d == 3:
-                        z0 = origin[2] + m * h - y[k, 2]
-                        dz = max(abs(z0), abs(z0 + h))
-                    if dx * dx + dy * dy + dz * dz <= r2:
-                        grid[i, j, m] = 1
+                dy = max(abs(y0), abs(y0 + h)) if inner else max(0.0, y0, -(y0 + h))
+                rz2 = ry2 - dy * dy
+                if rz2 < 0.0:
+                    continue
+                m0, m1 = _span(y[k, 2], math.sqrt(rz2), origin[2], h, nz, inner)
+                for m in range(m0, m1 + 1):
+                    grid[i, j, m] = 1
 
 
-@njit(cache=True)
-def _mark_touching(y, rad, origin, h, d, grid):  # pragma: no cover - compiled
+def _mark_within(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray) -> None:
+    """Set grid cells lying wholly inside the ball B(y_k, rad_k)."""
+    _mark(y, rad, origin, h, d, grid, True)
+
+
+def _mark_touching(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray) -> None:
     """Set grid cells that meet the closed ball B(y_k, rad_k)."""
-    nx, ny, nz = grid.shape
-    for k in range(y.shape[0]):
-        r = rad[k]
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        ext = (nx, ny, nz)
-        for a in range(3):
-            if a >= d:
-                lo[a] = 0
-                hi[a] = 0
-                continue
-            lo[a] = max(0, math.floor((y[k, a] - r - origin[a]) / h))
-            hi[a] = min(ext[a] - 1, math.floor((y[k, a] + r - origin[a]) / h))
-        r2 = r * r
-        for i in range(lo[0], hi[0] + 1):
-            x0 = origin[0] + i * h - y[k, 0]
-            dx = max(0.0, x0, -(x0 + h))
-            for j in range(lo[1], hi[1] + 1):
-                y0 = origin[1] + j * h - y[k, 1]
-                dy = max(0.0, y0, -(y0 + h))
-                for m in range(lo[2], hi[2] + 1):
-                    dz = 0.0
-                    if d == 3:
-                        z0 = origin[2] + m * h - y[k, 2]
-                        dz = max(0.0, z0, -(z0 + h))
-                    if dx * dx + dy * dy + dz * dz <= r2:
-                        grid[i, j, m] = 1
+    _mark(y, rad, origin, h, d, grid, False)
 
 
 @njit(cache=True)
