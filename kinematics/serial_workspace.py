@@ -224,9 +224,8 @@ def _mark(y, rad, origin, h, d, grid, inner):  # pragma: no cover - compiled
     nx, ny, nz = grid.shape
     for k in range(y.shape[0]):
         r = rad[k]
-        if not r > 0.0:
-            if inner or not r == 0.0:
-                continue
+        if not r > 0.0 and (inner or r != 0.0):  # a point still touches its own cell
+            continue
         i0, i1 = _span(y[k, 0], r, origin[0], h, nx, False)
         for i in range(i0, i1 + 1):
             x0 = origin[0] + i * h - y[k, 0]
