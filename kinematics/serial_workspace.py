@@ -53,7 +53,7 @@ _DEAD_TOL = 1e-12
 """A joint whose position-Jacobian column is below this [m/rad] at every probe never moves the point."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CellGrid:
     """A regular grid of task-space cells (side `cell` [m]) from `origin`: cell (i, j[, k]) spans
     origin + (i, j[, k]) * cell to origin + (i + 1, j + 1[, k + 1]) * cell. Coordinates are the
@@ -68,7 +68,7 @@ class CellGrid:
         return self.origin + (np.asarray(index) + 0.5) * self.cell
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SerialWorkspace:
     """Reachable set of a frame's position, with guaranteed bounds and per-cell dexterity.
 
@@ -378,7 +378,7 @@ def _aggregate(idx, w, cond, rmin, gw, gc, gr):  # pragma: no cover - compiled
 
 
 # -- the measurement -----------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Setup:
     mode: Mode
     rows: tuple[int, ...]
