@@ -127,10 +127,42 @@ class SerialWorkspace:
     axis_origin: np.ndarray | None = None
     axis_direction: np.ndarray | None = None
     levels: tuple[dict[str, float], ...] = field(default=())
+    plane_offset: float = 0.0
 
     @property
     def planar(self) -> bool:
+        """The measure is an area in the plane `axes`."""
         return self.mode == "planar"
+
+    def world_points(self, which: Literal["inside", "touched", "band", "singular"] = "inside",
+                     turns: int = 48) -> np.ndarray:
+        """(K, 3) world points [m] for views: centres of the certified cells ("inside"), of the
+        cells that may meet W ("touched"), of the uncertain band between them ("band"), or the
+        images of the possibly singular boxes ("singular"). A revolved profile is swept about the
+        base axis at `turns` angles; a planar arm's points lie in its plane (at `plane_offset`)."""
+        if which == "singular":
+            pts = self.singular_points
+        else:
+            masks = {"inside": self.inside, "touched": self.touched, "band": self.touched & ~self.inside}
+            if which not in masks:
+                raise InvalidInputError("which", f"expected one of inside, touched, band, singular; got {which!r}")
+            pts = self.grid.centres(np.argwhere(masks[which]))
+        if self.mode == "spatial":
+            return np.asarray(pts, dtype=float).reshape(-1, 3)
+        if self.mode == "planar":
+            out = np.full((len(pts), 3), self.plane_offset)
+            out[:, list(self.axes)] = pts
+            return out
+        assert self.axis_direction is not None and self.axis_origin is not None
+        a = self.axis_direction
+        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(a, u)
+        phi = np.linspace(0, 2 * np.pi, max(1, turns), endpoint=False)
+        rho, z = pts[:, 0, None], pts[:, 1, None]
+        ring = (self.axis_origin + rho[..., None] * (np.cos(phi)[None, :, None] * u + np.sin(phi)[None, :, None] * v)
+                + z[..., None] * a)
+        return ring.reshape(-1, 3)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary with the issue's stable keys (volume_m3 or area_m2,
@@ -538,6 +570,12 @@ def serial_workspace(
     half = np.repeat((span / per / 2)[None, :], len(centre), axis=0)
 
     y, sig_min, sig_max, yosh, eps, norms = evaluate(centre, half)
+    plane_offset = 0.0
+    if s.mode == "planar":  # the tool's constant coordinate along the plane's normal
+        normal = ({0, 1, 2} - set(s.axes)).pop()
+        values = s.base.copy()
+        values[s.active] = centre[0]
+        plane_offset = float(kin.fk(configurations(robot, values[None, :])).position[0, normal])
     # W lies in the level-0 balls and in the reach ball: the grid covers their common box.
     lo_box = np.maximum((y - eps[:, None]).min(axis=0), s.reach_centre - s.reach)
     hi_box = np.minimum((y + eps[:, None]).max(axis=0), s.reach_centre + s.reach)
@@ -697,6 +735,7 @@ def serial_workspace(
         axis_origin=s.axis_origin,
         axis_direction=s.axis_direction,
         levels=tuple(levels),
+        plane_offset=plane_offset,
     )
 
 

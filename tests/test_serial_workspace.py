@@ -33,6 +33,8 @@ def test_scara_area_within_error_estimate(scara, scara_ws):
     exact = scara_area_closed_form(ScaraParams.from_robot(scara))  # 0.97292658 m^2, quad at 1e-13
     w = scara_ws
     assert w.mode == "planar" and w.axes == (0, 1)
+    pts = w.world_points("band")
+    assert len(pts) == (w.touched & ~w.inside).sum() and np.all(pts[:, 2] == w.plane_offset)
     assert w.lower <= exact <= w.upper
     assert abs(w.measure - exact) <= w.error_estimate
     # The bound must also be useful: the half-gap at 400 cells across is ~3.5 % (docs).
@@ -125,6 +127,11 @@ def test_3r_solid_of_revolution_within_error_estimate():
     assert w.lower <= exact <= w.upper
     assert abs(w.measure - exact) <= w.error_estimate <= 0.05 * exact
     assert w.as_dict()["volume_m3"] == w.measure
+    # Views: the swept certified cells are at the profile's (rho, z) about the z axis (through x = y = 0).
+    pts = w.world_points("inside", turns=8)
+    assert len(pts) == 8 * w.inside.sum()
+    prof = np.stack([np.hypot(pts[:, 0], pts[:, 1]), pts[:, 2] - w.axis_origin[2]], axis=1)
+    assert w.inside[_cells_of(w, prof)].all()
 
 
 def test_3r_spherical_shell_segment_within_error_estimate(rng):
