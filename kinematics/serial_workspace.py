@@ -501,7 +501,8 @@ def serial_workspace(
     Args:
         robot: a loaded serial robot (`kinematics.model.load_robot`).
         frame: the frame whose position is measured.
-        rtol: stop refining once error_estimate <= rtol * measure (checked after each level).
+        rtol: the accuracy asked for: `converged` says whether error_estimate <= rtol * measure.
+            (The refinement itself is set by the cell: the error estimate falls linearly with h.)
         cell: task-space cell side h [m]; default: the bounding box's largest side / resolution.
         resolution: cells along that side (default 400 for a plane or profile, 128 in space).
         max_points: budget of configurations; when it runs out the remaining boxes are counted
