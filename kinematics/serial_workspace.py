@@ -50,6 +50,9 @@ from .serial import plane
 
 Mode = Literal["planar", "revolved", "spatial"]
 
+LEAF = 0.5
+"""A box is a leaf once its image ball's radius eps is at most LEAF x the cell side."""
+
 SPLIT = 0.5
 """A box is halved along every joint contributing at least SPLIT x the largest share of eps."""
 
@@ -662,7 +665,7 @@ def serial_workspace(
                 distance_transform_edt(pad[:, :, 1])[1:-1, 1:-1][:, :, None]
             room_task = dist[idx[:, 0], idx[:, 1], idx[:, 2]] * h - h * math.sqrt(d)
             settled = (inside[idx[:, 0], idx[:, 1], idx[:, 2]] == 1) & (eps <= room_task)
-            leaf = ~settled & (eps <= h / 2)
+            leaf = ~settled & (eps <= LEAF * h)
             rest = ~settled & ~leaf
             children = None
             if rest.any():
