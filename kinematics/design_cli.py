@@ -44,8 +44,8 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             ("shape", res.shape), ("centre", f"{[round(c, 6) for c in res.center.tolist()]} m"),
             *((k.removesuffix("_m"), f"{fmt(v)} m") for k, v in payload["size_m"].items()),
             ("volume", f"{fmt(res.volume)} m^3"),
-            ("inside check", f"{res.samples} samples at {fmt(res.spacing)} m (surface at half): "
-                             f"{'pass' if res.min_field >= 0 else 'FAIL'}"),
+            ("inside check", (f"{res.samples} samples at {fmt(res.spacing)} m (surface at half): "
+                             f"{'pass' if res.min_field >= 0 else 'FAIL'}")),
             ("1 % larger", "fails at the centre and 26 neighbours (near-maximal)" if res.larger_fails
              else "fits somewhere nearby: not proven near-maximal"),
         ])
@@ -70,8 +70,8 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         return key_values([
             ("robot", f"{robot.name}, mode {mode}"), ("file", args.o), ("faces", mesh.mesh.faces.shape[0]),
             ("watertight", mesh.watertight), ("volume", f"{fmt(mesh.volume)} m^3"),
-            ("bound", f"|volume - true| <= {fmt(mesh.tolerance)} m^3 ({mesh.boundary_cells} boundary cells "
-                      f"x step^3)"),
+            ("bound", (f"|volume - true| <= {fmt(mesh.tolerance)} m^3 ({mesh.boundary_cells} boundary cells "
+                      f"x step^3)")),
             ("step", f"{fmt(args.step)} m"),
         ])
 
