@@ -142,3 +142,7 @@ def test_cli_usable_workspace_errors(capsys):
     assert code == 2 and "3-[P2(US)]" in err
     code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--mode", "xyz")
     assert code == 2 and "xyz" in err
+    code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5")
+    assert code == 2 and "kappa_max" in err and ">= 1" in err
+    code, _, err = run(capsys, "workspace-mesh", "p2us", "-o", "nodir/x.stl")
+    assert code == 2 and "does not exist" in err
