@@ -146,3 +146,17 @@ def test_cli_usable_workspace_errors(capsys):
     assert code == 2 and "kappa_max" in err and ">= 1" in err
     code, _, err = run(capsys, "workspace-mesh", "p2us", "-o", "nodir/x.stl")
     assert code == 2 and "does not exist" in err
+
+
+def test_mesh_in_a_meshcat_scene():
+    from kinematics import viz
+    from kinematics.boundary_mesh import add_to_scene
+
+    m = margin_mesh(ball, *BOX, 0.02)
+    scene = viz.Scene()
+    add_to_scene(scene, m)
+    node = scene._window.tree["meshcat"]["overlays"]["boundary"]
+    # a msgpack'd set_object: a buffer geometry carrying every float32 vertex and uint32 index
+    assert b"BufferGeometry" in node.object and b"MeshLambertMaterial" in node.object
+    assert len(node.object) >= 4 * (m.mesh.vertices.size + m.mesh.faces.size)
+    assert "MeshCat.Viewer" in scene.html()
