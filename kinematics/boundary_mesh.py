@@ -16,11 +16,12 @@ counted exactly on the grid.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import InvalidInputError
 from .sizes import check_points, grid_points
@@ -56,7 +57,7 @@ class BoundaryMesh:
         return bool(self.mesh.is_watertight)
 
 
-def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: Sequence[float], hi: Sequence[float],
+def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: ArrayLike, hi: ArrayLike,
                 step: float) -> BoundaryMesh:
     """Zero level set of a scalar field (N, 3) -> (N,) over the box [lo, hi] [m] at grid `step`."""
     import trimesh
@@ -66,7 +67,7 @@ def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: Sequence[float],
         raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
     lo_ = np.asarray(lo, float) - 2 * step
     hi_ = np.asarray(hi, float) + 2 * step
-    check_points("step", grid_points(lo_, hi_, step), hint="use a larger step")
+    check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
     axes = [lo_[k] + step * np.arange(math.ceil((hi_[k] - lo_[k]) / step) + 1) for k in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
     v = np.asarray(margin(grid.reshape(-1, 3)), float).reshape(grid.shape[:-1])

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import InvalidInputError, UnknownChoiceError
 from .sizes import check_points, grid_points
@@ -153,7 +154,8 @@ def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tupl
         return tuple(int(i) for i in idx), (2 * max(d[idx] - 1.0, 0.0) * h,)
     r2 = np.stack([ndimage.distance_transform_edt(padded[:, :, k]) for k in range(padded.shape[2])], -1)
     r2 = np.maximum(r2[1:-1, 1:-1, 1:-1] - 1.0, 0.0)
-    best, arg = -1.0, ((0, 0, 0), (0.0, 0.0))
+    best = -1.0
+    arg: tuple[tuple[int, ...], tuple[float, ...]] = ((0, 0, 0), (0.0, 0.0))
     for k in range(ok.shape[2] // 2 + 1):
         rk = ndimage.minimum_filter1d(r2, 2 * k + 1, axis=2, mode="constant", cval=0.0)
         i = np.unravel_index(np.argmax(rk), rk.shape)
@@ -163,7 +165,7 @@ def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tupl
     return arg
 
 
-def largest_shape(field: Field, lo: Sequence[float], hi: Sequence[float], shape: str, *, step: float,
+def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
                   spacing: float | None = None) -> UsableShape:
     """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
 
@@ -175,7 +177,7 @@ def largest_shape(field: Field, lo: Sequence[float], hi: Sequence[float], shape:
         raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
     spacing = step / 2 if spacing is None else spacing
     lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
-    check_points("step", grid_points(lo_, hi_, step), hint="use a larger step")
+    check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
     axes = [np.arange(a, b + step / 2, step) for a, b in zip(lo_, hi_, strict=True)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
     ok = (field(grid.reshape(-1, 3)) >= 0).reshape(grid.shape[:-1])
