@@ -370,6 +370,20 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep(args, _load(args), _out)
 
 
+def cmd_usable_workspace(args: argparse.Namespace) -> int:
+    """Largest cube, cylinder or sphere in the well-conditioned workspace."""
+    from .design_cli import usable_workspace
+
+    return usable_workspace(args, _load(args), _out)
+
+
+def cmd_workspace_mesh(args: argparse.Namespace) -> int:
+    """A working mode's workspace boundary as a watertight mesh."""
+    from .design_cli import workspace_mesh
+
+    return workspace_mesh(args, _load(args), _out)
+
+
 def cmd_guide(args: argparse.Namespace) -> int:
     """Paper A's manual-guidance experiments, simulated."""
     from .guidance_cli import run
@@ -560,6 +574,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
     p.add_argument("--rtol", type=_positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
+
+    p = command("usable-workspace", cmd_usable_workspace, "p2us: the largest axis-aligned cube, vertical "
+                "cylinder or sphere where every point is reachable, non-singular and has kappa <= K")
+    robot_arg(p)
+    p.add_argument("--shape", required=True, choices=["cube", "cylinder", "sphere"], help="the shape")
+    p.add_argument("--kappa-max", type=_positive, default=10.0, metavar="K",
+                   help="largest condition number sigma_max/sigma_min of J = Jq^-1 Jx (default 10)")
+    p.add_argument("--mode", help="working mode such as --- (default), or union")
+    p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
+
+    p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
+                "watertight triangle mesh (STL, PLY or glTF binary)")
+    robot_arg(p)
+    p.add_argument("--mode", help="working mode such as --- (default), or union")
+    p.add_argument("-o", required=True, metavar="FILE.stl|.ply|.glb", help="the mesh file")
+    p.add_argument("--step", type=_positive, default=0.01, metavar="M", help="grid step [m] (default 0.01)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuator strokes only")
 
     p = command("guide", cmd_guide, "simulate paper A's manual-guidance experiments (admittance + virtual impedance)")
     p.add_argument("--experiment", type=int, required=True, choices=[1, 2, 3],

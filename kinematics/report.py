@@ -85,6 +85,7 @@ OUTPUT_SUFFIXES: dict[str, tuple[str, ...]] = {
     "html": (".html", ".htm"),
     "urdf": (".urdf",),
     "poses": (".csv", ".npy"),
+    "mesh": (".stl", ".ply", ".glb"),
 }
 """The suffixes each kind of output file may have (the writer is chosen by the suffix)."""
 

@@ -1,0 +1,162 @@
+"""Usable workspace (largest cube / cylinder / sphere) and watertight boundary meshes (issue 16 items 1, 3)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinematics.boundary_mesh import margin_mesh, p2us_mesh
+from kinematics.model import load_robot
+from kinematics.p2us_urdf import read_params
+from kinematics.parallel import MODES, ik, jacobians
+from kinematics.usable import largest_shape, p2us_usable, shape_samples
+from kinematics.workspace import p2us_volume_monte_carlo
+
+from .test_cli import run, run_json
+
+R = 0.1
+C = np.array([0.013, -0.021, 0.034])
+
+
+def ball(p: np.ndarray) -> np.ndarray:
+    return R - np.linalg.norm(p - C, axis=1)
+
+
+BOX = (C - 0.15, C + 0.15)
+
+
+@pytest.fixture(scope="module")
+def p2us_params():
+    robot = load_robot("p2us")
+    return read_params(robot.urdf_path, robot.name)
+
+
+# -- largest shapes in a ball: closed-form answers ------------------------------------------------
+# The shape's extreme points (cube corners, cylinder rims, sphere surface) are sampled exactly, so
+# the result can never exceed the inscribed optimum; bisection stops at 1e-3 relative and the centre
+# search at step/8 = 1.25 mm, which for these smooth optima costs well under 1 % in size.
+@pytest.mark.parametrize(("shape", "exact"), [
+    ("sphere", 4 / 3 * math.pi * R**3),
+    ("cube", (2 * R / math.sqrt(3)) ** 3),
+    ("cylinder", 4 * math.pi * R**3 / (3 * math.sqrt(3))),  # r^2 = 2R^2/3, h = 2R/sqrt(3)
+])
+def test_largest_shape_in_a_ball(shape, exact):
+    res = largest_shape(ball, *BOX, shape, step=0.01)
+    assert res.volume <= exact * (1 + 1e-9)
+    assert res.volume >= exact * 0.97
+    assert np.linalg.norm(res.center - C) <= 0.01
+    assert res.min_field >= 0 and res.larger_fails
+
+
+def test_samples_cover_the_shape():
+    # solid grid + surface: every sample lies in the closed shape, and its extreme points are there
+    c = np.zeros(3)
+    cube = shape_samples("cube", c, (0.2,), 0.01)
+    assert np.abs(cube).max() == pytest.approx(0.1) and np.all(np.abs(cube) <= 0.1 + 1e-15)
+    assert np.any(np.all(np.isclose(np.abs(cube), 0.1), axis=1))  # corners
+    cyl = shape_samples("cylinder", c, (0.05, 0.2), 0.01)
+    assert np.hypot(cyl[:, 0], cyl[:, 1]).max() == pytest.approx(0.05) and np.abs(cyl[:, 2]).max() == pytest.approx(0.1)
+    sph = shape_samples("sphere", c, (0.05,), 0.01)
+    assert np.linalg.norm(sph, axis=1).max() == pytest.approx(0.05)
+
+
+# -- the 3-[P2(US)]: an independent membership check ----------------------------------------------
+def usable_independent(params, p: np.ndarray, kappa_max: float) -> np.ndarray:
+    """Mode --- usable by another path: the NumPy IK's limit flags (not the scan kernel's margin)
+    and numpy.linalg.cond of J."""
+    k = MODES.index("---")
+    res = ik(params, p)
+    ok = res.within_limits[:, k]
+    q = np.where(ok[:, None], res.q[:, k], 0.0)
+    with np.errstate(all="ignore"):
+        J = jacobians(params, p, q).J
+        kappa = np.linalg.cond(np.where(np.isfinite(J), J, 0.0))
+    return ok & np.isfinite(kappa) & (kappa <= kappa_max)
+
+
+@pytest.mark.slow
+def test_p2us_usable_sphere(p2us_params):
+    kappa_max = 10.0
+    res = p2us_usable(p2us_params, "sphere", kappa_max=kappa_max, step=0.02)
+    rng = np.random.default_rng(16)
+    # 20 000 uniform points in the ball plus 20 000 on its surface, none used by the optimiser
+    n = 20_000
+    d = rng.normal(size=(2 * n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    r = res.size[0] * np.concatenate([rng.random(n) ** (1 / 3), np.ones(n)])
+    assert usable_independent(p2us_params, res.center + d * r[:, None], kappa_max).all()
+    # 1 % larger, same centre: the independent path finds unusable points on its surface
+    assert not usable_independent(p2us_params, res.center + 1.01 * res.size[0] * d[n:], kappa_max).all()
+    assert res.larger_fails
+    # a tighter kappa bound can only shrink it
+    tight = p2us_usable(p2us_params, "sphere", kappa_max=3.0, step=0.02)
+    assert tight.size[0] < res.size[0]
+
+
+# -- boundary meshes -----------------------------------------------------------------------------
+def test_ball_mesh_volume():
+    h = 0.01
+    m = margin_mesh(ball, *BOX, h)
+    exact = 4 / 3 * math.pi * R**3
+    assert m.watertight and m.mesh.is_winding_consistent and m.mesh.euler_number == 2
+    assert abs(m.volume - exact) <= m.tolerance
+    # marching-cubes triangles are chords of the sphere with sides up to h sqrt(2): their sag is
+    # <= (h sqrt 2)^2 / (8R) = h^2 / (4R), so |error| <= area x sag = pi R h^2
+    assert abs(m.volume - exact) <= math.pi * R * h**2
+    coarse = margin_mesh(ball, *BOX, 2 * h)
+    assert abs(coarse.volume - exact) > 2 * abs(m.volume - exact)  # second order in h
+
+
+def test_p2us_mesh_volume(p2us_params):
+    m = p2us_mesh(p2us_params, "---", 0.01)
+    assert m.watertight
+    # mode --- is the whole union for this design (every other mode is empty), so the Monte-Carlo
+    # union volume of the NumPy closed forms is an independent reference; tolerance: the grid
+    # bound plus 4 standard errors
+    v, se = p2us_volume_monte_carlo(p2us_params, 200_000, np.random.default_rng(3))
+    assert abs(m.volume - v) <= m.tolerance + 4 * se
+    assert abs(m.volume - v) <= 0.02 * v  # observed 0.6 %: far inside the grid bound
+
+
+# -- CLI ----------------------------------------------------------------------------------------
+def test_cli_workspace_mesh(capsys, tmp_path):
+    import trimesh
+
+    out = tmp_path / "ws.ply"
+    code, d, _ = run_json(capsys, "workspace-mesh", "p2us", "-o", str(out), "--step", "0.02")
+    assert code == 0 and {"file", "faces", "watertight", "volume_m3", "step_m"} <= set(d)
+    mesh = trimesh.load(out)
+    assert d["watertight"] and mesh.is_watertight and len(mesh.faces) == d["faces"]
+    assert mesh.volume == pytest.approx(d["volume_m3"], rel=1e-6)
+    bad = tmp_path / "ws.obj"
+    code, _, err = run(capsys, "workspace-mesh", "p2us", "-o", str(bad))
+    assert code == 2 and ".obj" in err and not bad.exists()
+    code, _, err = run(capsys, "workspace-mesh", "p2us", "--mode", "+++", "-o", str(tmp_path / "e.stl"))
+    assert code == 2 and "empty" in err and not (tmp_path / "e.stl").exists()
+
+
+def test_cli_usable_workspace_errors(capsys):
+    code, _, err = run(capsys, "usable-workspace", "scara", "--shape", "cube")
+    assert code == 2 and "3-[P2(US)]" in err
+    code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--mode", "xyz")
+    assert code == 2 and "xyz" in err
+    code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5")
+    assert code == 2 and "kappa_max" in err and ">= 1" in err
+    code, _, err = run(capsys, "workspace-mesh", "p2us", "-o", "nodir/x.stl")
+    assert code == 2 and "does not exist" in err
+
+
+def test_mesh_in_a_meshcat_scene():
+    from kinematics import viz
+    from kinematics.boundary_mesh import add_to_scene
+
+    m = margin_mesh(ball, *BOX, 0.02)
+    scene = viz.Scene()
+    add_to_scene(scene, m)
+    node = scene._window.tree["meshcat"]["overlays"]["boundary"]
+    # a msgpack'd set_object: a buffer geometry carrying every float32 vertex and uint32 index
+    assert b"BufferGeometry" in node.object and b"MeshLambertMaterial" in node.object
+    assert len(node.object) >= 4 * (m.mesh.vertices.size + m.mesh.faces.size)
+    assert "MeshCat.Viewer" in scene.html()
