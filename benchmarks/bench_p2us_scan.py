@@ -34,7 +34,7 @@ def full_scan(P, lo, hi, n: int) -> tuple[float, int]:
     """Scan n grid points in chunks (buffers reused), reducing to per-mode inside counts and the
     smallest measures, as a workspace/singularity scan does. Returns (seconds, points inside)."""
     g = S._geometry(P)
-    side = int(round(n ** (1 / 3)))
+    side = round(n ** (1 / 3))
     axes = [np.linspace(lo[k], hi[k], side) for k in range(3)]
     total = side**3
     margin, det, disc = np.empty((CHUNK, 8)), np.empty((CHUNK, 8)), np.empty((CHUNK, 3))
@@ -73,7 +73,7 @@ def pinocchio_per_point(robot, P, pts) -> float:
                 try:
                     s = loop.solve(sol.q[k, m])
                     loop.constrained_jacobian(s.q)
-                except Exception:  # noqa: BLE001 - an unassemblable mode still cost the attempt
+                except Exception:  # noqa: BLE001, S110 - an unassemblable mode still cost the attempt
                     pass
     return (time.perf_counter() - t) / len(pts)
 
@@ -91,7 +91,7 @@ def main() -> None:
     cores = numba.config.NUMBA_NUM_THREADS
 
     full_scan(P, lo, hi, 10_000)  # compile / load the cache
-    t_full, inside = full_scan(P, lo, hi, args.points)
+    t_full, _ = full_scan(P, lo, hi, args.points)
     rate_full = (round(args.points ** (1 / 3)) ** 3) / t_full
     rate_1 = kernel_only(P, pts, 1)
     rate_n = kernel_only(P, pts, cores)

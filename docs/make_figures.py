@@ -11,12 +11,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from kinematics import parallel as par  # noqa: E402
-from kinematics.model import load_robot  # noqa: E402
-from kinematics.p2us_urdf import read_params  # noqa: E402
+from kinematics import parallel as par
+from kinematics.model import load_robot
+from kinematics.p2us_urdf import read_params
 
 OUT = Path(__file__).resolve().parent / "figures"
 

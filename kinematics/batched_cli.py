@@ -20,6 +20,7 @@ from .errors import InvalidInputError, UnsupportedRobotError
 from .model import Robot
 from .report import Out, check_output, write_atomic
 
+
 def _check_out(path: str, q_file: str) -> None:
     """Refuse an output we could not write (the shared check), or the input file itself."""
     check_output(path, "--out", "poses")

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Literal, NamedTuple, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 import numpy as np
 
@@ -74,7 +74,7 @@ class GuidanceParams:
         if self.saturation not in ("norm", "axis"):
             raise InvalidInputError("saturation", f"'norm' or 'axis', got {self.saturation!r}")
 
-    def replace(self, **changes: object) -> GuidanceParams:
+    def replace(self, **changes: Any) -> GuidanceParams:
         return replace(self, **changes)
 
 

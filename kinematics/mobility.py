@@ -205,8 +205,8 @@ def grubler(robot: Robot, q: np.ndarray | None = None) -> GrublerCount:
 
     def is_cross(body: int) -> bool:
         kids = children.get(body, [])
-        return (body != 0 and body not in anchored and len(kids) == 1
-                and np.linalg.norm(model.jointPlacements[kids[0]].translation) <= _ORIGIN_TOL)
+        return bool(body != 0 and body not in anchored and len(kids) == 1
+                    and np.linalg.norm(model.jointPlacements[kids[0]].translation) <= _ORIGIN_TOL)
 
     # A weld (6d closure) keeps a planar mechanism planar: it removes the welded body's 3 planar
     # freedoms just as it removes 6 spatial ones, so lambda = 3 holds whatever the closure types.
@@ -419,13 +419,13 @@ def screw_analysis(robot: Robot, q: np.ndarray) -> ScrewAnalysis:
     over the limb's joint rates. The limb's constraint wrenches are the reciprocal of that space.
     """
     graph = joint_graph(robot, q)
-    limbs = []
-    all_wrenches = []
+    limbs: list[Limb] = []
+    all_wrenches: list[Any] = []
     groups = _components(graph)
     direct = [e for e in graph.edges if {e.parent, e.child} == {0, graph.platform}]
     members = [(g, [e for e in graph.edges if (e.parent in g or e.child in g)]) for g in groups]
     members += [(set(), [e]) for e in direct]
-    for k, (_, edges) in enumerate(members):
+    for _, edges in members:
         if not any(graph.platform in (e.parent, e.child) for e in edges) or not any(0 in (e.parent, e.child) for e in edges):
             continue  # a dangling branch (e.g. fingers): not a limb
         paths = _paths(edges, 0, graph.platform)

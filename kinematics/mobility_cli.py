@@ -104,8 +104,8 @@ def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
                         ("rank tolerance (relative)", n.tolerance), ("smallest kept sigma", n.smallest_kept),
                         ("largest dropped sigma", n.largest_dropped)]),
             "",
-            f"screw theory: {s.translations} translation(s), {s.rotations} rotation(s); "
-            f"{s.constraint_rank} independent constraint wrench(es)",
+            (f"screw theory: {s.translations} translation(s), {s.rotations} rotation(s); "
+             f"{s.constraint_rank} independent constraint wrench(es)"),
             table(["limb", "sub-chains", "twist rank", "constraint wrenches"],
                   [(lb.name, lb.paths, lb.twist_rank,
                     "; ".join(f"{w.type} {fmt(w.axis, 3)}" for w in lb.wrenches) or "-") for lb in s.limbs]),

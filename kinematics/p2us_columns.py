@@ -117,13 +117,13 @@ class _Limb:
 
         good = D >= 0
         if self.minus:
-            good &= (A >= self.lo) & (f(self.lo) >= 0) & ((A <= self.hi) | (f(self.hi) <= 0))
+            good &= (self.lo <= A) & (f(self.lo) >= 0) & ((self.hi >= A) | (f(self.hi) <= 0))
         else:
-            good &= (A <= self.hi) & (f(self.hi) >= 0) & ((A >= self.lo) | (f(self.lo) <= 0))
+            good &= (self.hi >= A) & (f(self.hi) >= 0) & ((self.lo <= A) | (f(self.lo) <= 0))
         if self.d_max is not None:
-            good &= D <= self.d_max
+            good &= self.d_max >= D
         if self.d_min is not None:
-            good &= D >= self.d_min
+            good &= self.d_min <= D
         return good
 
 

@@ -10,6 +10,7 @@ for the reports that print them side by side.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -121,8 +122,8 @@ def comparison_lines(c: dict[str, Any]) -> list[str]:
         return [f"design: {c['design']} (not a built-in: no paper value to compare)"]
     what = "Table 2's published dimensions" if c["design"] == "p2us" else "the geometry behind paper B's results"
     return [f"design: {c['design']} ({what})",
-            f"paper B: {c['paper_volume_m3']} m^3; ours ({c['compared']}, {c['limits']} limits): "
-            f"{c['ours_m3']:.6g} m^3, {100 * c['relative_difference']:+.2f} % (see {c['page']})"]
+            (f"paper B: {c['paper_volume_m3']} m^3; ours ({c['compared']}, {c['limits']} limits): "
+             f"{c['ours_m3']:.6g} m^3, {100 * c['relative_difference']:+.2f} % (see {c['page']})")]
 
 
 # -- the paper's computed results, recomputed for a design -----------------------------------------
@@ -174,11 +175,12 @@ def fig6(params: Any) -> dict[str, Any]:
             "modes_assembled": int(res.reachable.sum())}
 
 
-def fig8(params: Any, q: np.ndarray = np.array([0.1, 0.7, 0.0])) -> dict[str, Any]:
+def fig8(params: Any, actuators: Sequence[float] = (0.1, 0.7, 0.0)) -> dict[str, Any]:
     """Fig. 8: FK of q (both assembly modes), the distance of each pose from the printed one, and
     the singularity measures and type of the nearer pose (cosine of each rod-rail angle)."""
     from .parallel import SINGULARITY_TYPES, classify, fk, jacobians, limb_ik
 
+    q = np.asarray(actuators, dtype=float)
     res = fk(params, q)
     out: dict[str, Any] = {"q_m": q, "printed_pose_m": FIG8_POSITION_M, "assembles": bool(res.exists)}
     # the printed pose's distance from each rail axis, against L (reach needs <= L)

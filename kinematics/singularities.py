@@ -143,8 +143,7 @@ def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = 
     check_points("step", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step")
     dims = np.ceil((hi - lo) / step).astype(int) + 1
     t0 = time.perf_counter()
-    ix, iy = np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij")
-    ix, iy = ix.ravel(), iy.ravel()
+    ix, iy = (a.ravel() for a in np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij"))
     plane_ids = ix * dims[1] + iy
     found: list[tuple] = []
     bar = None
@@ -243,8 +242,8 @@ def scara_singularities(sp: ScaraParams, step: float = math.radians(1.0)) -> dic
         raise InvalidInputError("step", f"must be a positive angle [rad], got {step}")
     check_points("angle step", ((sp.upper[0] - sp.lower[0]) / step + 1) * ((sp.upper[1] - sp.lower[1]) / step + 1),
                  hint=f"{math.degrees(step):g} deg is too fine a joint-grid step")
-    t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, int(math.ceil((sp.upper[0] - sp.lower[0]) / step)) + 1))
-    t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, int(math.ceil((sp.upper[1] - sp.lower[1]) / step)) + 1))
+    t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, math.ceil((sp.upper[0] - sp.lower[0]) / step) + 1))
+    t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, math.ceil((sp.upper[1] - sp.lower[1]) / step) + 1))
     Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1)
     det = det_jacobian(sp, Q)
     ell = manipulability(sp, Q)

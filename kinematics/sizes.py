@@ -11,8 +11,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from .errors import InvalidInputError
+
+if TYPE_CHECKING:  # numpy stays unimported for `kinematics --help`
+    import numpy as np
 
 MAX_POINTS = 200_000_000
 """Sampled points one call may evaluate (a few GB of bookkeeping and minutes of work)."""
@@ -46,7 +50,7 @@ def check_points(what: str, count: float, *, limit: int = MAX_POINTS, unit: str 
     return int(count)
 
 
-def grid_points(lo: Sequence[float], hi: Sequence[float], step: float) -> float:
+def grid_points(lo: Sequence[float] | np.ndarray, hi: Sequence[float] | np.ndarray, step: float) -> float:
     """Corner points of a regular grid of cell size `step` over the box [lo, hi] (a float)."""
     return math.prod(math.ceil((b - a) / step) + 1 for a, b in zip(lo, hi, strict=True))
 

@@ -105,11 +105,11 @@ def designs(base: P2USParams, axes: Sequence[Axis], step: float | None = None) -
     return out
 
 
-def _flat(p: P2USParams) -> dict[str, float]:
+def _flat(p: P2USParams) -> dict[str, Any]:
     return {"b": p.b, "d": p.d, "L": p.L, "beta": p.beta, "theta_zero": p.theta_zero,
             "rod_spacing": p.rod_spacing, "stroke_min": p.stroke[0], "stroke_max": p.stroke[1],
             "alpha": list(p.alpha), "theta_limits": list(p.theta_limits), "phi_limits": list(p.phi_limits),
-            "theta_convention": p.theta_convention, "phi_convention": p.phi_convention}  # type: ignore[dict-item]
+            "theta_convention": p.theta_convention, "phi_convention": p.phi_convention}
 
 
 def to_params(d: dict[str, Any]) -> P2USParams:
@@ -177,7 +177,7 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
         "volume_upper_m3": float(ws.result.upper[-1]),
         "singularity_free_fraction": free / len(p) if len(p) else 0.0,
         "conditioning_index": gci,
-        "grid_points_inside": int(len(p)),
+        "grid_points_inside": len(p),
     }
 
 

@@ -505,7 +505,7 @@ def _css(rgb: Sequence[float]) -> str:
 
 
 def _hex(rgb: Sequence[float]) -> int:
-    r, g, b = (int(round(255 * max(0.0, min(1.0, c)))) for c in rgb[:3])
+    r, g, b = (round(255 * max(0.0, min(1.0, c))) for c in rgb[:3])
     return (r << 16) | (g << 8) | b
 
 
@@ -590,7 +590,7 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
         from .guidance_sim import run_experiment
 
         run = run_experiment(guide, sp)
-        step = max(1, int(round(1 / (30 * run.params.dt))))
+        step = max(1, round(1 / (30 * run.params.dt)))
         scene.animate(robot.name, run.q[::step], 30.0, np.hstack([run.x[::step], np.full((len(run.x[::step]), 1),
                                                                                           tool[2])]))
     scene.fit_camera()

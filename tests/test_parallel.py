@@ -79,7 +79,7 @@ def _stroke_at_home(P, z):
     from scipy.optimize import brentq
 
     A, w, C = P.b * P.e[0], P.w[0], np.array([0, 0, z]) + P.d * P.e[0]
-    rod = lambda q: np.linalg.norm(C - A - q * w) - P.L  # noqa: E731
+    rod = lambda q: np.linalg.norm(C - A - q * w) - P.L
     qs = np.linspace(0.0, 1.0, 1001)
     k = np.flatnonzero(np.diff(np.sign([rod(q) for q in qs])))[0]
     return brentq(rod, qs[k], qs[k + 1], xtol=1e-15)
@@ -249,7 +249,7 @@ def _sphere_roots(P, q):
     from scipy.optimize import root
 
     c = par.sphere_centres(P, q)
-    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.L**2  # noqa: E731
+    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.L**2
     roots: list[np.ndarray] = []
     for start in np.concatenate([np.eye(3), -np.eye(3)]) * 2 * P.L + c.mean(axis=0):
         sol = root(f, start, method="lm", options={"xtol": 1e-15, "ftol": 1e-15}).x
@@ -332,7 +332,7 @@ def test_type_three_both_matrices_singular(p2us_params):
         dets = [np.linalg.det(r[2]) if (r := pose(x, root)) is not None else np.nan for x in u]
         k = np.flatnonzero(np.isfinite(dets[:-1]) & np.isfinite(dets[1:]) & (np.sign(dets[:-1]) != np.sign(dets[1:])))
         if k.size:
-            found = brentq(lambda x: np.linalg.det(pose(x, root)[2]), u[k[0]], u[k[0] + 1], xtol=1e-15), root
+            found = brentq(lambda x, root=root: np.linalg.det(pose(x, root)[2]), u[k[0]], u[k[0] + 1], xtol=1e-15), root
             break
     assert found is not None
     p, q, _ = pose(*found)

@@ -92,7 +92,7 @@ def test_adaptive_volume_of_spheres():
     # the Richardson error estimate is honest here (second-order convergence)
     assert np.all(np.abs(res.estimate - exact) <= 3 * res.error + 1e-12)
     errs = [abs(lv.estimate[0] - exact[0]) for lv in res.levels]
-    assert all(e1 < 0.35 * e0 for e0, e1 in zip(errs, errs[1:]))
+    assert all(e1 < 0.35 * e0 for e0, e1 in itertools.pairwise(errs))
     assert res.levels[-1].points < (2.2 / res.finest_step) ** 3 / 3  # surface work, not volume work
 
 
@@ -130,7 +130,7 @@ def scara_area_closed_form(sp: ScaraParams) -> float:
     from scipy.integrate import quad
 
     W, T = sp.upper[0] - sp.lower[0], sp.upper[1]
-    assert sp.lower[1] == -T and T <= math.pi and sp.l1 > sp.l2
+    assert sp.lower[1] == -T and math.pi >= T and sp.l1 > sp.l2
     assert W + 2 * math.asin(sp.l2 / sp.l1) < 2 * math.pi
     integral, _ = quad(lambda t: math.atan2(sp.l2 * math.sin(t), sp.l1 + sp.l2 * math.cos(t)) * math.sin(t),
                        0.0, T, epsabs=1e-15, epsrel=1e-13, limit=200)
