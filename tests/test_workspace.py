@@ -119,7 +119,7 @@ def test_adaptive_volume_validates():
 # -- workspaces ------------------------------------------------------------------------------------------
 def test_scara_area_two_ways(scara):
     sp = ScaraParams.from_robot(scara)
-    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False)
+    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False, engine="cells")
     exact = scara_area_quadrature(sp)
     assert ws.result.converged
     assert ws.total == pytest.approx(exact, rel=3e-4)  # kinks where limits meet the annulus: ~1st order
@@ -127,12 +127,12 @@ def test_scara_area_two_ways(scara):
     free = ScaraParams(sp.l1, sp.l2, (-math.pi, -math.pi), (math.pi, math.pi))
     ring = math.pi * ((sp.l1 + sp.l2) ** 2 - (sp.l1 - sp.l2) ** 2)
     assert scara_area_quadrature(free) == pytest.approx(ring, rel=1e-6)
-    assert scara_workspace(free, step=0.01, rtol=1e-4, progress=False).total == pytest.approx(ring, rel=1e-4)
+    assert scara_workspace(free, step=0.01, rtol=1e-4, progress=False, engine="cells").total == pytest.approx(ring, rel=1e-4)
 
 
 @pytest.mark.parametrize("limits", ["all", "actuators"])
 def test_p2us_volume_against_monte_carlo(p2us_params, limits):
-    ws = p2us_workspace(p2us_params, step=0.02, rtol=2e-3, limits=limits, progress=False)
+    ws = p2us_workspace(p2us_params, step=0.02, rtol=2e-3, limits=limits, progress=False, engine="cells")
     mc, se = p2us_volume_monte_carlo(p2us_params, 1_000_000, np.random.default_rng(5), limits)
     assert abs(ws.total - mc) < 4 * se + 2e-3 * mc
     r = ws.result
@@ -142,7 +142,7 @@ def test_p2us_volume_against_monte_carlo(p2us_params, limits):
 
 
 def test_p2us_workspace_modes_and_keys(p2us_params):
-    ws = p2us_workspace(p2us_params, step=0.03, rtol=None, modes=["---", "+++"], progress=False)
+    ws = p2us_workspace(p2us_params, step=0.03, rtol=None, modes=["---", "+++"], progress=False, engine="cells")
     d = ws.as_dict()
     assert set(d["modes"]) == {"---", "+++"}
     assert {"volume_m3", "bounds_m3", "modes", "bbox", "points_evaluated", "step_m", "seconds"} <= set(d)
