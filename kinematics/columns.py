@@ -371,10 +371,17 @@ def column_volume(
     for name, v in (("step", step), ("rtol", rtol)):
         if not (math.isfinite(v) and v > 0):
             raise InvalidInputError(name, f"must be positive, got {v}")
-    first = _run(margin, lo, hi, step, rtol, order, pieces, axis, max_points, progress)
+    ax = int(np.argmin(hi - lo)) if axis is None else axis % d
+    per_column = math.ceil((hi[ax] - lo[ax]) / step) + 1
+    start = per_column * math.prod(3 * order * (pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step))))
+                                   for k in range(d) if k != ax)
+    if start > max_points:
+        raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
+                                        "use a larger step")
+    first = _run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress)
     if not check:
         return first
-    second = _run(margin, lo, hi, step / 2, rtol, order, pieces, axis, max_points, progress)
+    second = _run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress)
     diff = np.abs(first.estimate - second.estimate)
     agree = bool(np.all(diff <= first.error + second.error))
     return ColumnVolume(
