@@ -67,8 +67,9 @@ class ColumnVolume:
         error: (T,) estimated absolute error: the quadrature's sum of |parent - children| over
             the accepted cells plus the root brackets' widths integrated (not a bound: components
             thinner than `step` along a column are not in it; see the module docstring).
-        converged: every target's error estimate is <= rtol x its measure (and, with check, the
-            two independent runs agree within their estimates).
+        converged: every target's error estimate is <= rtol x its measure, the last target is
+            not empty (an empty result cannot be told from sampling past everything), and, with
+            check, the two runs agree within their estimates.
         step: sampling step along the columns [m]; cell: starting quadrature interval [m].
         columns: columns measured; points_evaluated: margin evaluations.
         check_difference: (T,) |this run - the check run| (NaN without check).
@@ -443,7 +444,9 @@ def _run(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndar
         bar.close()
     box = np.stack([counter.lo, counter.hi])
     return ColumnVolume(
-        estimate=q[0], error=e[0], converged=bool(np.all(conv)) and counter.columns <= budget, rtol=rtol,
+        # finding nothing cannot be told from sampling past everything: never a confident 0
+        estimate=q[0], error=e[0], converged=bool(np.all(conv)) and counter.columns <= budget and bool(q[0, -1] > 0),
+        rtol=rtol,
         step=step, cell=8 * step, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
