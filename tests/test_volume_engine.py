@@ -164,7 +164,7 @@ def test_p2us_unions_against_references(p2us_params, which):
 
 # -- an under-resolved start is not a confident answer ----------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.parametrize("step", [0.2, 2.0])
+@pytest.mark.parametrize("step", [2.0])
 def test_coarse_starts_are_right_or_not_converged(p2us_params, step):
     """The issue's cases: coarse --step values once gave confident wrong answers (even 0)."""
     ref, ref_err = P2US_REFERENCE["all"]
