@@ -108,7 +108,7 @@ def volume_convergence() -> plt.Figure:
     from kinematics.workspace import p2us_margin, p2us_workspace
 
     P = _p2us_params()
-    ws = p2us_workspace(P, step=0.02, rtol=1e-4, progress=False)
+    ws = p2us_workspace(P, step=0.02, rtol=1e-4, progress=False, engine="cells")
     lo, hi = bounding_box(P)
     uniform = [(h, adaptive_volume(p2us_margin(P), lo, hi, h, None, progress=False).estimate[-1])
                for h in (0.02, 0.01, 0.005)]

@@ -537,7 +537,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def scan_args(p: argparse.ArgumentParser, step: float) -> None:
         p.add_argument("--step", type=_positive, default=step, metavar="M",
-                       help=f"grid step [m] (default {step:g}; the volume refines boundary cells below it)")
+                       help=f"grid step [m] (default {step:g}; the volume: sampling step along each column)")
         p.add_argument("--modes", nargs="+", metavar="MODE",
                        help="p2us working modes such as --- +-+ (default all 8); planar arm: elbows up/down")
         p.add_argument("--limits", default="all", choices=["all", "actuators"],
@@ -545,12 +545,12 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--plot", metavar="FILE.png", help="write a figure")
 
     p = command("workspace-volume", cmd_workspace_volume,
-                "workspace volume (p2us) or area (planar arm) with bounds, per mode, with singular points")
+                "workspace volume (p2us) or area (planar arm) with its error estimate, per mode, with singular points")
     robot_arg(p)
     scan_args(p, 0.01)
     p.add_argument("--rtol", type=_non_negative, default=1e-3, metavar="R",
-                   help="relative tolerance of the estimate; boundary cells are refined until it is met "
-                        "(default 1e-3; 0: the plain grid, no refinement)")
+                   help="relative tolerance on the volume's error estimate; the quadrature refines until it "
+                        "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
 
     p = command("singularities", cmd_singularities,

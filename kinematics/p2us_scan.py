@@ -159,3 +159,17 @@ def bounding_box(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
         lo = np.maximum(lo, ends.min(axis=0) - params.L)
         hi = np.minimum(hi, ends.max(axis=0) + params.L)
     return lo, hi
+
+
+def kernels_compiled() -> bool:
+    """True when this process compiled the scan kernel rather than loading it from Numba's cache
+    (the first run after installing)."""
+    return bool(sum(_kernel.stats.cache_misses.values()))
+
+
+def kernels_cached() -> bool:
+    """True when Numba's cache holds a compiled scan kernel (so the next call will not compile)."""
+    import glob
+    import os
+
+    return bool(glob.glob(os.path.join(_kernel.stats.cache_path, "p2us_scan._kernel-*.nbi")))

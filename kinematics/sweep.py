@@ -145,7 +145,7 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
     from .workspace import p2us_workspace
 
     params = to_params(design)
-    ws = p2us_workspace(params, step=step, rtol=rtol, progress=False)
+    ws = p2us_workspace(params, step=step, rtol=rtol, progress=False, engine="cells")
     lo, hi = bounding_box(params)
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)

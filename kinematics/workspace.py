@@ -1,6 +1,9 @@
 """Workspaces: the 3-[P2(US)]'s volume per working mode and their union, the SCARA's area.
 
-Both are measured by `kinematics.volume.adaptive_volume` on a continuous margin (> 0 inside):
+Both are measured by `kinematics.columns.column_volume` (exact columns, adaptive quadrature, with
+an error estimate) on a continuous margin (> 0 inside); the earlier cell-refinement estimator
+`kinematics.volume.adaptive_volume` stays available (engine="cells", used by the design sweep and
+the benchmark):
 
 * 3-[P2(US)]: the fused kernel's per-mode margin (`p2us_scan`); the union is their maximum;
 * SCARA: per elbow, the smallest of the reach slacks (l1 + l2 - r, r - |l1 - l2|) [m] and the
@@ -25,6 +28,7 @@ from .errors import UnknownModeError
 from .p2us_scan import bounding_box, check_limits, scan
 from .parallel import MODES, P2USParams
 from .scara import ELBOWS, ScaraParams
+from .columns import ColumnVolume, column_volume
 from .volume import VolumeEstimate, adaptive_volume
 
 UNION = "union"
@@ -38,7 +42,8 @@ class Workspace:
         robot: its name. planar: area [m^2] rather than volume [m^3].
         targets: the regions measured, e.g. ("---", "union") or ("up", "down", "union").
         limits: "all" or "actuators".
-        result: the adaptive estimate, one column per target.
+        result: the measurement, one entry per target (ColumnVolume; VolumeEstimate for the
+            "cells" engine).
         seconds: wall time of the measurement.
     """
 
@@ -46,7 +51,7 @@ class Workspace:
     planar: bool
     targets: tuple[str, ...]
     limits: str
-    result: VolumeEstimate
+    result: ColumnVolume | VolumeEstimate
     seconds: float
     parameters: dict[str, Any] = field(default_factory=dict)
 
@@ -55,38 +60,40 @@ class Workspace:
         """The union's measure [m^3 or m^2]."""
         return float(self.result.estimate[-1])
 
+    @property
+    def error(self) -> float:
+        """The union's estimated error [m^3 or m^2]."""
+        return float(self.result.error[-1])
+
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready report with the issue's stable keys."""
+        """JSON-ready report with the issue's stable keys (volume_m3 / area_m2, error_estimate,
+        converged, modes / elbows, seconds)."""
         r = self.result
         unit = "m2" if self.planar else "m3"
         key = "area" if self.planar else "volume"
-        per = {
-            name: {key: float(r.estimate[k]), "bounds": [float(r.lower[k]), float(r.upper[k])],
-                   "error_estimate": float(r.error[k])}
-            for k, name in enumerate(self.targets[:-1])
-        }
+        per = {name: {key: float(r.estimate[k]), "error_estimate": float(r.error[k])}
+               for k, name in enumerate(self.targets[:-1])}
         box = r.box
-        return {
+        out: dict[str, Any] = {
             "robot": self.robot,
             "limits": self.limits,
             f"{key}_{unit}": self.total,
-            f"bounds_{unit}": [float(r.lower[-1]), float(r.upper[-1])],
-            "error_estimate": float(r.error[-1]),
+            "error_estimate": self.error,
             "rtol": r.rtol,
             "converged": r.converged,
             "elbows" if self.planar else "modes": per,
             "bbox": [box[0].tolist(), box[1].tolist()],
             "points_evaluated": r.points_evaluated,
             "step_m": r.step,
-            "finest_step_m": r.finest_step,
-            "levels": [
-                {"step_m": lv.step, "estimate": lv.estimate[-1], "bounds": [lv.lower[-1], lv.upper[-1]],
-                 "points": lv.points, "boundary_cells": lv.boundary_cells}
-                for lv in r.levels
-            ],
             "seconds": self.seconds,
             "parameters": self.parameters,
         }
+        if isinstance(r, ColumnVolume):
+            out.update(method="columns", columns=r.columns)
+        else:
+            out.update(method="cells", **{f"bounds_{unit}": [float(r.lower[-1]), float(r.upper[-1])]},
+                       finest_step_m=r.finest_step)
+        return out
 
 
 def _check_modes(modes: Sequence[str], valid: Sequence[str]) -> tuple[str, ...]:
@@ -113,15 +120,35 @@ def p2us_margin(params: P2USParams, modes: Sequence[str] = MODES, limits: str = 
     return margin
 
 
-def p2us_workspace(params: P2USParams, *, step: float = 0.01, rtol: float | None = 1e-3,
+def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float,
+             rtol: float | None, engine: str, progress: bool, max_points: int | None, check: bool
+             ) -> ColumnVolume | VolumeEstimate:
+    if engine == "cells":
+        kw = {} if max_points is None else {"max_points": max_points}
+        return adaptive_volume(margin, lo, hi, step, rtol, progress=progress, **kw)
+    if engine != "columns":
+        from .errors import UnknownChoiceError
+
+        raise UnknownChoiceError(engine, ("columns", "cells"))
+    kw = {} if max_points is None else {"max_points": max_points}
+    return column_volume(margin, lo, hi, step=step, rtol=1e-2 if rtol is None else rtol, check=check,
+                         progress=progress, **kw)
+
+
+def p2us_workspace(params: P2USParams, *, step: float = 0.005, rtol: float | None = 1e-4,
                    modes: Sequence[str] = MODES, limits: str = "all", name: str = "p2us",
-                   progress: bool = False, max_points: int | None = None) -> Workspace:
-    """Volume of the 3-[P2(US)] workspace per working mode and of their union [m^3]."""
+                   progress: bool = False, max_points: int | None = None, engine: str = "columns",
+                   check: bool = False) -> Workspace:
+    """Volume of the 3-[P2(US)] workspace per working mode and of their union [m^3].
+
+    engine "columns" (default): `column_volume` with column sampling step `step` [m] and relative
+    tolerance `rtol` on its error estimate; "cells": the cell-refinement estimator with grid step
+    `step`. check: rerun at half the step and compare (columns only).
+    """
     modes = _check_modes(modes, MODES)
     lo, hi = bounding_box(params)
     t0 = time.perf_counter()
-    kw = {} if max_points is None else {"max_points": max_points}
-    res = adaptive_volume(p2us_margin(params, modes, limits), lo, hi, step, rtol, progress=progress, **kw)
+    res = _measure(p2us_margin(params, modes, limits), lo, hi, step, rtol, engine, progress, max_points, check)
     return Workspace(name, False, (*modes, UNION), limits, res, time.perf_counter() - t0, params.as_dict())
 
 
@@ -169,14 +196,16 @@ def scara_margin(sp: ScaraParams, elbows: Sequence[str] = ELBOWS) -> Callable[[n
     return margin
 
 
-def scara_workspace(sp: ScaraParams, *, step: float = 0.005, rtol: float | None = 1e-3,
-                    elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = False) -> Workspace:
-    """Reachable area of the planar arm per elbow and of their union [m^2]."""
+def scara_workspace(sp: ScaraParams, *, step: float = 0.005, rtol: float | None = 1e-4,
+                    elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = False,
+                    engine: str = "columns", check: bool = False) -> Workspace:
+    """Reachable area of the planar arm per elbow and of their union [m^2] (engines as
+    `p2us_workspace`)."""
     elbows = _check_modes(elbows, ELBOWS)
     outer = sp.reach[1]
     t0 = time.perf_counter()
-    res = adaptive_volume(scara_margin(sp, elbows), np.full(2, -outer), np.full(2, outer) + 1e-9, step, rtol,
-                          progress=progress)
+    res = _measure(scara_margin(sp, elbows), np.full(2, -outer), np.full(2, outer) + 1e-9, step, rtol, engine,
+                   progress, None, check)
     return Workspace(name, True, (*elbows, UNION), "all", res, time.perf_counter() - t0,
                      {"l1": sp.l1, "l2": sp.l2, "lower": list(sp.lower), "upper": list(sp.upper)})
 

@@ -75,14 +75,20 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     sing_summary: dict[str, Any]
     sing: Any = None
     if kind == "p2us":
+        from .p2us_scan import kernels_cached, kernels_compiled
         from .parallel import MODES
         from .parallel_cli import params_of
         from .singularities import p2us_singularities
 
         params = params_of(robot)
         modes = tuple(args.modes or MODES)
+        if not args.json and not kernels_cached():
+            import sys
+
+            print("compiling kernels (first run only)", file=sys.stderr, flush=True)
+        # check: a second run at half the column step; disagreement beyond the estimates -> not converged
         ws = p2us_workspace(params, step=args.step, rtol=rtol, modes=modes, limits=args.limits, name=robot.name,
-                            progress=show_progress(args))
+                            progress=show_progress(args), check=True)
         sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
@@ -93,7 +99,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
         params = _scara(robot)
         modes = tuple(args.modes or ELBOWS)
-        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=show_progress(args))
+        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=show_progress(args),
+                             check=True)
         sing = scara_singularities(params)
         singular_points = _scara_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
@@ -112,6 +119,13 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = ws.as_dict()
     payload.update(singular_points=singular_points, singularities=sing_summary, seconds=time.perf_counter() - t0,
                    volume_seconds=ws.seconds, **paper)
+    if kind == "p2us":
+        payload["compiled_kernels"] = kernels_compiled()
+    if not ws.result.converged:
+        import sys
+
+        print("warning: the volume did not converge (budget exhausted, or the run at half the step disagreed "
+              "beyond the error estimates); try a smaller --step", file=sys.stderr)
 
     def human() -> str:
         return _report(ws, payload, paper)
@@ -120,25 +134,48 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     return 0
 
 
+_LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}
+_ANGLES = {"beta", "alpha", "theta_limits", "phi_limits", "theta_zero", "lower", "upper"}
+
+
+def _parameter_rows(parameters: dict[str, Any]) -> list[tuple[str, str]]:
+    """(name [unit], value) rows: lengths in m, angles shown in degrees."""
+    rows = []
+    for k, v in parameters.items():
+        if k in _ANGLES:
+            deg = [math.degrees(x) for x in v] if isinstance(v, (list, tuple)) else math.degrees(v)
+            rows.append((f"{k} [deg]", fmt(deg, 6)))
+        else:
+            rows.append((f"{k} [m]" if k in _LENGTHS else k, fmt(v, 6)))
+    return rows
+
+
+MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
+               "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
+ELBOW_LEGEND = "elbow: 'up' takes theta2 < 0, 'down' theta2 > 0; 'union': either"
+
+
 def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
     unit = "m^2" if ws.planar else "m^3"
     key = "area" if ws.planar else "volume"
     r = ws.result
-    rows = [
-        (name, r.estimate[k], r.lower[k], r.upper[k], r.error[k])
-        for k, name in enumerate(ws.targets)
-    ]
-    lines = [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
-    lines.append(key_values([(k, v) for k, v in ws.parameters.items()]))
-    lines += ["", table([("elbow" if ws.planar else "mode"), f"{key} [{unit}]", "lower", "upper", "error est."], rows),
-              ""]
+    rows = [(name, r.estimate[k], r.error[k]) for k, name in enumerate(ws.targets)]
+    lines = []
+    if payload.get("compiled_kernels"):
+        lines += ["(compiled the Numba kernels: first run only)"]
+    lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
+    lines.append(key_values(_parameter_rows(ws.parameters), digits=None))
+    lines += ["", table([("elbow" if ws.planar else "mode"), f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
+              ELBOW_LEGEND if ws.planar else MODE_LEGEND, ""]
     lo, hi = payload["bbox"]
+    rel = ws.error / ws.total if ws.total > 0 else math.inf
     lines.append(key_values([
-        (f"{key} [{unit}]", f"{fmt(ws.total)}  (bounds {fmt(r.lower[-1])} .. {fmt(r.upper[-1])}, "
-                            f"estimated error {fmt(r.error[-1], 2)}, rtol {fmt(r.rtol, 2)}, "
-                            f"{'converged' if r.converged else 'NOT converged'})"),
-        ("bounding box [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
-        ("grid step [m]", f"{fmt(r.step)} refined to {fmt(r.finest_step)} on the boundary"),
+        (f"{key} [{unit}]", f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
+                            f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})"),
+        ("method", "exact columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
+                   f"shorter than the column step {fmt(r.step)} m can be missed" if payload.get("method") == "columns"
+         else "cell refinement"),
+        ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
         ("points evaluated", f"{r.points_evaluated:,}"),
         ("singular points inside", len(payload["singular_points"])),
         ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())

@@ -24,9 +24,8 @@ def test_workspace_volume_p2us(capsys, tmp_path):
     pts, png = tmp_path / "inside.npy", tmp_path / "ws.png"
     code, d, _ = run_json(capsys, "workspace-volume", "p2us", "--step", "0.03", "--rtol", "0.01",
                           "--points", str(pts), "--plot", str(png))
-    assert code == 0 and KEYS | {"volume_m3", "bounds_m3"} <= set(d)
-    lo, hi = d["bounds_m3"]
-    assert lo <= d["volume_m3"] <= hi
+    assert code == 0 and KEYS | {"volume_m3", "error_estimate", "converged"} <= set(d)
+    assert 0 < d["error_estimate"] <= 0.01 * d["volume_m3"] and d["converged"]
     assert set(d["modes"]) == set(__import__("kinematics.parallel", fromlist=["MODES"]).MODES)
     assert d["singular_points"] == [] and d["paper_volume_m3"] == 0.13397
     inside = np.load(pts)
@@ -35,13 +34,14 @@ def test_workspace_volume_p2us(capsys, tmp_path):
     assert png.read_bytes()[:4] == b"\x89PNG"
     code, out, _ = run(capsys, "workspace-volume", "p2us", "--step", "0.03", "--rtol", "0", "--limits", "actuators")
     assert code == 0 and "union" in out and "paper B: 0.13397" in out and "bounding box" in out
+    assert "error estimate [m^3]" in out and "b [m]" in out and "beta [deg]" in out and "working mode:" in out
 
 
 def test_workspace_volume_scara(capsys, tmp_path):
     csv = tmp_path / "pts.csv"
     code, d, _ = run_json(capsys, "workspace-volume", "scara", "--step", "0.02", "--points", str(csv))
-    assert code == 0 and KEYS - {"modes"} | {"area_m2", "bounds_m2", "elbows"} <= set(d)
-    assert d["bounds_m2"][0] <= d["area_m2"] <= d["bounds_m2"][1]
+    assert code == 0 and KEYS - {"modes"} | {"area_m2", "error_estimate", "converged", "elbows"} <= set(d)
+    assert 0 < d["error_estimate"] <= 1e-3 * d["area_m2"]
     assert all(abs(np.hypot(*p["position"]) - 0.7) < 1e-9 for p in d["singular_points"])
     assert csv.read_text().startswith("x,y\n")
 
