@@ -142,8 +142,8 @@ def cmd_info(args: argparse.Namespace) -> int:
             "",
             f"frames ({len(robot.frame_names)}): {', '.join(robot.frame_names)}",
             "",
-            f"Pinocchio vs yourdfpy: {agree.frames} link frames, max position error "
-            f"{agree.max_position_error:.2e} m, max rotation error {agree.max_rotation_error:.2e} rad",
+            (f"Pinocchio vs yourdfpy: {agree.frames} link frames, max position error "
+             f"{agree.max_position_error:.2e} m, max rotation error {agree.max_rotation_error:.2e} rad"),
         ]
         return "\n".join(parts)
 

@@ -201,7 +201,7 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         W = H - L
         x = L - FL * W / (FH - FL)
         x = np.where(np.isfinite(x), x, 0.5 * (L + H))
-        stalled = W > 0.5 * width_two_ago[active]
+        stalled = 0.5 * width_two_ago[active] < W
         if it >= 2:
             x = np.where(stalled, 0.5 * (L + H), x)
         tol = 0.45 * ROOT_TOL
@@ -432,7 +432,7 @@ def _run(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndar
             def inner(p: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 return columns(np.stack([x[p], y], axis=1))
 
-            a, ea, c, _ = adaptive_1d(inner, np.full(P, lo[k_in]), np.full(P, hi[k_in]), inner_rtol, atol_in,
+            a, ea, c, _evals = adaptive_1d(inner, np.full(P, lo[k_in]), np.full(P, hi[k_in]), inner_rtol, atol_in,
                                       order=order, pieces=n_pieces(k_in), max_evals=budget)
             all_conv[0] &= bool(c.all())
             return a, ea, (a > 0).astype(np.int64)

@@ -172,4 +172,5 @@ def kernels_cached() -> bool:
     import glob
     import os
 
-    return bool(glob.glob(os.path.join(_kernel.stats.cache_path, "p2us_scan._kernel-*.nbi")))
+    cache = _kernel.stats.cache_path
+    return cache is not None and bool(glob.glob(os.path.join(cache, "p2us_scan._kernel-*.nbi")))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -136,10 +137,8 @@ def write_atomic(path: str, content: str | bytes | Callable[[str], None], option
                 f.write(content)
         os.replace(tmp, path)
     except BaseException as exc:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         if isinstance(exc, OSError):
             raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None
         raise

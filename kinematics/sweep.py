@@ -25,12 +25,15 @@ import itertools
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from .errors import InvalidInputError, KinematicsError, SweepError, UnknownParameterError
 from .parallel import MODES, P2USParams
+
+if TYPE_CHECKING:
+    from .volume import VolumeEstimate
 
 SWEEPABLE = ("b", "d", "L", "beta", "theta_zero", "rod_spacing", "stroke_min", "stroke_max")
 """Design parameters a sweep may vary (SI units: m, rad)."""
@@ -146,6 +149,7 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
 
     params = to_params(design)
     ws = p2us_workspace(params, step=step, rtol=rtol, progress=False, engine="cells")
+    cells = cast("VolumeEstimate", ws.result)
     lo, hi = bounding_box(params)
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -173,8 +177,8 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
         gci = float(best.mean())
     return {
         "volume_m3": ws.total,
-        "volume_lower_m3": float(ws.result.lower[-1]),
-        "volume_upper_m3": float(ws.result.upper[-1]),
+        "volume_lower_m3": float(cells.lower[-1]),
+        "volume_upper_m3": float(cells.upper[-1]),
         "singularity_free_fraction": free / len(p) if len(p) else 0.0,
         "conditioning_index": gci,
         "grid_points_inside": len(p),
@@ -214,14 +218,14 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             else:
                 try:
                     client = Client(scheduler, timeout="10s")
-                except Exception as exc:  # bad address, refused, timeout: all one answer
+                except Exception as exc:  # noqa: BLE001 - bad address, refused, timeout: all one answer
                     raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
                                             f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
         futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
         _wait(futures, progress)
         try:
             results = client.gather(futures)
-        except Exception as exc:  # a task failed: name the design, not the worker's traceback
+        except Exception as exc:  # noqa: BLE001 - a task failed: name the design, not the worker's traceback
             failed = next((k for k, f in enumerate(futures) if f.status == "error"), None)
             where = f"design {failed} ({_describe(todo[failed], axes)})" if failed is not None else "a design"
             lines = str(exc).splitlines()
@@ -234,7 +238,8 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
                 client.close()
             if own is not None:
                 own.close()
-    return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r} for k, (d, r) in enumerate(zip(todo, results))]
+    return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r}
+            for k, (d, r) in enumerate(zip(todo, results, strict=True))]
 
 
 @contextlib.contextmanager

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
+from .columns import ColumnVolume, column_volume
 from .errors import UnknownModeError
 from .p2us_scan import bounding_box, check_limits, scan
 from .parallel import MODES, P2USParams
 from .scara import ELBOWS, ScaraParams
-from .columns import ColumnVolume, column_volume
 from .volume import VolumeEstimate, adaptive_volume
 
 UNION = "union"

@@ -10,8 +10,8 @@ import pytest
 
 from kinematics.columns import ROOT_TOL, column_lengths, column_volume
 from kinematics.errors import InvalidInputError
-from kinematics.parallel import P2USParams
 from kinematics.p2us_scan import bounding_box
+from kinematics.parallel import P2USParams
 from kinematics.scara import ScaraParams
 from kinematics.workspace import p2us_margin, p2us_workspace, scara_workspace
 
