@@ -50,9 +50,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InvalidInputError
+from .sizes import MAX_POINTS
 
 ROOT_TOL = 1e-12
 """Width [m] to which every column root is bracketed."""
+
+RTOL_FLOOR = 1e-9
+"""Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
+neither the brackets nor double-precision sums of ~1e6 columns (~1e-10) dominate the estimate."""
 
 CHUNK_POINTS = 1 << 19
 """Margin evaluations per batch (bounds memory to ~ this many x targets doubles)."""
@@ -348,7 +353,7 @@ def column_volume(
     pieces: int | None = None,
     axis: int | None = None,
     check: bool = False,
-    max_points: int = 2 * 10**9,
+    max_points: int = MAX_POINTS,
     progress: bool = False,
 ) -> ColumnVolume:
     """Measure {x in [lo, hi] : margin(x)[:, t] >= 0} for every target t by column integration.
@@ -358,7 +363,7 @@ def column_volume(
         lo, hi: a box [m] containing the region (d = 2 or 3).
         step: sampling step along the columns [m]: components shorter than it can be missed;
             also the starting interval of the quadratures is 8 x step.
-        rtol: relative tolerance on the error estimate of every target.
+        rtol: relative tolerance on the error estimate of every target, at least RTOL_FLOOR.
         order: Gauss-Legendre nodes per interval.
         axis: the column axis (default: the box's shortest side).
         check: also run with half the step and compare (about 2x the cost).
@@ -372,6 +377,9 @@ def column_volume(
     for name, v in (("step", step), ("rtol", rtol)):
         if not (math.isfinite(v) and v > 0):
             raise InvalidInputError(name, f"must be positive, got {v}")
+    if rtol < RTOL_FLOOR:
+        raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
+                                        f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     per_column = math.ceil((hi[ax] - lo[ax]) / step) + 1
     start = per_column * math.prod(3 * order * (pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step))))
