@@ -54,7 +54,7 @@ def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
     """`serial_workspace` with the CLI's --resolution, --max-points and --rtol (0: 0.02)."""
     from .serial_workspace import serial_workspace
 
-    if args.modes:
+    if getattr(args, "modes", None):
         raise InvalidInputError("--modes", "working modes are for the 3-[P2(US)] and the planar arm")
     if getattr(args, "limits", "all") != "all":
         raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
