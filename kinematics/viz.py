@@ -643,7 +643,7 @@ def _serial_workspace_points(scene: Scene, w: Any, singularities: bool) -> None:
     pts = w.world_points("inside", turns=turns)
     per = len(pts) // max(cells, 1)  # a revolved cell's points are consecutive
     values = np.repeat(w.smallest_radius[w.inside], per)
-    keep = np.unique(np.linspace(0, len(pts) - 1, min(len(pts), VIEW_CELLS)).astype(int)) if len(pts) else []
+    keep = np.unique(np.linspace(0, max(len(pts) - 1, 0), min(len(pts), VIEW_CELLS)).astype(int))
     pts, values = pts[keep], values[keep]
     known = np.isfinite(values)
     size = 1.5 * w.grid.cell
