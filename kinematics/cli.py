@@ -546,7 +546,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def serial_args(p: argparse.ArgumentParser) -> None:
         p.add_argument("--max-points", type=_positive, default=2_000_000, metavar="N",
-                       help="serial arms: budget of configurations (default 2e6: ~15 s for the UR5 on 2 cores, "
+                       help="serial arms: budget of configurations (default 2e6: 15-25 s for the UR5 on 2 cores, "
                             "proved bounds about +/-50 %%; the bounds stay valid at any budget)")
         p.add_argument("--resolution", type=_integer, metavar="N",
                        help="serial arms: cells across the reached extent (default 400 for a plane or a solid "
