@@ -523,8 +523,10 @@ def default_pose(robot: Any) -> np.ndarray:
     from .serial import task_jacobian
 
     lo, hi = robot.lower, robot.upper
-    mid = np.where(np.isfinite(lo) & np.isfinite(hi), (lo + hi) / 2, 0.0)
-    step = np.minimum(0.3 * np.where(np.isfinite(hi - lo), (hi - lo) / 2, np.inf), 1.0)
+    bounded = np.isfinite(lo) & np.isfinite(hi)  # a continuous joint's -inf + inf would be NaN
+    lo, hi = np.where(bounded, lo, 0.0), np.where(bounded, hi, 0.0)
+    mid = (lo + hi) / 2
+    step = np.minimum(0.3 * np.where(bounded, (hi - lo) / 2, np.inf), 1.0)
     offset = step * (-1.0) ** np.arange(robot.nv)
     for q in (mid, mid + offset):
         e = ellipsoid(task_jacobian(robot, robot.configuration(q)))
@@ -597,16 +599,25 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
     return scene
 
 
-def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = False,
-                scene: Scene | None = None) -> Scene:
+VIEW_CELLS = 100_000
+"""Points a serial workspace view draws at most (an exported scene stays a few MB)."""
+
+
+def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: Any = None,
+                singularities: bool = False, scene: Scene | None = None) -> Scene:
     """Any serial robot at joint values q (default: `default_pose`), with the velocity ellipsoid
-    of its tool position; the camera framed on both."""
+    of its tool position; with a `SerialWorkspace` (`kinematics.serial_workspace`), its certified
+    cells as points coloured by the smallest radius sigma_min [m/rad] (grey where no configuration
+    was evaluated in the cell) and, with `singularities`, the images of the possibly singular
+    boxes; the camera framed on all."""
     from .manipulability import ellipsoid as ellipsoid_of
     from .serial import forward_kinematics, frame_jacobian
 
     scene = scene or Scene()
     qc = robot.configuration(default_pose(robot) if q is None else q)
     scene.add_robot(robot, qc)
+    if workspace is not None:
+        _serial_workspace_points(scene, workspace, singularities)
     if ellipsoid:
         e = ellipsoid_of(frame_jacobian(robot, qc)[:3])
         # true size unless it would dwarf the arm: then scaled to half the arm's bounding radius
@@ -620,6 +631,34 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
         _check_pose(scene, e.radii, "this pose")
     scene.fit_camera()
     return scene
+
+
+def _serial_workspace_points(scene: Scene, w: Any, singularities: bool) -> None:
+    """The certified cells (a solid of revolution swept at as many angles as VIEW_CELLS allows)
+    coloured by smallest radius, and the singular boxes' images, subsampled evenly to VIEW_CELLS."""
+    import dataclasses
+
+    cells = int(w.inside.sum())
+    turns = max(4, min(48, VIEW_CELLS // max(cells, 1)))
+    pts = w.world_points("inside", turns=turns)
+    per = len(pts) // max(cells, 1)  # a revolved cell's points are consecutive
+    values = np.repeat(w.smallest_radius[w.inside], per)
+    keep = np.unique(np.linspace(0, max(len(pts) - 1, 0), min(len(pts), VIEW_CELLS)).astype(int))
+    pts, values = pts[keep], values[keep]
+    known = np.isfinite(values)
+    size = 1.5 * w.grid.cell
+    if known.any():
+        scene.add_points(pts[known], values[known], "overlays/workspace", size=size,
+                         label=f"smallest radius sigma_min [m/rad] over the certified cells of {w.frame}")
+    if (~known).any():
+        scene.add_points(pts[~known], None, "overlays/workspace_unsampled", size=size, colour=(0.7, 0.7, 0.7),
+                         opacity=0.4, label="certified cells where no configuration was evaluated")
+    if singularities and len(w.singular_radius):
+        k = len(w.singular_radius)
+        idx = np.unique(np.linspace(0, k - 1, min(k, VIEW_CELLS // (5 if w.mode != "revolved" else 40))).astype(int))
+        sing = dataclasses.replace(w, singular_points=w.singular_points[idx]).world_points("singular", turns=8)
+        scene.add_points(sing, None, "overlays/singular", size=size, colour=(0.85, 0.1, 0.1),
+                         label=f"possibly singular boxes' images ({k:,} boxes, sample of {len(idx):,})")
 
 
 def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, scene: Scene | None = None) -> Scene:

@@ -17,9 +17,10 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import sys
 
     from . import viz
-    from .parallel_cli import _is_p2us
+    from .workspace_cli import robot_kind
 
-    if _is_p2us(robot):
+    kind = robot_kind(robot)
+    if kind == "p2us":
         unreachable = _p2us_checks(args, robot)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
@@ -31,7 +32,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     scene = viz.Scene(live=not args.export)
     try:
-        if _is_p2us(robot):
+        if kind == "p2us":
             if args.guide is not None:
                 raise InvalidInputError("--guide", "guidance runs are for planar arms")
             actuators = None
@@ -42,19 +43,24 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             viz.p2us_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits, step=args.step, scene=scene)
-        elif robot.loops is None:
+        elif kind in ("scara", "serial"):
             if args.position is not None:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
             q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
                 if args.q is not None else None
-            if _planar(robot):
+            if kind == "scara":
                 viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
                                singularities=args.singularities, guide=args.guide, scene=scene)
             else:
-                if args.workspace or args.singularities or args.guide is not None:
-                    raise InvalidInputError("--workspace/--singularities/--guide",
-                                            "available for the planar arm and the 3-[P2(US)]")
-                viz.serial_view(robot, q, ellipsoid=args.ellipsoid, scene=scene)
+                if args.guide is not None:
+                    raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                ws = None
+                if args.workspace or args.singularities:
+                    from .workspace_cli import serial_scan
+
+                    ws = serial_scan(args, robot)
+                viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
+                                scene=scene)
         else:
             viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float), scene=scene)
         print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
@@ -114,14 +120,3 @@ def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
     reasons = [lb["reason"] for lb in limb_reasons(params, sol.limbs) if lb["reason"]]
     return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
             "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}
-
-
-def _planar(robot: Any) -> bool:
-    from .errors import UnsupportedRobotError
-    from .scara import ScaraParams
-
-    try:
-        ScaraParams.from_robot(robot)
-    except UnsupportedRobotError:
-        return False
-    return True

@@ -16,18 +16,152 @@ from .report import Out, fmt, key_values, show_progress, table, write_atomic
 from .sizes import MAX_LISTED_POINTS, check_points, grid_points
 
 
-def _kind(robot: Robot) -> str:
-    """'p2us' or 'scara' (any planar 2R URDF); anything else is unsupported."""
+def robot_kind(robot: Robot) -> str:
+    """The one place that tells robots apart for scans and views: 'p2us' (the 3-[P2(US)]),
+    'scara' (any planar 2R URDF: closed forms), 'serial' (any other open chain: the generic
+    `serial_workspace`) or 'closed-loop' (any other URDF with a loop sidecar)."""
     from .parallel_cli import _is_p2us
 
     if _is_p2us(robot):
         return "p2us"
-    if robot.loops is None:
-        from .scara import ScaraParams
+    if robot.loops is not None:
+        return "closed-loop"
+    from .scara import ScaraParams
 
-        ScaraParams.from_robot(robot)  # raises UnsupportedRobotError with the reason
-        return "scara"
-    raise UnsupportedRobotError(robot.name, "workspace scans support the 3-[P2(US)] and planar 2R arms")
+    try:
+        ScaraParams.from_robot(robot)
+    except UnsupportedRobotError:
+        return "serial"
+    return "scara"
+
+
+def _kind(robot: Robot) -> str:
+    """robot_kind for workspace scans, which the generic closed-loop robots do not have."""
+    kind = robot_kind(robot)
+    if kind == "closed-loop":
+        raise UnsupportedRobotError(robot.name, "workspace scans support the 3-[P2(US)] and open chains")
+    return kind
+
+
+SERIAL_PROVED = ("proved: lower <= volume <= upper for the URDF's kinematics (Taylor balls with a global "
+                 "second-derivative bound above, Graves' theorem and boundary-free cell components below; "
+                 "double-precision rounding is far below a cell); not proved: the probe that fixes joints "
+                 "which never move the frame (64 configurations), and the dexterity maps, which are the best "
+                 "over the configurations evaluated in a cell (docs/serial-workspace.md)")
+
+
+def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
+    """`serial_workspace` with the CLI's --resolution, --max-points and --rtol (0: 0.02)."""
+    from .serial_workspace import serial_workspace
+
+    if getattr(args, "modes", None):
+        raise InvalidInputError("--modes", "working modes are for the 3-[P2(US)] and the planar arm")
+    if getattr(args, "limits", "all") != "all":
+        raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
+    if getattr(args, "plot", None):
+        raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
+    if budget < 1000:
+        raise InvalidInputError("--max-points", f"must be at least 1000, got {budget}")
+    if args.resolution is not None:
+        if args.resolution < 4:
+            raise InvalidInputError("--resolution", f"must be at least 4 cells, got {args.resolution}")
+        check_points("--resolution", float(args.resolution) ** 3, hint="fewer cells across")
+    rtol = getattr(args, "rtol", 0.0) or 0.02
+    return serial_workspace(robot, rtol=rtol, resolution=args.resolution, max_points=budget,
+                            progress=show_progress(args))
+
+
+def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
+    """An evenly spaced sample of the possibly singular boxes: world position [m] (the base joint
+    at 0 for a solid of revolution), the ball radius [m] their image lies within, the joint values."""
+    import dataclasses
+
+    k = len(ws.singular_radius)
+    idx = np.unique(np.linspace(0, k - 1, min(k, count)).astype(int)) if k else np.zeros(0, dtype=int)
+    world = dataclasses.replace(ws, singular_points=ws.singular_points[idx]).world_points("singular", turns=1)
+    return [{"position": p.tolist(), "radius_m": float(r), "q": q.tolist()}
+            for p, r, q in zip(world, ws.singular_radius[idx], ws.singular_configurations[idx], strict=True)]
+
+
+def _serial_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    ws = serial_scan(args, robot)
+    payload = ws.as_dict()
+    payload.update(max_points=args.max_points, budget_exhausted=ws.points_evaluated >= args.max_points,
+                   singular_points=singular_sample(ws), proved=SERIAL_PROVED)
+    if args.points:
+        pts = ws.world_points("inside")
+        check_points("--points", len(pts), limit=MAX_LISTED_POINTS)
+        _write_points(args.points, pts, "x,y,z")
+    if not ws.converged:
+        import sys
+
+        print(f"warning: the bounds are {2 * ws.error_estimate / ws.measure:.0%} of the estimate apart (rtol "
+              f"{ws.rtol:g} not met); a larger --max-points or --resolution narrows them", file=sys.stderr)
+
+    def human() -> str:
+        unit, key = ("m^2", "area") if ws.planar else ("m^3", "volume")
+        shape = {"planar": f"area in the plane of world axes {list(ws.axes)}",
+                 "revolved": "solid of revolution about the base joint's axis (its profile measured)",
+                 "spatial": "3-D cells"}[ws.mode]
+        rel = ws.error_estimate / ws.measure if ws.measure > 0 else math.inf
+        return "\n".join([
+            f"{robot.name}: reachable {key} of frame {ws.frame} ({shape})",
+            "",
+            key_values([
+                (f"{key} [{unit}]", (f"{fmt(ws.measure, 6)} +/- {fmt(ws.error_estimate, 3)} (midpoint of the "
+                                     f"proved bounds, {fmt(rel, 2)} relative; rtol {fmt(ws.rtol, 2)}: "
+                                     f"{'converged' if ws.converged else 'NOT converged'})")),
+                (f"proved bounds [{unit}]", f"{fmt(ws.lower, 6)} .. {fmt(ws.upper, 6)}"),
+                ("cell [m]", fmt(ws.grid.cell, 3)),
+                ("sampled joints", ", ".join(ws.joints) + (f" (fixed: {', '.join(ws.fixed)})" if ws.fixed else "")),
+                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"
+                 + (" (exhausted: valid but wider bounds)" if payload["budget_exhausted"] else "")),
+                ("possibly singular boxes", f"{len(ws.singular_radius):,}"),
+                ("time [s]", f"{ws.seconds:.2f}"),
+            ], digits=None),
+            "",
+            SERIAL_PROVED,
+        ])
+
+    out(args, payload, human)
+    return 0
+
+
+def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    ws = serial_scan(args, robot)
+    sample = singular_sample(ws)
+    r = ws.singular_radius
+    payload = {
+        "robot": robot.name, "frame": ws.frame, "mode": ws.mode,
+        "singular_boxes": len(r),
+        "tolerance": "a joint box counts when sigma_min(J(centre)) <= sum_i d_i |dJ/dq_i| (its own Lipschitz "
+                     "bound, no chosen threshold); every rank-deficient configuration's image lies within "
+                     "radius_m of a listed point",
+        "radius_m": {"min": float(r.min()), "max": float(r.max())} if len(r) else None,
+        "singular_points": sample,
+        "points_evaluated": ws.points_evaluated, "max_points": args.max_points, "cell_m": ws.grid.cell,
+        "seconds": ws.seconds,
+    }
+
+    def human() -> str:
+        rad = payload["radius_m"]
+        rows = [(fmt(p["position"], 4), fmt(p["radius_m"], 3)) for p in sample[:: max(1, len(sample) // 10)]]
+        return "\n".join([
+            f"{robot.name}: joint boxes of frame {ws.frame} that may hold a rank-deficient position Jacobian",
+            key_values([
+                ("possibly singular boxes", f"{len(r):,}"),
+                ("image radius [m]", f"{fmt(rad['min'], 3)} .. {fmt(rad['max'], 3)}" if rad else "-"),
+                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"),
+                ("time [s]", f"{ws.seconds:.2f}"),
+            ], digits=None),
+            "tolerance: " + payload["tolerance"],
+            "",
+            table(["position [m] (sample)", "radius [m]"], rows) if rows else "no singular box",
+        ])
+
+    out(args, payload, human)
+    return 0
 
 
 def _scara(robot: Robot) -> Any:
@@ -70,6 +204,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from .workspace import p2us_workspace, scara_workspace
 
     kind = _kind(robot)
+    if kind == "serial":
+        return _serial_volume(args, robot, out)
     rtol = None if args.rtol == 0 else args.rtol
     t0 = time.perf_counter()
     sing_summary: dict[str, Any]
@@ -252,6 +388,8 @@ def paper_volume_note(design: str, limits: str) -> str:
 
 def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     kind = _kind(robot)
+    if kind == "serial":
+        return _serial_singularities(args, robot, out)
     if kind == "scara":
         from .errors import UnknownModeError
         from .scara import ELBOWS

@@ -63,8 +63,40 @@ def test_workspace_volume_bad_input(capsys, argv, needle):
 
 
 def test_workspace_volume_rejects_other_robots(capsys):
-    code, _, err = run(capsys, "workspace-volume", "ur5")
-    assert code == 2 and "ur5" in err
+    code, _, err = run(capsys, "workspace-volume", "delta")
+    assert code == 2 and "delta" in err
+
+
+REVOLVED = str(Path(__file__).parent / "models" / "arm3r_revolved.urdf")
+REVOLVED_M3 = 0.331334  # closed form of its solid of revolution (docs/serial-workspace.md, test_serial_workspace)
+
+
+def test_workspace_volume_serial(capsys, tmp_path):
+    csv = tmp_path / "pts.csv"
+    code, d, _ = run_json(capsys, "workspace-volume", REVOLVED, "--resolution", "100", "--points", str(csv))
+    assert code == 0 and {"volume_m3", "error_estimate", "points_evaluated", "seconds", "bounds", "converged",
+                          "singular_points", "proved"} <= set(d)
+    lo, hi = d["bounds"]
+    assert lo <= REVOLVED_M3 <= hi and abs(d["volume_m3"] - REVOLVED_M3) <= d["error_estimate"]
+    pts = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert csv.read_text().startswith("x,y,z\n") and pts.shape[1] == 3 and len(pts) > 1000
+    code, out, _ = run(capsys, "workspace-volume", REVOLVED, "--resolution", "100")
+    assert code == 0 and "proved bounds [m^3]" in out and "not proved" in out and "volume [m^3]" in out
+
+
+def test_singularities_serial(capsys):
+    """The sample's positions are the images of its joint values (base joint at 0 for the UR5's
+    solid of revolution: distance to the base axis z and height agree with forward kinematics)."""
+    from kinematics.model import load_robot
+    from kinematics.serial import forward_kinematics
+
+    code, d, _ = run_json(capsys, "singularities", "ur5", "--max-points", "20000")
+    assert code == 0 and d["singular_boxes"] > 0 and 0 < len(d["singular_points"]) <= 200
+    robot = load_robot("ur5")
+    for p in d["singular_points"][::20]:
+        x = forward_kinematics(robot, robot.configuration(p["q"])).position
+        # 1e-9 m: one FK in double precision, far below any cell
+        assert abs(np.hypot(x[0], x[1]) - np.hypot(*p["position"][:2])) < 1e-9 and abs(x[2] - p["position"][2]) < 1e-9
 
 
 def test_singularities_p2us(capsys, tmp_path):

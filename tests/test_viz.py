@@ -123,8 +123,17 @@ def test_show_export_and_errors(capsys, tmp_path):
     assert code == 0 and out.exists() and str(out) in text
     code, text, err = run(capsys, "show", "p2us", "--position", "0.9", "0", "-0.3", "--export", str(out))
     assert code == 1 and "NOT reachable" in text and err == ""  # unreachable: an answer, as in ik
-    code, _, err = run(capsys, "show", "ur5", "--workspace", "--export", str(out))
+    code, _, err = run(capsys, "show", "ur5", "--workspace", "--max-points", "10", "--export", str(out))
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_show_serial_workspace(capsys, tmp_path):
+    """Any serial arm's certified cells, coloured by smallest radius, and its singular boxes."""
+    out = tmp_path / "w.html"
+    code, _, _ = run(capsys, "show", "ur5", "--workspace", "--singularities", "--max-points", "20000",
+                     "--export", str(out))
+    page = out.read_text()
+    assert code == 0 and "smallest radius sigma_min [m/rad]" in page and "possibly singular boxes" in page
 
 
 def test_show_serves_until_interrupted():
