@@ -306,8 +306,8 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
     lo, hi = payload["bbox"]
     rel = ws.error / ws.total if ws.total > 0 else math.inf
     lines.append(key_values([
-        (f"{key} [{unit}]", f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
-                            f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})"),
+        (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
+                            f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
         ("method", "exact columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
                    f"shorter than the column step {fmt(r.step)} m can be missed" if payload.get("method") == "columns"
          else "cell refinement"),
@@ -345,7 +345,8 @@ def ws_params(ws: Any) -> Any:
     """The P2USParams a workspace was measured with (from its parameters record)."""
     from .parallel import P2USParams
 
-    return P2USParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()})
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()}
+    return P2USParams(**fields)
 
 
 def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
@@ -459,28 +460,28 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         plots.headless()
         plots.save(plots.p2us_singular_loci(res), args.plot)
 
-    def human() -> str:
+    def p2us_human() -> str:
         rows = [(k, *v.values()) for k, v in payload["singularities"].items()]
         lines = [
-            f"{robot.name}: singular loci on a {args.step:g} m grid ({args.limits} limits), "
-            f"{res.points_evaluated:,} points in {res.seconds:.2f} s",
+            (f"{robot.name}: singular loci on a {args.step:g} m grid ({args.limits} limits), "
+            f"{res.points_evaluated:,} points in {res.seconds:.2f} s"),
             "",
             table(["type", "locus points", "in the workspace (type I: on its boundary)"], rows),
             "",
-            "Type I points lie on reach boundaries, so at best on the workspace's boundary; type II/III"
-            " count as inside only with both grid neighbours inside the workspace.",
+            ("Type I points lie on reach boundaries, so at best on the workspace's boundary; type II/III"
+            " count as inside only with both grid neighbours inside the workspace."),
             f"any singular point in the workspace: {res.any_inside}",
         ]
         if args.paper_scan:
             ps = payload["paper_scan"]
-            lines += ["", f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
-                          f"(both assembly modes), tolerance {ps['tolerance']:g}",
+            lines += ["", (f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
+                          f"(both assembly modes), tolerance {ps['tolerance']:g}"),
                       table(["type", "poses", "within limits"],
                             [(k, v["all"], v["within_limits"]) for k, v in ps["counts"].items()]),
                       f"smallest iota_I {fmt(ps['min_iota_I'])}, iota_II {fmt(ps['min_iota_II'])}"]
         return "\n".join(lines)
 
-    out(args, payload, human)
+    out(args, payload, p2us_human)
     return 0
 
 
