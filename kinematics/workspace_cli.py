@@ -218,7 +218,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
         params = params_of(robot)
         modes = tuple(args.modes or MODES)
-        if not args.json and not kernels_cached():
+        if show_progress(args) and not kernels_cached():  # a terminal's notice, like the progress bars
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
