@@ -258,6 +258,29 @@ CASES: list[tuple[list[str], str]] = [
     ([*URDF, "--phi", "1", "-1"], "phi"),
     ([*URDF, "--theta-zero", "inf"], FINITE),
     ([*URDF, "--rod-spacing", "-0.05"], "rod"),
+    (["urdf", "delta", "-o", "d.urdf", "--forearm", "-1"], "positive length"),
+    (["urdf", "delta", "-o", "d.urdf", "--L", "0.3"], "p2us only"),
+    (["urdf", "delta", "-o", "d.urdf", "--design", "results"], "p2us only"),
+    # usable-workspace and workspace-mesh
+    (["usable-workspace", "p2us"], "required: --shape"),
+    (["usable-workspace", "p2us", "--shape", "cone"], "invalid choice"),
+    (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5"], ">= 1"),
+    (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "nan"], POSITIVE),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], "unknown mode"),
+    (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
+    (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
+    (["usable-workspace", "scara", "--shape", "cube"], "3-[P2(US)]"),
+    (["workspace-mesh", "p2us"], "required: -o"),
+    (["workspace-mesh", "p2us", "-o", "m.obj"], "unknown suffix"),
+    (["workspace-mesh", "p2us", "-o", "nodir/m.stl"], "does not exist"),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "-1"], POSITIVE),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "1e-9"], "200,000,000"),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], "unknown mode"),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--limits", "none"], "invalid choice"),
+    # fk over a file of configurations
+    (["fk", "ur5", "--q-file", "nofile.csv", "--out", "p.csv"], "no such file"),
+    (["fk", "ur5", "--q-file", "q.csv"], "needs --out"),
+    (["fk", "ur5", "--q-file", "q.csv", "--out", "p.txt"], "unknown suffix"),
 ]
 
 
