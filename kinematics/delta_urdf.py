@@ -38,7 +38,20 @@ import numpy as np
 from .delta import MECHANISM, MODES, DeltaParams, ik, limb_ik, mode_index, passive_angles
 from .errors import InvalidInputError, ModelFileError, UnsupportedRobotError
 from .loops import sidecar_for
-from .urdf_xml import axis_of, fmt17, joint, limit_of, link, origin_of, rot_y, rot_z, rpy_of, vec, visual
+from .urdf_xml import (
+    axis_of,
+    axis_reference,
+    fmt17,
+    joint,
+    limit_of,
+    link,
+    origin_of,
+    rot_y,
+    rot_z,
+    rpy_of,
+    vec,
+    visual,
+)
 
 LIMBS = (1, 2, 3)
 RODS = (1, 2)
@@ -122,16 +135,7 @@ def urdf_text(params: DeltaParams, name: str = "delta") -> str:
 def reference_pose(params: DeltaParams) -> tuple[np.ndarray, str]:
     """A platform position on the z axis where the robot is assembled in mode '---' with every
     limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
-    reach = params.R + params.la + params.lb
-    z = np.linspace(-2 * reach, 2 * reach, 8001)
-    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
-    res = ik(params, pts)
-    m = mode_index("---")
-    for ok in (res.within_limits[:, m], res.reachable[:, m]):
-        if ok.any():
-            idx = np.flatnonzero(ok)
-            return pts[idx[len(idx) // 2]], "---"
-    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
+    return axis_reference(ik, params, 2 * (params.R + params.la + params.lb), 8001, mode_index("---"))
 
 
 def joint_values_at(params: DeltaParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:

@@ -41,6 +41,7 @@ from .errors import InvalidInputError, ModelFileError, UnsupportedRobotError
 from .parallel import MODES as MODES_BY_INDEX
 from .parallel import P2USParams, limb_ik, passive_angles
 from .urdf_xml import axis_of as _axis
+from .urdf_xml import axis_reference
 from .urdf_xml import fmt17 as _f
 from .urdf_xml import joint as _joint
 from .urdf_xml import limit_of as _limit
@@ -171,15 +172,7 @@ def reference_pose(params: P2USParams) -> tuple[np.ndarray, str]:
     limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
     from .parallel import ik, mode_index
 
-    z = np.linspace(-3 * (params.b + params.L), 3 * (params.b + params.L), 6001)
-    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
-    res = ik(params, pts)
-    m = mode_index("---")
-    for ok in (res.within_limits[:, m], res.reachable[:, m]):
-        if ok.any():
-            idx = np.flatnonzero(ok)
-            return pts[idx[len(idx) // 2]], "---"
-    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
+    return axis_reference(ik, params, 3 * (params.b + params.L), 6001, mode_index("---"))
 
 
 def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:

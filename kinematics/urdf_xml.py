@@ -5,8 +5,26 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from typing import Any
 
 import numpy as np
+
+
+def axis_reference(ik: Any, params: Any, half_span: float, samples: int, mode: int) -> tuple[np.ndarray, str]:
+    """A platform position on the base's z axis, within |z| <= half_span [m] on `samples` points,
+    where working mode `mode` (an index of the 8 sign labels, '---' = 7) is assembled with every
+    limit respected (mid-way along the valid stretch), else merely assembled: the reference
+    configuration the generators write. `ik(params, points)` is the mechanism's vectorised IK."""
+    z = np.linspace(-half_span, half_span, samples)
+    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
+    res = ik(params, pts)
+    for ok in (res.within_limits[:, mode], res.reachable[:, mode]):
+        if ok.any():
+            idx = np.flatnonzero(ok)
+            return pts[idx[len(idx) // 2]], "---"
+    from .errors import InvalidInputError
+
+    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
 
 
 def fmt17(x: float) -> str:
