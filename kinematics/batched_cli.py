@@ -17,8 +17,9 @@ import warnings
 import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
+from .files import check_output, write_atomic
 from .model import Robot
-from .report import Out, check_output, write_atomic
+from .report import Out
 
 
 def _check_out(path: str, q_file: str) -> None:

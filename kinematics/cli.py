@@ -707,7 +707,7 @@ def reference_markdown() -> str:
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    from .report import check_output
+    from .files import check_output
 
     for dest, default in OUTPUTS.items():
         path = getattr(args, dest, None)

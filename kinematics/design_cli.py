@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .files import check_output, write_atomic
 from .model import Robot
-from .report import Out, check_output, fmt, key_values, write_atomic
+from .report import Out, fmt, key_values
 
 
 def _params(robot: Robot) -> Any:

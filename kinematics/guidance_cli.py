@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 
 from .errors import UnsupportedRobotError
-from .report import Out, fmt, key_values, write_atomic
+from .files import write_atomic
+from .report import Out, fmt, key_values
 
 
 def run(args: argparse.Namespace, out: Out) -> int:

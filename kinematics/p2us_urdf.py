@@ -256,7 +256,7 @@ def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = N
     loops = sidecar_text(params, urdf_path.name)
     if not urdf_path.parent.is_dir():
         raise ModelFileError(urdf_path.parent, "output directory does not exist")
-    from .report import write_atomic
+    from .files import write_atomic
 
     write_atomic(str(urdf_path), urdf, "output")
     write_atomic(str(side), loops, "output")

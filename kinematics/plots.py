@@ -39,10 +39,10 @@ def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: 
 
 
 def save(fig: Any, path: str | os.PathLike[str], option: str = "--plot") -> None:
-    """Write the figure (format from the suffix) atomically (`report.write_atomic`) and close it."""
+    """Write the figure (format from the suffix) atomically (`files.write_atomic`) and close it."""
     import matplotlib.pyplot as plt
 
-    from .report import write_atomic
+    from .files import write_atomic
 
     try:
         write_atomic(os.fspath(path), lambda tmp: fig.savefig(tmp, dpi=110, bbox_inches="tight"), option)

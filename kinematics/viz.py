@@ -386,7 +386,7 @@ class Scene:
 
     def export(self, path: str | os.PathLike[str]) -> None:
         """Write `html()` to a file (atomically)."""
-        from .report import write_atomic
+        from .files import write_atomic
 
         write_atomic(os.fspath(path), self.html(), "--export")
 

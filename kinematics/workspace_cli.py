@@ -11,8 +11,9 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError, UnsupportedRobotError
+from .files import write_atomic
 from .model import Robot
-from .report import Out, fmt, key_values, show_progress, table, write_atomic
+from .report import Out, fmt, key_values, show_progress, table
 from .sizes import MAX_LISTED_POINTS, check_points, grid_points
 
 

@@ -375,7 +375,7 @@ def test_outputs_written_atomically(capsys, workdir):
 
 def test_write_atomic_leaves_nothing_on_failure(tmp_path):
     from kinematics.errors import InvalidInputError
-    from kinematics.report import write_atomic
+    from kinematics.files import write_atomic
 
     target = tmp_path / "t.csv"
     target.write_text("old")

@@ -1,0 +1,70 @@
+"""Output files written safely: paths checked before any work, content written atomically."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+
+OUTPUT_SUFFIXES: dict[str, tuple[str, ...]] = {
+    "figure": (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff"),
+    "csv": (".csv",),
+    "points": (".npy", ".csv", ".txt"),
+    "html": (".html", ".htm"),
+    "urdf": (".urdf",),
+    "poses": (".csv", ".npy"),
+    "mesh": (".stl", ".ply", ".glb"),
+}
+"""The suffixes each kind of output file may have (the writer is chosen by the suffix)."""
+
+
+def check_output(path: str, option: str, kind: str) -> None:
+    """Refuse an output path before any work is done: its directory must exist and be writable,
+    the path must not be a directory, and its suffix must be one `kind` can be written as.
+    Raises InvalidInputError naming the CLI `option`."""
+    import os
+
+    from kinematics.errors import InvalidInputError
+
+    suffixes = OUTPUT_SUFFIXES[kind]
+    ext = os.path.splitext(path)[1].lower()
+    if not path or path.endswith(os.sep) or os.path.isdir(path):
+        raise InvalidInputError(option, f"{path!r} is a directory; give a file name ({'/'.join(suffixes)})")
+    if ext not in suffixes:
+        raise InvalidInputError(option, f"{path!r}: unknown suffix {ext or '(none)'!r}; use one of {', '.join(suffixes)}")
+    parent = os.path.dirname(path) or "."
+    if not os.path.isdir(parent):
+        raise InvalidInputError(option, f"{path!r}: directory {parent!r} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InvalidInputError(option, f"{path!r}: directory {parent!r} is not writable")
+
+
+def write_atomic(path: str, content: str | bytes | Callable[[str], None], option: str) -> None:
+    """Write `content` to `path` through a temporary file beside it and a rename, so no reader
+    ever sees a half-written file and nothing is left behind on any failure (an interrupt
+    included). `content` is text, bytes, or a function that writes a given path (the temporary
+    path keeps the suffix, so suffix-driven writers such as savefig and numpy.save work). An
+    OSError becomes an InvalidInputError naming the CLI `option`."""
+    import os
+    import secrets
+
+    from kinematics.errors import InvalidInputError
+
+    parent, name = os.path.split(path)
+    ext = os.path.splitext(name)[1]
+    tmp = os.path.join(parent, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp{ext}")
+    try:
+        if callable(content):
+            content(tmp)
+        elif isinstance(content, bytes):
+            with open(tmp, "xb") as fb:
+                fb.write(content)
+        else:
+            with open(tmp, "x", encoding="utf-8") as f:
+                f.write(content)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None
+        raise
