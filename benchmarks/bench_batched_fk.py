@@ -21,9 +21,9 @@ import numpy as np
 import pinocchio as pin
 from _timing import best_of
 
-from kinematics.batched import BatchedKinematics, configurations
 from kinematics.chunks import default_workers
-from kinematics.model import load_robot
+from kinematics.generic.batched import BatchedKinematics, configurations
+from kinematics.model.robot import load_robot
 
 
 def main() -> None:

@@ -11,9 +11,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from kinematics.guidance import Controller, GuidanceParams, ScaraKinematics, SerialKinematics
-from kinematics.model import load_robot
-from kinematics.scara import ScaraParams
+from kinematics.guidance.controller import Controller, GuidanceParams, ScaraKinematics, SerialKinematics
+from kinematics.mechanisms.scara.closed_form import ScaraParams
+from kinematics.model.robot import load_robot
 
 
 def timings(fn, n: int) -> np.ndarray:

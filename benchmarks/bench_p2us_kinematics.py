@@ -12,11 +12,11 @@ import time
 import numpy as np
 from _timing import best_of
 
-from kinematics import parallel as par
 from kinematics.chunks import default_workers, map_chunks
-from kinematics.closedloop import ClosedLoop
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import read_params
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 
 def main() -> None:

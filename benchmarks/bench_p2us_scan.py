@@ -19,13 +19,13 @@ import numba
 import numpy as np
 from _timing import best_of
 
-from kinematics import p2us_scan as S
-from kinematics.closedloop import ClosedLoop
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import read_params
-from kinematics.parallel import ik
-from kinematics.volume import adaptive_volume
-from kinematics.workspace import p2us_margin, p2us_workspace
+from kinematics.analyses.cells import adaptive_volume
+from kinematics.analyses.workspace import p2us_margin, p2us_workspace
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.p2us import scan as S
+from kinematics.mechanisms.p2us.closed_form import ik
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 CHUNK = 1 << 18
 

@@ -13,10 +13,10 @@ import numpy as np
 import pinocchio as pin
 from _timing import best_of
 
-from kinematics import scara as sc
 from kinematics.chunks import default_workers, map_chunks
-from kinematics.manipulability import ellipsoid
-from kinematics.model import load_robot
+from kinematics.generic.manipulability import ellipsoid
+from kinematics.mechanisms.scara import closed_form as sc
+from kinematics.model.robot import load_robot
 
 
 def main() -> None:

@@ -16,8 +16,8 @@ import os
 import subprocess
 from pathlib import Path
 
-from kinematics.model import load_robot
-from kinematics.serial_workspace import serial_workspace
+from kinematics.analyses.serial_workspace import serial_workspace
+from kinematics.model.robot import load_robot
 
 HERE = Path(__file__).resolve().parent
 ARM3R = HERE.parent / "tests" / "models" / "arm3r_revolved.urdf"

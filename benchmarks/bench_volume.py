@@ -1,7 +1,7 @@
 """Workspace volume of the 3-[P2(US)], three methods side by side in one run:
 
-1. the column engine (`kinematics.columns.column_volume`): exact columns, adaptive quadrature;
-2. today's adaptive cells (`kinematics.volume.adaptive_volume`), rtol 1e-3 from 1 cm;
+1. the column engine (`kinematics.analyses.columns.column_volume`): exact columns, adaptive quadrature;
+2. today's adaptive cells (`kinematics.analyses.cells.adaptive_volume`), rtol 1e-3 from 1 cm;
 3. plain counting of cell centres at 2.5 mm.
 
 Each for the every-limit union, the strokes-only union and per working mode (strokes only), with
@@ -22,12 +22,12 @@ import time
 
 import numpy as np
 
-from kinematics.columns import column_volume
-from kinematics.model import load_robot
-from kinematics.p2us_scan import bounding_box
-from kinematics.p2us_urdf import read_params
-from kinematics.volume import adaptive_volume
-from kinematics.workspace import p2us_margin
+from kinematics.analyses.cells import adaptive_volume
+from kinematics.analyses.columns import column_volume
+from kinematics.analyses.workspace import p2us_margin
+from kinematics.mechanisms.p2us.scan import bounding_box
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 
 def counting(margin, lo, hi, step: float) -> tuple[np.ndarray, int]:
@@ -68,7 +68,7 @@ def main() -> None:
         t = time.perf_counter()
         cnt, n_cnt = counting(margin, lo, hi, 0.0025)
         t_cnt = time.perf_counter() - t
-        targets = ["union"] if limits == "all" else [*__import__("kinematics.parallel").parallel.MODES, "union"]
+        targets = ["union"] if limits == "all" else [*__import__("kinematics.mechanisms.p2us.closed_form").parallel.MODES, "union"]
         for name in targets:
             k = -1 if name == "union" else targets.index(name)
             if ref is None and name != "union":

@@ -14,9 +14,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from kinematics import parallel as par
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import read_params
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 OUT = Path(__file__).resolve().parent / "figures"
 
@@ -78,8 +78,8 @@ def _p2us_params():
 
 def p2us_workspace() -> plt.Figure:
     """Slices and a 3D view of the joint-limited workspace with its singular loci."""
-    from kinematics import plots
-    from kinematics.singularities import p2us_singularities
+    from kinematics.analyses.singularities import p2us_singularities
+    from kinematics.views import plots
 
     P = _p2us_params()
     return plots.p2us_workspace(P, "all", 0.01, singular=p2us_singularities(P, step=0.01, progress=False).locus)
@@ -87,25 +87,25 @@ def p2us_workspace() -> plt.Figure:
 
 def p2us_workspace_actuators() -> plt.Figure:
     """The same with the actuator strokes only (every working mode)."""
-    from kinematics import plots
+    from kinematics.views import plots
 
     return plots.p2us_workspace(_p2us_params(), "actuators", 0.01)
 
 
 def p2us_singular_loci() -> plt.Figure:
     """Type I/II/III loci over the strokes-only grid, the joint-limited workspace's points marked."""
-    from kinematics import plots
-    from kinematics.singularities import p2us_singularities
+    from kinematics.analyses.singularities import p2us_singularities
+    from kinematics.views import plots
 
     return plots.p2us_singular_loci(p2us_singularities(_p2us_params(), step=0.01, limits="actuators", progress=False))
 
 
 def volume_convergence() -> plt.Figure:
     """Adaptive estimate and bounds per level against uniform grids (same estimator)."""
-    from kinematics import plots
-    from kinematics.p2us_scan import bounding_box
-    from kinematics.volume import adaptive_volume
-    from kinematics.workspace import p2us_margin, p2us_workspace
+    from kinematics.analyses.cells import adaptive_volume
+    from kinematics.analyses.workspace import p2us_margin, p2us_workspace
+    from kinematics.mechanisms.p2us.scan import bounding_box
+    from kinematics.views import plots
 
     P = _p2us_params()
     ws = p2us_workspace(P, step=0.02, rtol=1e-4, progress=False, engine="cells")
@@ -118,8 +118,8 @@ def volume_convergence() -> plt.Figure:
 def volume_vs_theta_zero() -> plt.Figure:
     """Union volume (every limit) against the theta reference: how much the paper's number hinges
     on an angle convention it does not state."""
-    from kinematics.p2us_scan import PAPER_VOLUME_M3
-    from kinematics.workspace import p2us_workspace
+    from kinematics.analyses.workspace import p2us_workspace
+    from kinematics.mechanisms.p2us.scan import PAPER_VOLUME_M3
 
     P = _p2us_params()
     zeros = np.radians(np.arange(-60, 61, 10))
@@ -136,19 +136,19 @@ def volume_vs_theta_zero() -> plt.Figure:
 
 def scara_workspace() -> plt.Figure:
     """SCARA: smallest radius over the joint grid and the plane, with the theta2 = 0 arc."""
-    from kinematics import plots
-    from kinematics.scara import ScaraParams
-    from kinematics.singularities import scara_singularities
+    from kinematics.analyses.singularities import scara_singularities
+    from kinematics.mechanisms.scara.closed_form import ScaraParams
+    from kinematics.views import plots
 
     sp = ScaraParams.from_robot(load_robot("scara"))
     return plots.scara_workspace(sp, scara_singularities(sp))
 
 
 def _guidance(number: int, virtual: bool) -> plt.Figure:
-    from kinematics import plots
-    from kinematics.guidance import GuidanceParams
-    from kinematics.guidance_sim import EXPERIMENTS, run_experiment
-    from kinematics.scara import ScaraParams
+    from kinematics.guidance.controller import GuidanceParams
+    from kinematics.guidance.simulation import EXPERIMENTS, run_experiment
+    from kinematics.mechanisms.scara.closed_form import ScaraParams
+    from kinematics.views import plots
 
     sp = ScaraParams.from_robot(load_robot("scara"))
     run = run_experiment(number, sp, GuidanceParams(virtual_impedance=virtual))
@@ -167,28 +167,28 @@ def _view(make) -> Path:
 
 def view_scara():
     """`kinematics show scara --ellipsoid --workspace --singularities`."""
-    from kinematics import viz
+    from kinematics.views import meshcat as viz
 
     return _view(lambda: viz.scara_view(load_robot("scara"), ellipse=True, workspace=True, singularities=True))
 
 
 def view_p2us():
     """`kinematics show p2us --ellipsoid`."""
-    from kinematics import viz
+    from kinematics.views import meshcat as viz
 
     return _view(lambda: viz.p2us_view(load_robot("p2us"), ellipsoid=True))
 
 
 def view_p2us_workspace():
     """`kinematics show p2us --workspace --singularities --limits actuators`."""
-    from kinematics import viz
+    from kinematics.views import meshcat as viz
 
     return _view(lambda: viz.p2us_view(load_robot("p2us"), workspace=True, singularities=True, limits="actuators"))
 
 
 def view_ur5():
     """`kinematics show ur5 --ellipsoid` (example-robot-data meshes, default pose)."""
-    from kinematics import viz
+    from kinematics.views import meshcat as viz
 
     return _view(lambda: viz.serial_view(load_robot("ur5"), ellipsoid=True))
 

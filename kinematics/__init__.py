@@ -3,10 +3,10 @@ robot described the same way (URDF + loop-closure sidecar), built on Pinocchio.
 
 Submodules (imported on demand, so `import kinematics` stays light):
 
-* `kinematics.model` - load robots (built-in names, URDF paths, example-robot-data names)
-* `kinematics.serial` - frame poses and world-aligned Jacobians through Pinocchio
-* `kinematics.scara` - closed forms of the planar 2R arm, vectorised
-* `kinematics.manipulability` - manipulability ellipsoids of any Jacobian
+* `kinematics.model.robot` - load robots (built-in names, URDF paths, example-robot-data names)
+* `kinematics.generic.serial` - frame poses and world-aligned Jacobians through Pinocchio
+* `kinematics.mechanisms.scara.closed_form` - closed forms of the planar 2R arm, vectorised
+* `kinematics.generic.manipulability` - manipulability ellipsoids of any Jacobian
 * `kinematics.errors` - the `KinematicsError` hierarchy
 """
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .errors import KinematicsError
+from kinematics.errors import KinematicsError
 
 __version__ = "0.1.0"
 __all__ = ["KinematicsError", "__version__", "load_robot"]

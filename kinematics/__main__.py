@@ -2,6 +2,6 @@
 
 import sys
 
-from .cli import main
+from kinematics.cli import main
 
 sys.exit(main())

@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
-from .errors import InvalidInputError
+from kinematics.errors import InvalidInputError
 
 T = TypeVar("T")
 

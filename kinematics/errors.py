@@ -131,3 +131,15 @@ class InvalidDesignError(InvalidInputError):
 
 class SweepError(KinematicsError):
     """A design of a sweep failed on the cluster; the message names the design and the cause."""
+
+
+class MissingCapabilityError(UnsupportedRobotError):
+    """A command needs something the robot's mechanism does not provide (e.g. a workspace margin
+    for a generic closed-loop model). Carries what was needed and what the mechanism has."""
+
+    def __init__(self, robot: str, capability: str, purpose: str, available: Iterable[str]) -> None:
+        self.capability = capability
+        self.purpose = purpose
+        self.available = tuple(sorted(available))
+        super().__init__(robot, f"{purpose} needs its mechanism's {capability}, which this robot does not provide "
+                                f"(it provides: {', '.join(self.available) or 'nothing'})")

@@ -13,7 +13,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from .errors import InvalidInputError
+from kinematics.errors import InvalidInputError
 
 if TYPE_CHECKING:  # numpy stays unimported for `kinematics --help`
     import numpy as np

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinematics.model import Robot, load_robot
+from kinematics.model.robot import Robot, load_robot
 
 
 @pytest.fixture(scope="session")
@@ -45,14 +45,14 @@ def p2us() -> Robot:
 
 @pytest.fixture(scope="session")
 def p2us_params(p2us):
-    from kinematics.p2us_urdf import read_params
+    from kinematics.mechanisms.p2us.urdf import read_params
 
     return read_params(p2us.urdf_path)
 
 
 def sample_actuators(params, n: int, rng: np.random.Generator) -> np.ndarray:
     """Actuator values within the strokes at which the robot assembles (rejection sampling)."""
-    from kinematics.parallel import fk
+    from kinematics.mechanisms.p2us.closed_form import fk
 
     out = []
     while sum(len(o) for o in out) < n:

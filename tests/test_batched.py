@@ -8,10 +8,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from kinematics.batched import BLOCK, BatchedKinematics, batched_fk, batched_jacobian, configurations
-from kinematics.cli import main
+from kinematics.cli.app import main
 from kinematics.errors import InvalidInputError, UnknownFrameError, UnsupportedRobotError
-from kinematics.model import load_robot
+from kinematics.generic.batched import BLOCK, BatchedKinematics, batched_fk, batched_jacobian, configurations
+from kinematics.model.robot import load_robot
 
 MODELS = Path(__file__).parent / "models"
 ONE_DOF = str(MODELS / "one_dof_batched.urdf")

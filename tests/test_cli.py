@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from kinematics.cli import build_parser, main
+from kinematics.cli.app import build_parser, main
 
 from .conftest import write_2r_urdf
 

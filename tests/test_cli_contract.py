@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from kinematics.cli import main
+from kinematics.cli.app import main
 
 MODELS = Path(__file__).parent / "models"
 FOURBAR = str(MODELS / "fourbar.urdf")
@@ -461,10 +461,10 @@ def _interrupt(argv: list[str], after: float, group: bool = False) -> subprocess
 # however loaded it is), which a fixed step count cannot promise.
 SLOW_GUIDE = """
 import sys, time
-from kinematics import guidance
+from kinematics.guidance import controller as guidance
 step = guidance.Controller.step
 guidance.Controller.step = lambda self, *a, **k: (time.sleep(1e-3), step(self, *a, **k))[1]
-from kinematics.cli import main
+from kinematics.cli.app import main
 sys.exit(main(sys.argv[1:]))
 """
 

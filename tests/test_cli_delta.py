@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import delta as dl
-from kinematics.cli import main
-from kinematics.model import URDF_DIR
+from kinematics.cli.app import main
+from kinematics.mechanisms.delta import closed_form as dl
+from kinematics.model.robot import URDF_DIR
 
 from .test_cli import run, run_json
 

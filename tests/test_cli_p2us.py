@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics.cli import main
-from kinematics.model import URDF_DIR
+from kinematics.cli.app import main
+from kinematics.model.robot import URDF_DIR
 
 from .test_cli import run, run_json
 
@@ -64,7 +64,7 @@ def test_jacobian(capsys):
     # independent of the report's own algebra: J against central differences of the IK in mode
     # "---" (h = 1e-6 m: truncation ~h^2, rounding ~1e-16/h; atol 1e-8), J_x's rows against the
     # rods C_i - B_i built here from the design (P2USParams defaults = the built-in URDF)
-    from kinematics import parallel as par
+    from kinematics.mechanisms.p2us import closed_form as par
 
     P, p, m, h = par.P2USParams(), np.array([0.0, 0.0, -0.45]), par.mode_index("---"), 1e-6
     fd = np.stack([(par.ik(P, p + h * e).q[m] - par.ik(P, p - h * e).q[m]) / (2 * h) for e in np.eye(3)], axis=1)
@@ -80,7 +80,7 @@ def test_jacobian(capsys):
 
 
 def test_jacobian_type_one(capsys):
-    from kinematics.parallel import P2USParams
+    from kinematics.mechanisms.p2us.closed_form import P2USParams
 
     P = P2USParams()
     n1 = np.cross(P.w[0], P.t[0])

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import sweep as sw
+from kinematics.analyses import sweep as sw
 from kinematics.errors import InvalidInputError, UnknownParameterError
 
 from .test_cli import run, run_json
@@ -26,7 +26,7 @@ def test_workspace_volume_p2us(capsys, tmp_path):
                           "--points", str(pts), "--plot", str(png))
     assert code == 0 and KEYS | {"volume_m3", "error_estimate", "converged"} <= set(d)
     assert 0 < d["error_estimate"] <= 0.01 * d["volume_m3"] and d["converged"]
-    assert set(d["modes"]) == set(__import__("kinematics.parallel", fromlist=["MODES"]).MODES)
+    assert set(d["modes"]) == set(__import__("kinematics.mechanisms.p2us.closed_form", fromlist=["MODES"]).MODES)
     assert d["singular_points"] == [] and d["paper_volume_m3"] == 0.13397
     inside = np.load(pts)
     assert inside.shape[1] == 3 and len(inside) > 100
@@ -87,8 +87,8 @@ def test_workspace_volume_serial(capsys, tmp_path):
 def test_singularities_serial(capsys):
     """The sample's positions are the images of its joint values (base joint at 0 for the UR5's
     solid of revolution: distance to the base axis z and height agree with forward kinematics)."""
-    from kinematics.model import load_robot
-    from kinematics.serial import forward_kinematics
+    from kinematics.generic.serial import forward_kinematics
+    from kinematics.model.robot import load_robot
 
     code, d, _ = run_json(capsys, "singularities", "ur5", "--max-points", "20000")
     assert code == 0 and d["singular_boxes"] > 0 and 0 < len(d["singular_points"]) <= 200

@@ -8,16 +8,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from kinematics import parallel as par
-from kinematics.closedloop import ClosedLoop
 from kinematics.errors import (
     ConvergenceError,
     InvalidInputError,
     SingularConfigurationError,
     UnsupportedRobotError,
 )
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import joint_values_at
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.urdf import joint_values_at
+from kinematics.model.robot import load_robot
 
 from .conftest import sample_actuators
 from .test_parallel import type_two_pose

@@ -14,8 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinematics import delta as dl
 from kinematics.errors import InvalidDesignError, InvalidInputError
+from kinematics.mechanisms.delta import closed_form as dl
 
 P = dl.DeltaParams()
 Z = np.array([0.0, 0.0, 1.0])

@@ -9,11 +9,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from kinematics import delta as dl
-from kinematics.closedloop import ClosedLoop
-from kinematics.delta_urdf import joint_values_at, read_params, sidecar_text, urdf_text, write
 from kinematics.errors import ConvergenceError, SingularConfigurationError, UnsupportedRobotError
-from kinematics.model import URDF_DIR, load_robot, parser_agreement
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.delta import closed_form as dl
+from kinematics.mechanisms.delta.urdf import joint_values_at, read_params, sidecar_text, urdf_text, write
+from kinematics.model.robot import URDF_DIR, load_robot, parser_agreement
 
 from .test_delta import sample_actuators, type_two_pose
 
@@ -179,7 +179,7 @@ def test_no_assembly_is_a_clear_error(tmp_path):
 
 
 def test_mobility_three_translations(delta, loop):
-    from kinematics.mobility import analyse
+    from kinematics.analyses.mobility import analyse
 
     rep = analyse(delta, loop.reference)
     assert rep.grubler.mobility == 3 and rep.numeric.mobility == 3 and rep.numeric.platform_freedoms == 3

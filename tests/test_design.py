@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.boundary_mesh import margin_mesh, p2us_mesh
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import read_params
-from kinematics.parallel import MODES, ik, jacobians
-from kinematics.usable import largest_shape, p2us_usable, shape_samples
-from kinematics.workspace import p2us_volume_monte_carlo
+from kinematics.analyses.boundary_mesh import margin_mesh, p2us_mesh
+from kinematics.analyses.usable import largest_shape, p2us_usable, shape_samples
+from kinematics.analyses.workspace import p2us_volume_monte_carlo
+from kinematics.mechanisms.p2us.closed_form import MODES, ik, jacobians
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 from .test_cli import run, run_json
 
@@ -149,8 +149,8 @@ def test_cli_usable_workspace_errors(capsys):
 
 
 def test_mesh_in_a_meshcat_scene():
-    from kinematics import viz
-    from kinematics.boundary_mesh import add_to_scene
+    from kinematics.analyses.boundary_mesh import add_to_scene
+    from kinematics.views import meshcat as viz
 
     m = margin_mesh(ball, *BOX, 0.02)
     scene = viz.Scene()

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import mobility as mob
-from kinematics.closedloop import ClosedLoop
+from kinematics.analyses import mobility as mob
 from kinematics.errors import SingularConfigurationError
-from kinematics.model import load_robot
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.model.robot import load_robot
 
 from .fivebar import FiveBar, circles, u
 

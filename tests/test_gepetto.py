@@ -9,11 +9,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from kinematics import mobility as mob
-from kinematics.closedloop import ClosedLoop
+from kinematics.analyses import mobility as mob
 from kinematics.errors import KinematicsError, UnknownFrameError, UnknownJointError
-from kinematics.gepetto import GepettoFormatError
-from kinematics.model import load_robot
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.model.gepetto import GepettoFormatError
+from kinematics.model.robot import load_robot
 
 from .test_cli import run, run_json
 

@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 
 from kinematics.errors import InvalidInputError
-from kinematics.guidance import Controller, GuidanceParams, ScaraKinematics, SerialKinematics, virtual_gain
-from kinematics.guidance_sim import (
+from kinematics.generic.manipulability import ellipsoid
+from kinematics.guidance.controller import (
+    Controller,
+    GuidanceParams,
+    ScaraKinematics,
+    SerialKinematics,
+    virtual_gain,
+)
+from kinematics.guidance.simulation import (
     SINGULAR_RADIUS,
     Profile,
     ReactiveOperator,
@@ -18,8 +25,7 @@ from kinematics.guidance_sim import (
     run_experiment,
     simulate,
 )
-from kinematics.manipulability import ellipsoid
-from kinematics.scara import ScaraParams, fk, jacobian
+from kinematics.mechanisms.scara.closed_form import ScaraParams, fk, jacobian
 
 from .test_cli import run, run_json
 
@@ -180,7 +186,7 @@ def test_any_serial_robot(ur5):
     q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])
     x0 = kin.fk(q0)
     radii, u = kin.ellipse(q0)
-    J = __import__("kinematics.serial", fromlist=["task_jacobian"]).task_jacobian(ur5, q0)
+    J = __import__("kinematics.generic.serial", fromlist=["task_jacobian"]).task_jacobian(ur5, q0)
     np.testing.assert_allclose(radii, ellipsoid(J).radii, atol=1e-9)
     away = x0 / np.linalg.norm(x0)
     away[2] = 0.0
@@ -255,7 +261,13 @@ def test_ik_holds_branch_and_stretched_is_either(sp):
 def test_scalar_closed_forms_match_vectorised(sp, rng):
     """The guidance adapter's scalar forms are the library's: same IK (incl. within
     BOUNDARY_TOL of the outer radius, where acos would lose half the digits) and radii."""
-    from kinematics.scara import BOUNDARY_TOL, ellipse_point, ik, ik_elbow, manipulability
+    from kinematics.mechanisms.scara.closed_form import (
+        BOUNDARY_TOL,
+        ellipse_point,
+        ik,
+        ik_elbow,
+        manipulability,
+    )
 
     pts = rng.uniform(-0.7, 0.7, (300, 2))
     ang = rng.uniform(-np.pi, np.pi, 50)
@@ -282,7 +294,7 @@ def test_serial_guidance_continuous_joints():
     configuration manifold and reports joint rates of size nv."""
     import pinocchio as pin
 
-    from kinematics.model import load_robot
+    from kinematics.model.robot import load_robot
 
     robot = load_robot("kinova")
     assert robot.model.nq != robot.model.nv
@@ -319,7 +331,7 @@ def test_ramp_edge_cases():
 def test_reused_operator_gives_the_same_run(sp):
     """A ReactiveOperator remembers when it let go; re-used for a second run (from a start
     farther from the wall) it must push like a fresh one, not let go at the first run's time."""
-    from kinematics.scara import ik
+    from kinematics.mechanisms.scara.closed_form import ik
 
     near, far = (ik(sp, np.array([x, 0.0])).q[0] for x in (0.62, 0.4))
     kin, p = ScaraKinematics(sp), GuidanceParams()

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinematics import scara as sc
 from kinematics.errors import InvalidInputError
-from kinematics.manipulability import SINGULAR_RTOL, ellipses_2x2, ellipsoid
-from kinematics.serial import task_jacobian
+from kinematics.generic.manipulability import SINGULAR_RTOL, ellipses_2x2, ellipsoid
+from kinematics.generic.serial import task_jacobian
+from kinematics.mechanisms.scara import closed_form as sc
 
 
 @pytest.fixture(scope="module")

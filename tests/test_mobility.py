@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import mobility as mob
-from kinematics import parallel as par
-from kinematics.closedloop import ClosedLoop
-from kinematics.model import load_robot
-from kinematics.p2us_urdf import joint_values_at
+from kinematics.analyses import mobility as mob
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.urdf import joint_values_at
+from kinematics.model.robot import load_robot
 
 from .test_cli import run, run_json
 from .test_closedloop import workspace_poses

@@ -14,7 +14,7 @@ from kinematics.errors import (
     UnknownFrameError,
     UnknownRobotError,
 )
-from kinematics.model import load_robot, parser_agreement, robot_names
+from kinematics.model.robot import load_robot, parser_agreement, robot_names
 
 
 def test_builtin_scara_joints_and_limits(scara):

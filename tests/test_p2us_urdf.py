@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.closedloop import ClosedLoop
 from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError, UnsupportedRobotError
-from kinematics.model import URDF_DIR, load_robot, parser_agreement
-from kinematics.p2us_urdf import read_params, sidecar_text, urdf_text, write
-from kinematics.parallel import P2USParams
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.mechanisms.p2us.closed_form import P2USParams
+from kinematics.mechanisms.p2us.urdf import read_params, sidecar_text, urdf_text, write
+from kinematics.model.robot import URDF_DIR, load_robot, parser_agreement
 
 
 def test_builtin_urdf_is_the_generated_default(p2us_params):

@@ -11,16 +11,16 @@ import math
 import numpy as np
 import pytest
 
-from kinematics import paper_b as pb
-from kinematics import parallel as par
-from kinematics.cli import main
-from kinematics.model import URDF_DIR, load_robot
-from kinematics.p2us_urdf import DESIGNS, read_params, sidecar_text, urdf_text, write
-from kinematics.parallel import P2USParams
+from kinematics.cli.app import main
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us import paper_b as pb
+from kinematics.mechanisms.p2us.closed_form import P2USParams
+from kinematics.mechanisms.p2us.urdf import DESIGNS, read_params, sidecar_text, urdf_text, write
+from kinematics.model.robot import URDF_DIR, load_robot
 
 COLUMN_REFERENCE_M3 = 0.13454878
 """Working mode '---' of p2us-results, strokes only, by exact vertical extents + nested adaptive
-Gauss-Kronrod (`kinematics.p2us_columns.mode_volume`, epsrel 1e-6; its error estimate 1.4e-6 m^3):
+Gauss-Kronrod (`kinematics.mechanisms.p2us.columns_reference.mode_volume`, epsrel 1e-6; its error estimate 1.4e-6 m^3):
 a method independent of the scan kernel and of the adaptive cell estimator. Recomputing it takes
 ~8 minutes (docs/paper-b-reproduction.md says how); it is recorded, not derived from the code tested."""
 
@@ -78,7 +78,7 @@ def test_rod_rail_limit_check_matches_the_angle(results, rng):
 
 @pytest.mark.parametrize("limits", ["all", "actuators"])
 def test_kernel_follows_the_convention(results, rng, limits):
-    from kinematics.p2us_scan import bounding_box, scan
+    from kinematics.mechanisms.p2us.scan import bounding_box, scan
 
     lo, hi = bounding_box(results)
     p = lo + (hi - lo) * rng.random((200_000, 3))
@@ -91,7 +91,7 @@ def test_kernel_follows_the_convention(results, rng, limits):
 def test_rod_rail_limits_select_exactly_the_working_mode(results, rng):
     # Working mode: n.w = +sqrt(D)/L >= 0, so the rod-rail angle is <= 90 deg and [-10, 100] never binds;
     # every other mode has a root with n.w < 0, which the 100 deg bound cuts to a shell the strokes miss.
-    from kinematics.p2us_scan import bounding_box
+    from kinematics.mechanisms.p2us.scan import bounding_box
 
     lo, hi = bounding_box(results)
     p = lo + (hi - lo) * rng.random((200_000, 3))
@@ -149,7 +149,7 @@ def test_fig8_pose_is_fk_of_a_fig7_grid_triple(results, table2):
 # -- volume --------------------------------------------------------------------------------------------
 @pytest.mark.slow
 def test_columns_are_exact_along_vertical_lines(results, rng):
-    from kinematics import p2us_columns as pc
+    from kinematics.mechanisms.p2us import columns_reference as pc
 
     m = par.mode_index("---")
     z = np.linspace(-1.2, 0.2, 35_001)
@@ -166,7 +166,7 @@ def test_columns_are_exact_along_vertical_lines(results, rng):
 @pytest.mark.parametrize("limits, reference, ref_err", [("actuators", COLUMN_REFERENCE_M3, 1.4e-6),
                                                         ("all", COLUMN_REFERENCE_ALL_M3, 1.1e-6)])
 def test_working_mode_volume_against_the_column_reference(results, limits, reference, ref_err):
-    from kinematics.workspace import p2us_workspace
+    from kinematics.analyses.workspace import p2us_workspace
 
     ws = p2us_workspace(results, step=0.02, rtol=2e-3, modes=("---",), limits=limits, progress=False)
     err = float(ws.result.error[-1])
@@ -177,7 +177,7 @@ def test_working_mode_volume_against_the_column_reference(results, limits, refer
 
 
 def test_working_mode_volume_monte_carlo(results, rng):
-    from kinematics.p2us_scan import bounding_box
+    from kinematics.mechanisms.p2us.scan import bounding_box
 
     lo, hi = bounding_box(results)
     n = 400_000
@@ -244,7 +244,7 @@ def test_cli_volume_report_names_design_and_paper(capsys, tmp_path):
 
 
 def test_sweep_keeps_the_design_conventions(results):
-    from kinematics import sweep
+    from kinematics.analyses import sweep
 
     grid = sweep.designs(results, [sweep.Axis.parse("L=0.39:0.41:3")])
     params = [sweep.to_params(d) for d in grid]

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinematics import parallel as par
 from kinematics.errors import InvalidInputError, UnknownModeError
+from kinematics.mechanisms.p2us import closed_form as par
 
 from .conftest import sample_actuators
 
@@ -59,7 +59,7 @@ def test_fk_ik_round_trip_vectorised(p2us_params, rng):
 @settings(max_examples=200, deadline=None)
 @given(st.floats(0.1, 0.6), st.floats(0.1, 0.6), st.floats(0.1, 0.6))
 def test_fk_ik_property(q1, q2, q3):
-    from kinematics.parallel import P2USParams
+    from kinematics.mechanisms.p2us.closed_form import P2USParams
 
     P = P2USParams()
     q = np.array([q1, q2, q3])
@@ -114,7 +114,7 @@ def test_passive_angles_reproduce_rod_direction(p2us_params, rng):
 
 
 def test_trig_free_limit_check_matches_angles(rng):
-    from kinematics.parallel import P2USParams
+    from kinematics.mechanisms.p2us.closed_form import P2USParams
 
     for P in (P2USParams(), P2USParams(theta_zero=0.4), P2USParams(theta_limits=(-2.0, 2.5))):
         n = rng.normal(size=(50_000, 3, 3))

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinematics import scara as sc
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
-from kinematics.model import load_robot
-from kinematics.serial import forward_kinematics, task_jacobian
+from kinematics.generic.serial import forward_kinematics, task_jacobian
+from kinematics.mechanisms.scara import closed_form as sc
+from kinematics.model.robot import load_robot
 
 from .conftest import write_2r_urdf
 

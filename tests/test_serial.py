@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 from kinematics.errors import InvalidInputError, UnknownNameError
-from kinematics.model import load_robot
-from kinematics.serial import forward_kinematics, frame_jacobian, plane, task_jacobian, task_rows
+from kinematics.generic.serial import forward_kinematics, frame_jacobian, plane, task_jacobian, task_rows
+from kinematics.model.robot import load_robot
 
 
 def test_plane_detection(scara, ur5):

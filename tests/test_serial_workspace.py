@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics.batched import batched_fk, configurations
+from kinematics.analyses.serial_workspace import radii, serial_workspace
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
-from kinematics.model import load_robot
-from kinematics.scara import ScaraParams, ik
-from kinematics.serial import forward_kinematics
-from kinematics.serial_workspace import radii, serial_workspace
+from kinematics.generic.batched import batched_fk, configurations
+from kinematics.generic.serial import forward_kinematics
+from kinematics.mechanisms.scara.closed_form import ScaraParams, ik
+from kinematics.model.robot import load_robot
 from tests.test_workspace import scara_area_closed_form
 
 MODELS = Path(__file__).parent / "models"

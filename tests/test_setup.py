@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from kinematics.cli import reference_markdown
+from kinematics.cli.app import reference_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -33,7 +33,7 @@ def test_cli_reference_is_current():
 
 def test_help_is_instant():
     # `kinematics --help` must not import Pinocchio, NumPy or matplotlib.
-    code = ("import sys; from kinematics.cli import main\ntry:\n main(['--help'])\nexcept SystemExit: pass\n"
+    code = ("import sys; from kinematics.cli.app import main\ntry:\n main(['--help'])\nexcept SystemExit: pass\n"
             "print(sorted(m for m in ('pinocchio','numpy','matplotlib','meshcat','dask','numba') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinematics import sweep as sw
+from kinematics.analyses import sweep as sw
+from kinematics.analyses.workspace import p2us_volume_monte_carlo
 from kinematics.errors import SweepError
-from kinematics.parallel import MODES, P2USParams, ik
-from kinematics.workspace import p2us_volume_monte_carlo
+from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, ik
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +25,7 @@ def _reference(params: P2USParams, step: float, sing_tol: float) -> dict[str, fl
     inside = some working mode within every limit by the NumPy closed-form IK (not the Numba scan);
     J = dq/dp by central differences of that IK (not the analytic J_q^-1 J_x); the rod directions
     n_i are J's rows normalised (q_i' = r_i . p' / (r_i . w_i), so row i is parallel to r_i)."""
-    from kinematics.p2us_scan import bounding_box
+    from kinematics.mechanisms.p2us.scan import bounding_box
 
     lo, hi = bounding_box(params)
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]

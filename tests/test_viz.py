@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import viz
-from kinematics.model import BUILTIN
+from kinematics.model.robot import BUILTIN
+from kinematics.views import meshcat as viz
 
 from .test_cli import run
 
@@ -44,14 +44,14 @@ def _walk(tree):
 
 
 def test_p2us_view_is_closed_loop_solved(p2us):
-    from kinematics.closedloop import ClosedLoop
+    from kinematics.generic.closedloop import ClosedLoop
 
     p = np.array([0.05, -0.02, -0.45])
     s = viz.p2us_view(p2us, p)
     q = s.configurations["p2us"]
     loop = ClosedLoop(p2us)
     assert np.linalg.norm(loop.residual(q)[0]) < 1e-9  # every loop closed
-    from kinematics.serial import forward_kinematics
+    from kinematics.generic.serial import forward_kinematics
 
     np.testing.assert_allclose(forward_kinematics(p2us, q).position, p, atol=1e-9)
 
@@ -66,8 +66,8 @@ def test_every_coloured_overlay_has_a_legend_row(scara):
 
 
 def test_default_pose_is_regular_and_a_singular_pose_says_so(scara):
-    from kinematics.manipulability import ellipsoid
-    from kinematics.serial import task_jacobian
+    from kinematics.generic.manipulability import ellipsoid
+    from kinematics.generic.serial import task_jacobian
 
     q = viz.default_pose(scara)  # the middle of the ranges is theta2 = 0: singular, moved off it
     r = ellipsoid(task_jacobian(scara, scara.configuration(q))).radii
@@ -88,7 +88,7 @@ def test_notebook_embedding_does_not_warn(scara):
 
 def test_missing_meshes_are_skipped_and_reported(tmp_path, capsys):
     """A URDF whose mesh files are absent is drawn from the primitives it has (issue 11, defect 6)."""
-    from kinematics.model import load_robot
+    from kinematics.model.robot import load_robot
 
     urdf = tmp_path / "arm.urdf"
     urdf.write_text("""<robot name="arm">
@@ -205,7 +205,7 @@ def test_builtin_robot_reads_well_in_a_real_browser(tmp_path, name):
     """`kinematics show NAME` as a new user first sees it: framed, in contrasting part colours."""
     from matplotlib.colors import rgb_to_hsv
 
-    from kinematics.model import load_robot
+    from kinematics.model.robot import load_robot
 
     assert BROWSER is not None, "KINEMATICS_REQUIRE_BROWSER=1 but chromium-headless-shell is missing"
     robot = load_robot(name)

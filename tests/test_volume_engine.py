@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.columns import ROOT_TOL, column_lengths, column_volume
+from kinematics.analyses.columns import ROOT_TOL, column_lengths, column_volume
+from kinematics.analyses.workspace import p2us_margin, p2us_workspace, scara_workspace
 from kinematics.errors import InvalidInputError
-from kinematics.p2us_scan import bounding_box
-from kinematics.parallel import P2USParams
-from kinematics.scara import ScaraParams
-from kinematics.workspace import p2us_margin, p2us_workspace, scara_workspace
+from kinematics.mechanisms.p2us.closed_form import P2USParams
+from kinematics.mechanisms.p2us.scan import bounding_box
+from kinematics.mechanisms.scara.closed_form import ScaraParams
 
 
 def _spheres(p: np.ndarray) -> np.ndarray:

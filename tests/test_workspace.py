@@ -8,19 +8,19 @@ import math
 import numpy as np
 import pytest
 
-from kinematics import volume
-from kinematics.errors import InvalidInputError, UnknownChoiceError, UnknownModeError
-from kinematics.p2us_scan import bounding_box, scan
-from kinematics.parallel import MODES, ik, jacobians, limb_ik
-from kinematics.scara import ScaraParams
-from kinematics.singularities import p2us_singularities, paper_scan, scara_singularities
-from kinematics.volume import adaptive_volume, simplex_fraction
-from kinematics.workspace import (
+from kinematics.analyses import cells as volume
+from kinematics.analyses.cells import adaptive_volume, simplex_fraction
+from kinematics.analyses.singularities import p2us_singularities, paper_scan, scara_singularities
+from kinematics.analyses.workspace import (
     p2us_volume_monte_carlo,
     p2us_workspace,
     scara_area_quadrature,
     scara_workspace,
 )
+from kinematics.errors import InvalidInputError, UnknownChoiceError, UnknownModeError
+from kinematics.mechanisms.p2us.closed_form import MODES, ik, jacobians, limb_ik
+from kinematics.mechanisms.p2us.scan import bounding_box, scan
+from kinematics.mechanisms.scara.closed_form import ScaraParams
 
 
 def _box_points(params, n, rng):

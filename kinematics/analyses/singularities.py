@@ -1,0 +1,270 @@
+"""Singularity scans: the 3-[P2(US)]'s type I / II / III loci over a Cartesian grid, paper B's own
+512-point actuator scan, and the SCARA's theta2 = 0 boundary with its smallest-radius map.
+
+3-[P2(US)] loci are found where a scale-free measure changes sign between grid neighbours (and
+placed by linear interpolation along that edge), which catches a singular surface whatever the
+grid step, where a threshold on |measure| would catch only the points that happen to land on it:
+
+* type I (limb i): the IK discriminant of limb i changes sign: the limb's two roots merge, its
+  rod is perpendicular to its rail (J_q singular). Such points lie on the limb's reach boundary,
+  so at best on the workspace's boundary, never in its interior; one counts as *on the
+  workspace boundary* when its reachable end is in some working mode's workspace.
+* type II (mode m): det[n_1; n_2; n_3] changes sign with every limb reaching at both ends (J_x
+  singular); *in the workspace* when both ends are in mode m's workspace.
+* type III: a type II edge that shares an end with a type I edge (both within one step).
+
+The grid is scanned plane by plane along z, so memory stays at a few planes whatever the step.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kinematics.analyses.cells import check_step
+from kinematics.errors import InvalidInputError, UnknownModeError
+from kinematics.mechanisms.p2us.closed_form import (
+    MODES,
+    SINGULARITY_TYPES,
+    P2USParams,
+    classify,
+    fk,
+    jacobians,
+)
+from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
+from kinematics.mechanisms.scara.closed_form import ScaraParams
+from kinematics.sizes import check_points, grid_points
+
+
+@dataclass(frozen=True)
+class SingularLocus:
+    """Points [m] on a singular locus and what they are.
+
+    Attributes:
+        points: (K, 3) interpolated positions.
+        kind: (K,) 1 (type I), 2 (type II) or 3 (type III).
+        which: (K,) the limb (type I, 0-based) or mode index into MODES (types II, III).
+        inside: (K,) type II/III: in the (joint-limited) workspace; type I: on its boundary (see
+            the module docstring).
+    """
+
+    points: np.ndarray
+    kind: np.ndarray
+    which: np.ndarray
+    inside: np.ndarray
+
+    @property
+    def interior(self) -> np.ndarray:
+        """(K,) type II/III points inside the workspace (type I never is)."""
+        return self.inside & (self.kind != 1)
+
+    def count(self, kind: int, inside_only: bool = False) -> int:
+        sel = self.kind == kind
+        if inside_only:
+            sel &= self.inside
+        return int(sel.sum())
+
+    def as_list(self, interior_only: bool = True) -> list[dict[str, Any]]:
+        """JSON-ready points: position, type, limb or mode, inside."""
+        out = []
+        for p, k, w, ins in zip(self.points, self.kind, self.which, self.interior, strict=True):
+            if interior_only and not ins:
+                continue
+            item: dict[str, Any] = {"position": p.tolist(), "type": "I" * int(k) if k < 3 else "III",
+                                    "inside_workspace": bool(ins)}
+            if k == 1:
+                item["limb"] = int(w) + 1
+            else:
+                item["mode"] = MODES[int(w)]
+            out.append(item)
+        return out
+
+
+@dataclass(frozen=True)
+class SingularityScan:
+    """Result of `p2us_singularities`."""
+
+    locus: SingularLocus
+    step: float
+    limits: str
+    modes: tuple[str, ...]
+    points_evaluated: int
+    seconds: float
+    box: tuple[list[float], list[float]]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        """Counts per type: all locus points, and those inside (type I: on the boundary of) the workspace."""
+        return {
+            "type_I": {"locus_points": self.locus.count(1), "on_workspace_boundary": self.locus.count(1, True)},
+            "type_II": {"locus_points": self.locus.count(2), "inside_workspace": self.locus.count(2, True)},
+            "type_III": {"locus_points": self.locus.count(3), "inside_workspace": self.locus.count(3, True)},
+        }
+
+    @property
+    def any_inside(self) -> bool:
+        """Some type II/III point lies inside the workspace (paper B says none does)."""
+        return bool(self.locus.interior.any())
+
+
+def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, pb: np.ndarray,
+           ia: np.ndarray, ib: np.ndarray, mode_cols: list[int], out: list[tuple]) -> None:
+    """Sign changes along the edges a[k] -> b[k] (per-point arrays from `scan`)."""
+    reach_a = (a["disc"] >= 0).all(axis=1)
+    reach_b = (b["disc"] >= 0).all(axis=1)
+    in_a = a["margin"] >= 0
+    in_b = b["margin"] >= 0
+    for limb in range(3):
+        da, db = a["disc"][:, limb], b["disc"][:, limb]
+        hit = np.flatnonzero((da >= 0) != (db >= 0))
+        if len(hit):
+            t = da[hit] / (da[hit] - db[hit])
+            inner = np.where((da[hit] >= 0)[:, None], in_a[hit], in_b[hit])[:, mode_cols].any(axis=1)
+            out.append((1, limb, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
+    for m in mode_cols:
+        da, db = a["det"][:, m], b["det"][:, m]
+        hit = np.flatnonzero(((da > 0) != (db > 0)) & reach_a & reach_b)
+        if len(hit):
+            t = da[hit] / (da[hit] - db[hit])
+            t = np.where(np.isfinite(t), t, 0.5)
+            inner = in_a[hit, m] & in_b[hit, m]
+            out.append((2, m, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
+
+
+def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = "all",
+                       modes: Sequence[str] = MODES, progress: bool = False) -> SingularityScan:
+    """Type I / II / III loci of the 3-[P2(US)] over a grid of step `step` [m] on its bounding box."""
+    check_limits(limits)
+    check_step(step)
+    for m in modes:
+        if m not in MODES:
+            raise UnknownModeError(m, MODES)
+    mode_cols = [MODES.index(m) for m in modes]
+    lo, hi = bounding_box(params)
+    check_points("step", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step")
+    dims = np.ceil((hi - lo) / step).astype(int) + 1
+    t0 = time.perf_counter()
+    ix, iy = (a.ravel() for a in np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij"))
+    plane_ids = ix * dims[1] + iy
+    found: list[tuple] = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=int(dims[2]), desc="singularities", unit="plane", delay=1.0, leave=False)
+    prev = None
+    for k in range(dims[2]):
+        pts = np.stack([lo[0] + step * ix, lo[1] + step * iy, np.full(len(ix), lo[2] + step * k)], axis=1)
+        r = scan(params, pts, limits)
+        cur = {"margin": r.margin, "det": r.det, "disc": r.disc}
+        ids = plane_ids + k * len(plane_ids)
+        grid = np.arange(len(ix)).reshape(dims[0], dims[1])
+        for sa, sb in ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel())):
+            _edges({n: v[sa] for n, v in cur.items()}, {n: v[sb] for n, v in cur.items()},
+                   pts[sa], pts[sb], ids[sa], ids[sb], mode_cols, found)
+        if prev is not None:
+            pcur, pprev, idprev = pts, prev[1], prev[2]
+            _edges(prev[0], cur, pprev, pcur, idprev, ids, mode_cols, found)
+        prev = (cur, pts, ids)
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    locus = _assemble(found)
+    return SingularityScan(locus, step, limits, tuple(modes), int(np.prod(dims)), time.perf_counter() - t0,
+                           (lo.tolist(), hi.tolist()))
+
+
+def _assemble(found: list[tuple]) -> SingularLocus:
+    if not found:
+        e = np.empty(0)
+        return SingularLocus(np.empty((0, 3)), e.astype(int), e.astype(int), e.astype(bool))
+    kind = np.concatenate([np.full(len(f[2]), f[0]) for f in found])
+    which = np.concatenate([np.full(len(f[2]), f[1]) for f in found])
+    points = np.concatenate([f[2] for f in found])
+    inside = np.concatenate([f[3] for f in found])
+    ends_a = np.concatenate([f[4] for f in found])
+    ends_b = np.concatenate([f[5] for f in found])
+    type1_vertices = np.union1d(ends_a[kind == 1], ends_b[kind == 1])
+    near = np.isin(ends_a, type1_vertices) | np.isin(ends_b, type1_vertices)
+    kind = np.where((kind == 2) & near, 3, kind)
+    return SingularLocus(points, kind, which, inside)
+
+
+# -- paper B's 512-point scan ------------------------------------------------------------------------
+def paper_scan(params: P2USParams, n: int = 8, tol: float | None = None) -> dict[str, Any]:
+    """Paper B's scan: n^3 actuator triples over the strokes (8^3 = 512), FK in both assembly modes,
+    each pose classified by the Gosselin-Angeles type and checked against every limit.
+
+    Returns counts per type (all poses and those within limits) and the poses themselves.
+    """
+    from kinematics.mechanisms.p2us.closed_form import SINGULAR_TOL, ik
+
+    q1 = np.linspace(*params.stroke, n)
+    q = np.array(list(itertools.product(q1, q1, q1)))
+    res = fk(params, q)
+    rows = []
+    counts: dict[str, dict[str, int]] = {}
+    for a in range(res.p.shape[-2]):
+        ok = res.exists & np.all(np.isfinite(res.p[:, a]), axis=-1)
+        p = res.p[ok, a]
+        qa = q[ok]
+        jac = jacobians(params, p, qa)
+        kinds = classify(jac.iota_I, jac.iota_II, SINGULAR_TOL if tol is None else tol)
+        sol = ik(params, p)
+        # the mode in which p's IK reproduces q, then its limits
+        match = np.all(np.isclose(sol.q, qa[:, None, :], atol=1e-9, rtol=0), axis=-1)
+        within = np.any(match & sol.within_limits, axis=-1)
+        for pk, qk, kk, wk, ik1, ik2 in zip(p, qa, kinds, within, jac.iota_I, jac.iota_II, strict=True):
+            name = SINGULARITY_TYPES[int(kk)]
+            rows.append({"q": qk.tolist(), "position": pk.tolist(), "assembly": a, "type": name,
+                         "within_limits": bool(wk), "iota_I": float(ik1), "iota_II": float(ik2)})
+            c = counts.setdefault(name, {"all": 0, "within_limits": 0})
+            c["all"] += 1
+            c["within_limits"] += int(wk)
+    iota = np.array([[r["iota_I"], r["iota_II"]] for r in rows])
+    return {"actuator_triples": len(q), "poses": len(rows), "tolerance": SINGULAR_TOL if tol is None else tol,
+            "counts": counts, "min_iota_I": float(iota[:, 0].min()), "min_iota_II": float(iota[:, 1].min()),
+            "rows": rows}
+
+
+# -- SCARA --------------------------------------------------------------------------------------------
+def scara_singularities(sp: ScaraParams, step: float = math.radians(1.0)) -> dict[str, Any]:
+    """The SCARA's singular set within its joint limits and a map of the smallest radius.
+
+    det J = l1 l2 sin(theta2) vanishes at theta2 = 0 (arm stretched, tip on r = l1 + l2) and at
+    theta2 = +/-pi (folded; outside the joint-2 range here). The locus is found on a joint grid of
+    step `step` [rad] by sign changes of det J along theta2 and interpolated; the smallest
+    manipulability radius is mapped on the same grid.
+    """
+    from kinematics.mechanisms.scara.closed_form import det_jacobian, fk, manipulability
+
+    if not (math.isfinite(step) and step > 0):
+        raise InvalidInputError("step", f"must be a positive angle [rad], got {step}")
+    check_points("angle step", ((sp.upper[0] - sp.lower[0]) / step + 1) * ((sp.upper[1] - sp.lower[1]) / step + 1),
+                 hint=f"{math.degrees(step):g} deg is too fine a joint-grid step")
+    t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, math.ceil((sp.upper[0] - sp.lower[0]) / step) + 1))
+    t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, math.ceil((sp.upper[1] - sp.lower[1]) / step) + 1))
+    Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1)
+    det = det_jacobian(sp, Q)
+    ell = manipulability(sp, Q)
+    a, b = det[:, :-1], det[:, 1:]
+    hit = (a == 0) | ((a > 0) != (b > 0))
+    i, j = np.nonzero(hit)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(a[i, j] == b[i, j], 0.0, a[i, j] / (a[i, j] - b[i, j]))
+    theta2 = t2[j] + frac * (t2[j + 1] - t2[j])
+    qs = np.stack([t1[i], theta2], axis=-1)
+    points = fk(sp, qs) if len(qs) else np.empty((0, 2))
+    return {
+        "theta1": t1, "theta2": t2, "min_radius": ell.radii[..., 0], "det": det,
+        "singular_q": qs, "singular_points": points,
+        "theta2_zero_within_limits": bool(sp.lower[1] <= 0.0 <= sp.upper[1]),
+        "theta2_pi_within_limits": bool(sp.lower[1] <= -math.pi or sp.upper[1] >= math.pi),
+    }

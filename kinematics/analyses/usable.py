@@ -1,0 +1,291 @@
+"""Usable workspace: the largest axis-aligned cube, vertical cylinder and sphere inside a region
+where the robot is both reachable and well conditioned.
+
+The region is {p : u(p) >= 0} for a *usable field* u. For the 3-[P2(US)] in one working mode,
+
+    u(p) = min(margin(p), 1/kappa(p) - 1/kappa_max),
+
+margin [m] the per-mode workspace margin of `kinematics.analyses.workspace.p2us_margin` (>= 0 inside every
+limit) and kappa = sigma_max / sigma_min of J = J_q^-1 J_x (dimensionless: the platform only
+translates). A singular pose (type I: a J_q entry 0, type II: J_x rank-deficient; either measure of
+`parallel.jacobians` <= SINGULAR_TOL) gets u < 0. Only the sign of u is used. The union of the
+modes is u = max over modes.
+
+Method (any field, `largest_shape`): (1) sample u on a grid of step h over a box; distance
+transforms of the usable voxels give, at every voxel, the largest sphere (Euclidean), cube
+(chessboard) and vertical cylinder (per-slice 2D Euclidean, sliding minimum along z) centred there:
+the coarse optimum. (2) Refinement: for a centre, the largest scale that passes the membership test
+is bisected (to 1e-3 relative), and a pattern search moves the centre (steps h down to h/8) and, for
+the cylinder, the volume-preserving aspect ratio. (3) The membership test (`contains`) samples the
+shape's solid on a grid of spacing `spacing` and its surface at spacing/2; the shape is accepted if
+u >= 0 at every sample. What it can miss: an unusable pocket thinner than the spacing lying
+between samples (e.g. a singular surface crossing only a corner between two samples).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kinematics.errors import InvalidInputError, UnknownChoiceError
+from kinematics.sizes import check_points, grid_points
+
+Field = Callable[[np.ndarray], np.ndarray]
+Shape = Literal["cube", "cylinder", "sphere"]
+SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
+KAPPA_MAX = 10.0
+"""Default bound on the condition number sigma_max / sigma_min."""
+
+
+@dataclass(frozen=True)
+class UsableShape:
+    """A shape inside the usable region.
+
+    Attributes:
+        shape: "cube", "cylinder" or "sphere".
+        center: (3,) its centre [m].
+        size: (edge,) for a cube, (radius, height) for a cylinder, (radius,) for a sphere [m].
+        samples: points of the final membership test; spacing: its solid-grid spacing [m].
+        min_field: the smallest u over those samples (>= 0).
+        larger_fails: the same shape 1 % larger fails the test at the centre and the 26
+            neighbouring centres (offsets of half a grid step).
+    """
+
+    shape: str
+    center: np.ndarray
+    size: tuple[float, ...]
+    samples: int
+    spacing: float
+    min_field: float
+    larger_fails: bool
+
+    @property
+    def volume(self) -> float:
+        """Volume [m^3]."""
+        return shape_volume(self.shape, self.size)
+
+
+def shape_volume(shape: str, size: Sequence[float]) -> float:
+    """edge^3, pi r^2 h or 4/3 pi r^3 [m^3]."""
+    if shape == "cube":
+        return float(size[0] ** 3)
+    if shape == "cylinder":
+        return float(math.pi * size[0] ** 2 * size[1])
+    return float(4.0 / 3.0 * math.pi * size[0] ** 3)
+
+
+def _check_shape(shape: str) -> str:
+    if shape not in SHAPES:
+        raise UnknownChoiceError(shape, SHAPES)
+    return shape
+
+
+def _axis(a: float, b: float, spacing: float) -> np.ndarray:
+    return np.linspace(a, b, max(2, math.ceil((b - a) / spacing) + 1))
+
+
+def shape_samples(shape: str, center: np.ndarray, size: Sequence[float], spacing: float) -> np.ndarray:
+    """Points of the shape's solid on a grid of `spacing` [m] (boundary included) and of its
+    surface at spacing / 2, shape (N, 3)."""
+    c = np.asarray(center, dtype=float)
+    fine = spacing / 2
+    if shape == "cube":
+        a = size[0] / 2
+        g = _axis(-a, a, spacing)
+        solid = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+        f = _axis(-a, a, fine)
+        u, v = (x.ravel() for x in np.meshgrid(f, f, indexing="ij"))
+        faces = [np.stack([s * a * np.ones_like(u), u, v], -1) for s in (-1, 1)]
+        surf = np.concatenate([np.roll(fc, k, axis=1) for fc in faces for k in range(3)])
+        return c + np.concatenate([solid, surf])
+    if shape == "sphere":
+        r = size[0]
+        g = _axis(-r, r, spacing)
+        solid = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+        solid = solid[np.einsum("ij,ij->i", solid, solid) <= r * r]
+        n = max(8, math.ceil(4 * math.pi * r * r / fine**2))
+        k = np.arange(n) + 0.5  # a Fibonacci lattice: near-uniform points on the sphere
+        z = 1 - 2 * k / n
+        phi = math.pi * (1 + math.sqrt(5)) * k
+        rho = np.sqrt(1 - z * z)
+        surf = r * np.stack([rho * np.cos(phi), rho * np.sin(phi), z], -1)
+        return c + np.concatenate([solid, surf])
+    r, h = size
+    g = _axis(-r, r, spacing)
+    gz = _axis(-h / 2, h / 2, spacing)
+    solid = np.stack(np.meshgrid(g, g, gz, indexing="ij"), -1).reshape(-1, 3)
+    solid = solid[solid[:, 0] ** 2 + solid[:, 1] ** 2 <= r * r]
+    na = max(8, math.ceil(2 * math.pi * r / fine))
+    t = np.linspace(0, 2 * math.pi, na, endpoint=False)
+    zs = _axis(-h / 2, h / 2, fine)
+    side = np.stack([np.repeat(r * np.cos(t)[None], len(zs), 0), np.repeat(r * np.sin(t)[None], len(zs), 0),
+                     np.repeat(zs[:, None], na, 1)], -1).reshape(-1, 3)
+    d = _axis(-r, r, fine)
+    cap = np.stack(np.meshgrid(d, d, indexing="ij"), -1).reshape(-1, 2)
+    cap = cap[cap[:, 0] ** 2 + cap[:, 1] ** 2 <= r * r]
+    caps = np.concatenate([np.column_stack([cap, np.full(len(cap), s * h / 2)]) for s in (-1, 1)])
+    return c + np.concatenate([solid, side, caps])
+
+
+def contains(field: Field, shape: str, center: np.ndarray, size: Sequence[float], spacing: float) -> float:
+    """The smallest field value over `shape_samples` (the shape is accepted if >= 0)."""
+    pts = shape_samples(shape, center, size, spacing)
+    check_points("spacing", len(pts), hint="use a larger spacing")
+    return float(np.min(field(pts)))
+
+
+def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    """Voxel index of the best centre and the conservative size there, from distance transforms."""
+    from scipy import ndimage
+
+    padded = np.pad(ok, 1)  # the box's outside counts as unusable
+    if shape == "sphere":
+        d = ndimage.distance_transform_edt(padded)[1:-1, 1:-1, 1:-1]
+        idx = np.unravel_index(np.argmax(d), d.shape)
+        return tuple(int(i) for i in idx), (max(d[idx] - 1.0, 0.0) * h,)
+    if shape == "cube":
+        d = ndimage.distance_transform_cdt(padded, metric="chessboard")[1:-1, 1:-1, 1:-1]
+        idx = np.unravel_index(np.argmax(d), d.shape)
+        return tuple(int(i) for i in idx), (2 * max(d[idx] - 1.0, 0.0) * h,)
+    r2 = np.stack([ndimage.distance_transform_edt(padded[:, :, k]) for k in range(padded.shape[2])], -1)
+    r2 = np.maximum(r2[1:-1, 1:-1, 1:-1] - 1.0, 0.0)
+    best = -1.0
+    arg: tuple[tuple[int, ...], tuple[float, ...]] = ((0, 0, 0), (0.0, 0.0))
+    for k in range(ok.shape[2] // 2 + 1):
+        rk = ndimage.minimum_filter1d(r2, 2 * k + 1, axis=2, mode="constant", cval=0.0)
+        i = np.unravel_index(np.argmax(rk), rk.shape)
+        vol = rk[i] ** 2 * max(2 * k, 1)
+        if rk[i] > 0 and vol > best:
+            best, arg = vol, (tuple(int(j) for j in i), (rk[i] * h, max(2 * k, 1) * h))
+    return arg
+
+
+def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
+                  spacing: float | None = None) -> UsableShape:
+    """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
+
+    Args:
+        step: grid step of the coarse search [m]; spacing: membership-test spacing (default step / 2).
+    """
+    _check_shape(shape)
+    if not (step > 0 and math.isfinite(step)):
+        raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
+    spacing = step / 2 if spacing is None else spacing
+    lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
+    check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
+    axes = [np.arange(a, b + step / 2, step) for a, b in zip(lo_, hi_, strict=True)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    ok = (field(grid.reshape(-1, 3)) >= 0).reshape(grid.shape[:-1])
+    if not ok.any():
+        raise InvalidInputError("kappa_max", "no grid point is usable: the usable region is empty at this step")
+    idx, size0 = _coarse(shape, ok, step)
+    center = grid[idx]
+    if min(size0) <= 0:
+        size0 = tuple(step / 4 for _ in size0)
+
+    def fits(c: np.ndarray, size: Sequence[float]) -> bool:
+        return contains(field, shape, c, size, spacing) >= 0
+
+    def max_scale(c: np.ndarray, base: tuple[float, ...]) -> float:
+        lo_t, hi_t = 0.0, 1.0
+        while fits(c, [hi_t * s for s in base]):
+            lo_t, hi_t = hi_t, hi_t * 1.25
+            if hi_t > 1e3:
+                break
+        if lo_t == 0.0:
+            lo_t = hi_t / 2
+            while lo_t > 1e-3 and not fits(c, [lo_t * s for s in base]):
+                hi_t, lo_t = lo_t, lo_t / 2
+            if lo_t <= 1e-3:
+                return 0.0
+        while hi_t - lo_t > 1e-3 * lo_t:
+            mid = (lo_t + hi_t) / 2
+            lo_t, hi_t = (mid, hi_t) if fits(c, [mid * s for s in base]) else (lo_t, mid)
+        return lo_t
+
+    def sized(aspect: float) -> tuple[float, ...]:
+        if shape != "cylinder":
+            return size0
+        return (size0[0] * aspect, size0[1] / aspect**2)  # same volume for every aspect
+
+    aspect = 1.0
+    t = max_scale(center, sized(aspect))
+    delta = step
+    while delta >= step / 8:
+        improved = False
+        moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
+        if shape == "cylinder":
+            moves += [(3, s) for s in (-1, 1)]
+        for ax, s in moves:
+            c, a = center.copy(), aspect
+            if ax < 3:
+                c[ax] += s * delta
+            else:
+                a *= (1 + delta / max(size0[0], step)) ** s
+            t_new = max_scale(c, sized(a))
+            if t_new > t * (1 + 1e-4):
+                center, aspect, t, improved = c, a, t_new, True
+        if not improved:
+            delta /= 2
+    size = tuple(t * s for s in sized(aspect))
+    final = contains(field, shape, center, size, spacing)
+    bigger = [1.01 * s for s in size]
+    offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * 3, indexing="ij"), -1).reshape(-1, 3)
+    larger_fails = all(contains(field, shape, center + o, bigger, spacing) < 0 for o in offs)
+    n = len(shape_samples(shape, center, size, spacing))
+    return UsableShape(shape, center, size, n, spacing, final, larger_fails)
+
+
+# -- the 3-[P2(US)] ---------------------------------------------------------------------------------
+def condition_slack(params: object, points: np.ndarray, q: np.ndarray, kappa_max: float) -> np.ndarray:
+    """1/kappa - 1/kappa_max per point (dimensionless): >= 0 iff kappa <= kappa_max; -1 where q is
+    undefined (NaN) or the pose is singular (type I or II)."""
+    from kinematics.mechanisms.p2us.closed_form import SINGULAR_TOL, jacobians
+
+    bad = np.isnan(q).any(axis=-1)
+    qq = np.where(bad[:, None], 0.0, q)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        jac = jacobians(params, points, qq)  # type: ignore[arg-type]
+        J = np.where(np.isfinite(jac.J), jac.J, 0.0)
+        sv = np.linalg.svd(J, compute_uv=False)
+        inv_kappa = sv[:, -1] / sv[:, 0]
+    singular = (jac.iota_I <= SINGULAR_TOL) | (jac.iota_II <= SINGULAR_TOL) | ~np.isfinite(jac.J).all(axis=(1, 2))
+    return np.where(bad | singular | ~np.isfinite(inv_kappa), -1.0, inv_kappa - 1.0 / kappa_max)
+
+
+def p2us_usable_field(params: object, mode: str = "---", kappa_max: float = KAPPA_MAX,
+                      limits: str = "all") -> Field:
+    """u(p) for the 3-[P2(US)] in `mode` (a MODES label, or "union" for the best mode at each point)."""
+    from kinematics.analyses.workspace import UNION, p2us_margin
+    from kinematics.mechanisms.p2us.closed_form import MODES, ik, mode_index
+
+    if not (kappa_max >= 1 and math.isfinite(kappa_max)):
+        raise InvalidInputError("kappa_max", f"must be a finite number >= 1, got {kappa_max!r}")
+    modes = tuple(MODES) if mode == UNION else (MODES[mode_index(mode)],)
+    margin = p2us_margin(params, modes, limits)  # type: ignore[arg-type]
+
+    def field(points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=float)
+        m = margin(points)
+        q = ik(params, points, limits=False).q  # type: ignore[arg-type]
+        out = np.full(len(points), -np.inf)
+        for k, mo in enumerate(modes):
+            slack = condition_slack(params, points, q[:, mode_index(mo)], kappa_max)
+            out = np.maximum(out, np.minimum(m[:, k], slack))
+        return out
+
+    return field
+
+
+def p2us_usable(params: object, shape: str, *, mode: str = "---", kappa_max: float = KAPPA_MAX,
+                step: float = 0.01, spacing: float | None = None) -> UsableShape:
+    """The largest `shape` in the usable workspace of a 3-[P2(US)] (see the module doc)."""
+    from kinematics.mechanisms.p2us.scan import bounding_box
+
+    lo, hi = bounding_box(params)  # type: ignore[arg-type]
+    return largest_shape(p2us_usable_field(params, mode, kappa_max), lo, hi, shape, step=step, spacing=spacing)

@@ -1,0 +1,119 @@
+"""`kinematics mobility`: the three mobility analyses at one configuration, as a report."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from kinematics.cli.report import fmt, key_values, table
+from kinematics.errors import InvalidInputError
+from kinematics.model.robot import Robot
+
+
+def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, str]:
+    """The configuration to analyse and a description of where it came from.
+
+    Loop robots: --position (the mechanism family's closed forms), --q (actuated values, closed-loop solve)
+    or the sidecar's reference; serial robots: --q (every joint) or a seeded random regular
+    configuration within the ranges (`mobility.regular_configuration`).
+    """
+    if robot.loops is None:
+        if args.position is not None:
+            raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
+        if args.q is None:
+            from kinematics.analyses.mobility import REGULAR_SEED, regular_configuration
+
+            reg = regular_configuration(robot)
+            return reg.q, (f"a regular configuration (random within the joint ranges, seed {REGULAR_SEED}): "
+                           f"q = {np.round(reg.values, 6).tolist()}")
+        return robot.configuration(args.q, degrees=args.degrees), f"q = {list(args.q)}"
+    from kinematics.generic.closedloop import ClosedLoop
+
+    loop = ClosedLoop(robot)
+    if args.position is not None and args.q is not None:
+        raise InvalidInputError("--position/--q", "give one of them, not both")
+    if args.position is not None:
+        from kinematics.cli.parallel import _position, require_family
+
+        fam, params = require_family(robot)
+        p = _position(args)
+        values = fam.joint_values_at(params, p, args.mode or "---")
+        q = robot.configuration([values[n] for n in robot.joint_names])
+        return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
+    if args.q is not None:
+        from kinematics.cli.parallel import _actuated
+
+        return loop.solve(_actuated(args, robot)).q, f"actuators at {list(args.q)}"
+    return loop.reference, "the sidecar's reference configuration"
+
+
+def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:
+    """For a 3-[P2(US)] given --position or --q: None if the platform can be there, else the answer."""
+    from kinematics.cli.parallel import _is_p2us
+
+    if robot.loops is None or not _is_p2us(robot) or (args.position is None) == (args.q is None):
+        return None
+    from kinematics.cli.parallel import _actuated, _position, limb_reasons, params_of
+    from kinematics.mechanisms.p2us.closed_form import fk, ik, mode_index
+
+    params = params_of(robot)
+    if args.q is not None:
+        q = _actuated(args, robot)
+        if fk(params, q).exists:
+            return None
+        return {"robot": robot.name, "q": q.tolist(), "reachable": False,
+                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
+    mode_index(args.mode or "---")  # a bad mode is bad input even where nothing reaches
+    p = _position(args)
+    res = ik(params, p)
+    if res.limbs.reach.all():
+        return None
+    reasons = [lb["reason"] for lb in limb_reasons(params, res.limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": "; ".join(reasons)}
+
+
+def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
+    from kinematics.analyses.mobility import analyse
+
+    answer = _unreachable(args, robot)
+    if answer is not None:
+        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} m"
+        out(args, answer, lambda: f"{where} is NOT reachable: {answer['reason']}")
+        return 1
+    q, where = configuration(args, robot)
+    rep = analyse(robot, q)
+    payload = {"robot": robot.name, "configuration": where, **rep.as_dict()}
+
+    def human() -> str:
+        g, n, s = rep.grubler, rep.numeric, rep.screw
+        kinds = ", ".join(f"{v} {k}" for k, v in g.as_dict()["joint_types"].items())
+        parts = [
+            f"{robot.name} at {where}",
+            "",
+            f"Grübler-Kutzbach ({'planar' if g.planar else 'spatial'}, lambda = {g.lam}):",
+            f"  {g.links} links, {g.joints} joints ({kinds}), {g.freedoms} joint freedoms",
+            f"  M = {g.lam} ({g.links} - {g.joints} - 1) + {g.freedoms} = {g.mobility}",
+            "",
+            "numeric (loop-constraint Jacobian K):",
+            key_values([("nv", n.nv), ("constraint rows", n.constraints), ("rank K", n.rank),
+                        ("mobility nv - rank", n.mobility), ("platform freedoms", n.platform_freedoms),
+                        ("redundant freedoms" if n.serial else "idle freedoms", n.redundant if n.serial else n.idle),
+                        ("platform, actuators locked", n.locked_platform_freedoms),
+                        ("rank tolerance (relative)", n.tolerance), ("smallest kept sigma", n.smallest_kept),
+                        ("largest dropped sigma", n.largest_dropped)]),
+            "",
+            (f"screw theory: {s.translations} translation(s), {s.rotations} rotation(s); "
+             f"{s.constraint_rank} independent constraint wrench(es)"),
+            table(["limb", "sub-chains", "twist rank", "constraint wrenches"],
+                  [(lb.name, lb.paths, lb.twist_rank,
+                    "; ".join(f"{w.type} {fmt(w.axis, 3)}" for w in lb.wrenches) or "-") for lb in s.limbs]),
+            "platform freedoms: " + ("; ".join(f"{f.type} {fmt(f.axis, 3)}" for f in s.freedoms) or "none"),
+        ]
+        if rep.notes:
+            parts += ["", "notes:"] + [f"  - {note}" for note in rep.notes]
+        return "\n".join(parts)
+
+    out(args, payload, human)
+    return 0

@@ -1,0 +1,341 @@
+"""CLI handlers for closed-loop robots: the closed forms of the mechanism families (3-[P2(US)],
+Delta; see `FAMILIES`), and the generic Pinocchio closed-loop solver for any other URDF + loop
+sidecar. Called from `kinematics.cli.app`."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from kinematics.cli.report import Out, key_values, matrix, table
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.mechanisms.p2us.closed_form import (
+    ASSEMBLY_MODES,
+    MODES,
+    SINGULAR_TOL,
+    SINGULARITY_TYPES,
+    P2USParams,
+    classify,
+    mode_index,
+)
+from kinematics.mechanisms.p2us.urdf import MECHANISM, read_params
+from kinematics.model.robot import Robot
+
+EXIT_OK, EXIT_NO = 0, 1
+
+
+def _is_p2us(robot: Robot) -> bool:
+    return robot.loops is not None and robot.loops.mechanism == MECHANISM
+
+
+class Family(NamedTuple):
+    """A mechanism family with closed forms: what the ik/fk/jacobian/mobility commands need.
+
+    The functions take the family's parameters first; shapes and result fields are the same
+    for every family (8 working modes, 2 assembly modes, Jacobians with iota_I / iota_II).
+    """
+
+    mechanism: str
+    read_params: Callable[..., Any]
+    ik: Callable[..., Any]
+    fk: Callable[..., Any]
+    jacobians: Callable[..., Any]
+    rod_vectors: Callable[..., Any]
+    violations: Callable[..., list[str]]
+    limb_reasons: Callable[..., list[dict[str, Any]]]
+    fk_reason: Callable[..., str]
+    joint_values_at: Callable[..., dict[str, float]]
+    rod_length: Callable[[Any], float]
+    q_unit: str
+    iota_I: str
+
+
+def _p2us_fk_reason(params: P2USParams, res: Any) -> str:
+    return (f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
+            f"(the rods would need to be {float(res.gap):.6g} m longer)")
+
+
+def families() -> dict[str, Family]:
+    """The mechanism families with closed forms, by the sidecar's `mechanism:` value."""
+    from kinematics.mechanisms.delta import closed_form as delta
+    from kinematics.mechanisms.delta import urdf as delta_urdf
+    from kinematics.mechanisms.p2us import closed_form as parallel
+    from kinematics.mechanisms.p2us import urdf as p2us_urdf
+
+    return {
+        MECHANISM: Family(MECHANISM, read_params, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,
+                          parallel.violations, limb_reasons, _p2us_fk_reason, p2us_urdf.joint_values_at,
+                          lambda p: p.L, "m", "iota_I = min |n.w|"),
+        delta.MECHANISM: Family(delta.MECHANISM, delta_urdf.read_params, delta.ik, delta.fk, delta.jacobians,
+                                delta.rod_vectors, delta.violations, delta.limb_reasons, delta.fk_reason,
+                                delta_urdf.joint_values_at, lambda p: p.lb, "rad", "iota_I = min |n.b|"),
+    }
+
+
+def family_of(robot: Robot) -> tuple[Family, Any] | None:
+    """The robot's mechanism family and its parameters read from its URDF, or None when it has
+    no closed forms (then the generic closed-loop solver answers)."""
+    if robot.loops is None or robot.loops.mechanism not in families():
+        return None
+    fam = families()[robot.loops.mechanism]
+    return fam, fam.read_params(robot.urdf_path, robot.name)
+
+
+def require_family(robot: Robot) -> tuple[Family, Any]:
+    found = family_of(robot)
+    if found is None:
+        raise UnsupportedRobotError(robot.name, "closed-form IK needs a mechanism with closed forms ("
+                                    + ", ".join(families()) + "); its sidecar declares mechanism "
+                                    f"{robot.loops.mechanism if robot.loops else None!r}")
+    return found
+
+
+def params_of(robot: Robot) -> P2USParams:
+    """The closed-form parameters of a 3-[P2(US)] robot, read from its URDF."""
+    if not _is_p2us(robot):
+        raise UnsupportedRobotError(robot.name, f"not a {MECHANISM} (its sidecar declares mechanism "
+                                    f"{robot.loops.mechanism if robot.loops else None!r})")
+    return read_params(robot.urdf_path, robot.name)
+
+
+def _position(args: argparse.Namespace) -> np.ndarray:
+    if args.position is None or len(args.position) != 3:
+        got = 0 if args.position is None else len(args.position)
+        raise InvalidInputError("--position", f"give X Y Z of the platform [m], got {got} value(s)")
+    p = np.array(args.position, dtype=float)
+    if not np.all(np.isfinite(p)):
+        raise InvalidInputError("--position", f"must be finite, got {p.tolist()}")
+    return p
+
+
+def limb_reasons(params: P2USParams, limbs: Any) -> list[dict[str, Any]]:
+    """Per-limb reachability with the reason when a limb cannot reach."""
+    out = []
+    for i in range(3):
+        ok = bool(limbs.reach[i])
+        reason = None if ok else (
+            f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the rail's "
+            f"axis, farther than the rod length L = {params.L:g} m")
+        out.append({"limb": i + 1, "reachable": ok, "reason": reason})
+    return out
+
+
+def _solutions_report(title: str, key: str, columns: list[str], digits: int,
+                      solutions: list[dict[str, Any]], reason: str | None) -> str:
+    """Title line, a table of the solutions (mode, the 3 values under `key`, within limits), their
+    limit violations, and the reason when there is one."""
+    parts = [title]
+    if solutions:
+        parts.append(table(["mode", *columns, "within limits"],
+                           [(s["mode"], *s[key], s["within_limits"]) for s in solutions], digits))
+        lines = [f"  {s['mode']}: " + "; ".join(s["violations"]) for s in solutions if s["violations"]]
+        parts += (["limit violations:"] + lines) if lines else []
+    if reason:
+        parts.append(f"reason: {reason}")
+    return "\n".join(parts)
+
+
+def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics ik p2us|delta --position X Y Z`: all working modes, limits, reasons."""
+    fam, params = require_family(robot)
+    p = _position(args)
+    res = fam.ik(params, p)
+    limbs = fam.limb_reasons(params, res.limbs)
+    solutions = []
+    for m, mode in enumerate(MODES):
+        if not res.reachable[m]:
+            continue
+        roots = [0 if c == "+" else 1 for c in mode]
+        n = res.limbs.n[np.arange(3), roots]
+        viol = fam.violations(params, res.q[m], n)
+        solutions.append({"q": res.q[m], "mode": mode, "within_limits": not viol, "violations": viol})
+    reachable = any(s["within_limits"] for s in solutions)
+    if reachable:
+        reason = None
+    elif not solutions:
+        reason = "; ".join(lb["reason"] for lb in limbs if lb["reason"])
+    else:
+        reason = f"every working mode breaks a limit ({len(solutions)} modes assemble; see violations)"
+    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": limbs}
+
+    def human() -> str:
+        title = f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
+        u = fam.q_unit
+        return _solutions_report(title, "q", [f"q1 [{u}]", f"q2 [{u}]", f"q3 [{u}]"], 9, solutions, reason)
+
+    out(args, payload, human)
+    return EXIT_OK if reachable else EXIT_NO
+
+
+def _actuated(args: argparse.Namespace, robot: Robot) -> np.ndarray:
+    n = len(robot.loops.actuated)  # type: ignore[union-attr]
+    if args.q is None or len(args.q) != n:
+        got = 0 if args.q is None else len(args.q)
+        raise InvalidInputError("--q", f"{robot.name} has {n} actuated joints "
+                                f"({', '.join(robot.loops.actuated)}), got {got} value(s)")  # type: ignore[union-attr]
+    q = np.array(args.q, dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise InvalidInputError("--q", f"must be finite, got {q.tolist()}")
+    if args.degrees:
+        kinds = {d.name: d.kind for d in robot.dofs}
+        angular = np.array([kinds[a] != "prismatic" for a in robot.loops.actuated])  # type: ignore[union-attr]
+        q[angular] = np.radians(q[angular])
+    return q
+
+
+def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics fk p2us|delta --q Q1 Q2 Q3`: both assembly modes (closed form); other loop
+    robots through the Pinocchio closed-loop solver."""
+    q = _actuated(args, robot)
+    found = family_of(robot)
+    if found is None:
+        return _generic_fk(args, robot, q, out)
+    fam, params = found
+    res = fam.fk(params, q)
+    solutions = []
+    if res.exists:
+        for k, mode in enumerate(ASSEMBLY_MODES):
+            pos = res.p[k]
+            n = fam.rod_vectors(params, pos, q) / fam.rod_length(params)
+            viol = fam.violations(params, q, n)
+            solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
+    reason = None if res.exists else fam.fk_reason(params, res)
+    payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
+
+    def human() -> str:
+        return _solutions_report(f"actuators q = {q.tolist()} {fam.q_unit}", "position", ["x [m]", "y [m]", "z [m]"], 12,
+                                 solutions, reason)
+
+    out(args, payload, human)
+    return EXIT_OK if res.exists else EXIT_NO
+
+
+def _generic_fk(args: argparse.Namespace, robot: Robot, q: np.ndarray, out: Out) -> int:
+    from kinematics.generic.closedloop import ClosedLoop
+
+    sol = ClosedLoop(robot).solve(q)
+    payload = {"q": q, "position": sol.pose.translation, "rotation": sol.pose.rotation,
+               "residual": sol.residual, "joint_values": dict(zip(robot.joint_names, sol.values.tolist(), strict=True))}
+
+    def human() -> str:
+        return "\n".join([key_values([("actuators", q), ("position [m]", sol.pose.translation),
+                                      ("loop residual [m]", sol.residual)], 12), "rotation:", matrix(sol.pose.rotation)])
+
+    out(args, payload, human)
+    return EXIT_OK
+
+
+def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """`kinematics jacobian p2us|delta --position X Y Z [--mode M]`: J, J_x, J_q and the
+    singularity type."""
+    found = family_of(robot)
+    if found is None:
+        return _generic_jacobian(args, robot, out)
+    fam, params = found
+    if args.q is not None:
+        raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
+    p = _position(args)
+    res = fam.ik(params, p)
+    if args.mode is not None:
+        m = mode_index(args.mode)
+    else:  # the first mode within limits, else the first that assembles
+        ok = np.flatnonzero(res.within_limits) if res.within_limits.any() else np.flatnonzero(res.reachable)
+        m = int(ok[0]) if ok.size else 0
+    limbs = fam.limb_reasons(params, res.limbs)
+    if not res.reachable[m]:
+        payload = {"position": p, "mode": MODES[m], "reachable": False,
+                   "reason": "; ".join(lb["reason"] for lb in limbs if lb["reason"])}
+        out(args, payload, lambda: f"platform at {p.tolist()} m is NOT reachable: {payload['reason']}")
+        return EXIT_NO
+    q = res.q[m]
+    jac = fam.jacobians(params, p, q)
+    kind = SINGULARITY_TYPES[int(classify(jac.iota_I, jac.iota_II))]
+    J = jac.J if np.all(np.isfinite(jac.J)) else None
+    payload = {
+        "position": p, "mode": MODES[m], "reachable": True, "within_limits": bool(res.within_limits[m]),
+        "q": q, "J": J, "Jx": jac.Jx, "Jq": np.diag(jac.Jq), "det_Jx": float(np.linalg.det(jac.Jx)),
+        "det_Jq": float(np.prod(jac.Jq)), "singularity": kind,
+        "measures": {"iota_I": float(jac.iota_I), "iota_II": float(jac.iota_II), "tolerance": SINGULAR_TOL},
+    }
+
+    def human() -> str:
+        return "\n".join([
+            f"platform at {p.tolist()} m, mode {MODES[m]}, q = {np.round(q, 9).tolist()} {fam.q_unit}",
+            "J = Jq^-1 Jx (qdot = J pdot):", matrix(jac.J, 9) if J is not None else "  (infinite: type I)",
+            "Jx:", matrix(jac.Jx, 9), "Jq (diagonal):", matrix(np.diag(jac.Jq), 9),
+            key_values([("det Jx", payload["det_Jx"]), ("det Jq", payload["det_Jq"]),
+                        (fam.iota_I, jac.iota_I), ("iota_II = |det n|", jac.iota_II),
+                        ("singularity", f"{kind} (tolerance {SINGULAR_TOL:g})")], 9),
+        ])
+
+    out(args, payload, human)
+    return EXIT_OK
+
+
+def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from kinematics.generic.closedloop import ClosedLoop
+
+    q = _actuated(args, robot)
+    cl = ClosedLoop(robot)
+    sol = cl.solve(q)
+    G = cl.constrained_jacobian(sol.q)
+    payload = {"q": q, "position": sol.pose.translation, "jacobian": G, "rows": ["x", "y", "z", "wx", "wy", "wz"]}
+    out(args, payload, lambda: "end-effector twist per actuated rate (world axes):\n" + matrix(G, 9))
+    return EXIT_OK
+
+
+URDF_FLAGS: dict[str, dict[str, str]] = {
+    # CLI flag (argparse dest) -> parameter name, per mechanism; angles marked by ANGLES
+    "p2us": {"b": "b", "d": "d", "L": "L", "beta": "beta", "alpha": "alpha", "stroke": "stroke",
+             "theta": "theta_limits", "phi": "phi_limits", "theta_zero": "theta_zero", "rod_spacing": "rod_spacing"},
+    "delta": {"b": "R", "d": "r", "upper_arm": "la", "forearm": "lb", "alpha": "alpha", "theta": "theta_limits",
+              "cone": "cone", "elbow_socket": "elbow_socket", "platform_socket": "platform_socket",
+              "rod_spacing": "rod_spacing"},
+}
+ANGLES = {"beta", "alpha", "theta", "phi", "theta_zero", "cone", "elbow_socket", "platform_socket"}
+
+
+def cmd_urdf(args: argparse.Namespace) -> int:
+    """`kinematics urdf p2us|delta [design flags] -o FILE`: write the URDF and its loop sidecar."""
+    from kinematics.mechanisms.delta import urdf as delta_urdf
+    from kinematics.mechanisms.delta.closed_form import DeltaParams
+    from kinematics.mechanisms.p2us import urdf as p2us_urdf
+
+    conv = math.radians if args.degrees else float
+    flags = URDF_FLAGS[args.robot]
+    for other, names in URDF_FLAGS.items():
+        for flag in set(names) - set(flags):
+            if getattr(args, flag, None) is not None:
+                raise InvalidInputError(f"--{flag.replace('_', '-')}", f"applies to {other} only, not {args.robot}")
+    design = getattr(args, "design", "table2")
+    if args.robot != "p2us" and design != "table2":
+        raise InvalidInputError("--design", f"presets are for p2us only, not {args.robot}")
+    changes: dict[str, Any] = {}
+    for flag, key in flags.items():
+        value = getattr(args, flag)
+        if value is None:
+            continue
+        f = conv if flag in ANGLES else float
+        changes[key] = tuple(f(x) for x in value) if isinstance(value, list) else f(value)
+    base: Any = p2us_urdf.DESIGNS[design] if args.robot == "p2us" else DeltaParams()
+    module: Any = p2us_urdf if args.robot == "p2us" else delta_urdf
+    write, read_params = module.write, module.read_params
+    params = base.replace(**changes)  # validates every value
+    urdf_path, side = write(params, args.output)
+    back = read_params(urdf_path)
+    payload = {"urdf": str(urdf_path), "sidecar": str(side), "parameters": params.as_dict(),
+               "round_trip": back == params}
+
+    def human() -> str:
+        return "\n".join([f"wrote {urdf_path}", f"wrote {side}", "parameters (SI; read back "
+                          + ("identical" if back == params else "DIFFERENT") + "):",
+                          key_values(params.as_dict().items(), None)])
+
+    from kinematics.cli.app import _out
+
+    _out(args, payload, human)
+    return EXIT_OK

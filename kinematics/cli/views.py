@@ -1,0 +1,122 @@
+"""`kinematics show`: a Meshcat view of a robot with overlays, served live or exported as HTML."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+
+from kinematics.cli.report import Out
+from kinematics.errors import InvalidInputError
+
+
+def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
+    import signal
+    import sys
+
+    from kinematics.cli.workspace import robot_kind
+    from kinematics.views import meshcat as viz
+
+    kind = robot_kind(robot)
+    if kind == "p2us":
+        unreachable = _p2us_checks(args, robot)
+        if unreachable is not None:
+            where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
+                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
+            out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
+            return 1
+    if not args.export:
+        # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
+        signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    scene = viz.Scene(live=not args.export)
+    try:
+        if kind == "p2us":
+            if args.guide is not None:
+                raise InvalidInputError("--guide", "guidance runs are for planar arms")
+            actuators = None
+            if args.q is not None:
+                if len(args.q) != 3:
+                    raise InvalidInputError("--q", f"give the 3 actuator values [m], got {len(args.q)}")
+                actuators = np.array(args.q, dtype=float)
+            viz.p2us_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
+                          actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
+                          singularities=args.singularities, limits=args.limits, step=args.step, scene=scene)
+        elif kind in ("scara", "serial"):
+            if args.position is not None:
+                raise InvalidInputError("--position", "give a serial robot's joint values with --q")
+            q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
+                if args.q is not None else None
+            if kind == "scara":
+                viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
+                               singularities=args.singularities, guide=args.guide, scene=scene)
+            else:
+                if args.guide is not None:
+                    raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                ws = None
+                if args.workspace or args.singularities:
+                    from kinematics.cli.workspace import serial_scan
+
+                    ws = serial_scan(args, robot)
+                viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
+                                scene=scene)
+        else:
+            viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float), scene=scene)
+        print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
+              end="", file=sys.stderr)
+        notes = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
+        if args.export:
+            scene.export(args.export)
+            payload = {"robot": robot.name, "export": args.export, **notes}
+            out(args, payload, lambda: f"wrote {args.export}")
+            return 0
+        payload = {"robot": robot.name, "url": scene.url, **notes}
+        out(args, payload, lambda: f"Meshcat viewer for {robot.name}: {scene.url}\n(serving; Ctrl-C to stop)")
+        sys.stdout.flush()
+        try:
+            if args.serve_seconds is not None:
+                time.sleep(args.serve_seconds)
+            else:
+                while True:
+                    time.sleep(0.5)
+        except KeyboardInterrupt:
+            pass
+        return 0
+    finally:
+        scene.close()
+
+
+def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
+    """Before a scene starts: the overlay grid fits the view budget, and --position is reachable
+    in --mode (else the answer to report, exit 1)."""
+    from kinematics.cli.parallel import params_of
+    from kinematics.mechanisms.p2us.closed_form import ik, mode_index
+    from kinematics.mechanisms.p2us.scan import bounding_box
+    from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
+
+    params = params_of(robot)
+    if args.workspace or args.singularities:
+        lo, hi = bounding_box(params)
+        check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
+                     hint=f"{args.step:g} m is too fine a step for a view")
+    if args.q is not None and args.position is None and len(args.q) == 3:
+        from kinematics.mechanisms.p2us.closed_form import fk
+
+        if fk(params, np.array(args.q, dtype=float)).exists:
+            return None
+        return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
+                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
+    if args.position is None:
+        return None
+    mode = args.mode or "---"
+    m = mode_index(mode)
+    p = np.array(args.position, dtype=float)
+    sol = ik(params, p)
+    if sol.reachable[m]:
+        return None
+    from kinematics.cli.parallel import limb_reasons
+
+    reasons = [lb["reason"] for lb in limb_reasons(params, sol.limbs) if lb["reason"]]
+    return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
+            "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}

@@ -1,0 +1,518 @@
+"""CLI handlers of `kinematics workspace-volume`, `singularities` and `sweep` (called from `cli`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+from kinematics.cli.report import Out, fmt, key_values, show_progress, table
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.files import write_atomic
+from kinematics.model.robot import Robot
+from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
+
+
+def robot_kind(robot: Robot) -> str:
+    """The one place that tells robots apart for scans and views: 'p2us' (the 3-[P2(US)]),
+    'scara' (any planar 2R URDF: closed forms), 'serial' (any other open chain: the generic
+    `serial_workspace`) or 'closed-loop' (any other URDF with a loop sidecar)."""
+    from kinematics.cli.parallel import _is_p2us
+
+    if _is_p2us(robot):
+        return "p2us"
+    if robot.loops is not None:
+        return "closed-loop"
+    from kinematics.mechanisms.scara.closed_form import ScaraParams
+
+    try:
+        ScaraParams.from_robot(robot)
+    except UnsupportedRobotError:
+        return "serial"
+    return "scara"
+
+
+def _kind(robot: Robot) -> str:
+    """robot_kind for workspace scans, which the generic closed-loop robots do not have."""
+    kind = robot_kind(robot)
+    if kind == "closed-loop":
+        raise UnsupportedRobotError(robot.name, "workspace scans support the 3-[P2(US)] and open chains")
+    return kind
+
+
+SERIAL_PROVED = ("proved: lower <= volume <= upper for the URDF's kinematics (Taylor balls with a global "
+                 "second-derivative bound above, Graves' theorem and boundary-free cell components below; "
+                 "double-precision rounding is far below a cell); not proved: the probe that fixes joints "
+                 "which never move the frame (64 configurations), and the dexterity maps, which are the best "
+                 "over the configurations evaluated in a cell (docs/serial-workspace.md)")
+
+
+def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
+    """`serial_workspace` with the CLI's --resolution, --max-points and --rtol (0: 0.02)."""
+    from kinematics.analyses.serial_workspace import serial_workspace
+
+    if getattr(args, "modes", None):
+        raise InvalidInputError("--modes", "working modes are for the 3-[P2(US)] and the planar arm")
+    if getattr(args, "limits", "all") != "all":
+        raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
+    if getattr(args, "plot", None):
+        raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
+    if budget < 1000:
+        raise InvalidInputError("--max-points", f"must be at least 1000, got {budget}")
+    if args.resolution is not None:
+        if args.resolution < 4:
+            raise InvalidInputError("--resolution", f"must be at least 4 cells, got {args.resolution}")
+        check_points("--resolution", float(args.resolution) ** 3, hint="fewer cells across")
+    rtol = getattr(args, "rtol", 0.0) or 0.02
+    return serial_workspace(robot, rtol=rtol, resolution=args.resolution, max_points=budget,
+                            progress=show_progress(args))
+
+
+def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
+    """An evenly spaced sample of the possibly singular boxes: world position [m] (the base joint
+    at 0 for a solid of revolution), the ball radius [m] their image lies within, the joint values."""
+    import dataclasses
+
+    k = len(ws.singular_radius)
+    idx = np.unique(np.linspace(0, k - 1, min(k, count)).astype(int)) if k else np.zeros(0, dtype=int)
+    world = dataclasses.replace(ws, singular_points=ws.singular_points[idx]).world_points("singular", turns=1)
+    return [{"position": p.tolist(), "radius_m": float(r), "q": q.tolist()}
+            for p, r, q in zip(world, ws.singular_radius[idx], ws.singular_configurations[idx], strict=True)]
+
+
+def _serial_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    ws = serial_scan(args, robot)
+    payload = ws.as_dict()
+    payload.update(max_points=args.max_points, budget_exhausted=ws.points_evaluated >= args.max_points,
+                   singular_points=singular_sample(ws), proved=SERIAL_PROVED)
+    if args.points:
+        pts = ws.world_points("inside")
+        check_points("--points", len(pts), limit=MAX_LISTED_POINTS)
+        _write_points(args.points, pts, "x,y,z")
+    if not ws.converged:
+        import sys
+
+        print(f"warning: the bounds are {2 * ws.error_estimate / ws.measure:.0%} of the estimate apart (rtol "
+              f"{ws.rtol:g} not met); a larger --max-points or --resolution narrows them", file=sys.stderr)
+
+    def human() -> str:
+        unit, key = ("m^2", "area") if ws.planar else ("m^3", "volume")
+        shape = {"planar": f"area in the plane of world axes {list(ws.axes)}",
+                 "revolved": "solid of revolution about the base joint's axis (its profile measured)",
+                 "spatial": "3-D cells"}[ws.mode]
+        rel = ws.error_estimate / ws.measure if ws.measure > 0 else math.inf
+        return "\n".join([
+            f"{robot.name}: reachable {key} of frame {ws.frame} ({shape})",
+            "",
+            key_values([
+                (f"{key} [{unit}]", (f"{fmt(ws.measure, 6)} +/- {fmt(ws.error_estimate, 3)} (midpoint of the "
+                                     f"proved bounds, {fmt(rel, 2)} relative; rtol {fmt(ws.rtol, 2)}: "
+                                     f"{'converged' if ws.converged else 'NOT converged'})")),
+                (f"proved bounds [{unit}]", f"{fmt(ws.lower, 6)} .. {fmt(ws.upper, 6)}"),
+                ("cell [m]", fmt(ws.grid.cell, 3)),
+                ("sampled joints", ", ".join(ws.joints) + (f" (fixed: {', '.join(ws.fixed)})" if ws.fixed else "")),
+                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"
+                 + (" (exhausted: valid but wider bounds)" if payload["budget_exhausted"] else "")),
+                ("possibly singular boxes", f"{len(ws.singular_radius):,}"),
+                ("time [s]", f"{ws.seconds:.2f}"),
+            ], digits=None),
+            "",
+            SERIAL_PROVED,
+        ])
+
+    out(args, payload, human)
+    return 0
+
+
+def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    ws = serial_scan(args, robot)
+    sample = singular_sample(ws)
+    r = ws.singular_radius
+    payload = {
+        "robot": robot.name, "frame": ws.frame, "mode": ws.mode,
+        "singular_boxes": len(r),
+        "tolerance": "a joint box counts when sigma_min(J(centre)) <= sum_i d_i |dJ/dq_i| (its own Lipschitz "
+                     "bound, no chosen threshold); every rank-deficient configuration's image lies within "
+                     "radius_m of a listed point",
+        "radius_m": {"min": float(r.min()), "max": float(r.max())} if len(r) else None,
+        "singular_points": sample,
+        "points_evaluated": ws.points_evaluated, "max_points": args.max_points, "cell_m": ws.grid.cell,
+        "seconds": ws.seconds,
+    }
+
+    def human() -> str:
+        rad = payload["radius_m"]
+        rows = [(fmt(p["position"], 4), fmt(p["radius_m"], 3)) for p in sample[:: max(1, len(sample) // 10)]]
+        return "\n".join([
+            f"{robot.name}: joint boxes of frame {ws.frame} that may hold a rank-deficient position Jacobian",
+            key_values([
+                ("possibly singular boxes", f"{len(r):,}"),
+                ("image radius [m]", f"{fmt(rad['min'], 3)} .. {fmt(rad['max'], 3)}" if rad else "-"),
+                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"),
+                ("time [s]", f"{ws.seconds:.2f}"),
+            ], digits=None),
+            "tolerance: " + payload["tolerance"],
+            "",
+            table(["position [m] (sample)", "radius [m]"], rows) if rows else "no singular box",
+        ])
+
+    out(args, payload, human)
+    return 0
+
+
+def _scara(robot: Robot) -> Any:
+    from kinematics.mechanisms.scara.closed_form import ScaraParams
+
+    return ScaraParams.from_robot(robot)
+
+
+def _write_points(path: str, points: np.ndarray, header: str) -> None:
+    """Write points as .npy or CSV (by suffix), atomically."""
+    if os.path.splitext(path)[1].lower() == ".npy":
+        write_atomic(path, lambda tmp: np.save(tmp, points), "--points")
+    else:
+        write_atomic(path, lambda tmp: np.savetxt(tmp, points, delimiter=",", header=header, comments="",
+                                                  fmt="%.17g"), "--points")
+
+
+def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any) -> np.ndarray:
+    """Grid points (cell centres at `step`) inside the union, for --points."""
+    if kind == "p2us":
+        from kinematics.analyses.workspace import p2us_margin
+        from kinematics.mechanisms.p2us.scan import bounding_box
+
+        lo, hi = bounding_box(params)
+        margin = p2us_margin(params, modes, limits)
+    else:
+        from kinematics.analyses.workspace import scara_margin
+
+        outer = params.reach[1]
+        lo, hi = np.full(2, -outer), np.full(2, outer)
+        margin = scara_margin(params, modes)
+    check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
+                 hint=f"{step:g} m is too fine a step to list the points")
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+    return pts[margin(pts)[:, -1] >= 0]
+
+
+def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from kinematics.analyses.workspace import p2us_workspace, scara_workspace
+
+    kind = _kind(robot)
+    if kind == "serial":
+        return _serial_volume(args, robot, out)
+    rtol = None if args.rtol == 0 else args.rtol
+    t0 = time.perf_counter()
+    sing_summary: dict[str, Any]
+    sing: Any = None
+    if kind == "p2us":
+        from kinematics.analyses.singularities import p2us_singularities
+        from kinematics.cli.parallel import params_of
+        from kinematics.mechanisms.p2us.closed_form import MODES
+        from kinematics.mechanisms.p2us.scan import kernels_cached, kernels_compiled
+
+        params = params_of(robot)
+        modes = tuple(args.modes or MODES)
+        if show_progress(args) and not kernels_cached():  # a terminal's notice, like the progress bars
+            import sys
+
+            print("compiling kernels (first run only)", file=sys.stderr, flush=True)
+        # check: a second run at half the column step; disagreement beyond the estimates -> not converged
+        ws = p2us_workspace(params, step=args.step, rtol=rtol, modes=modes, limits=args.limits, name=robot.name,
+                            progress=show_progress(args), check=True)
+        sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
+        sing_summary = sing.summary()
+        singular_points = sing.locus.as_list()
+        paper = paper_comparison(robot, args.limits, ws)
+    else:
+        from kinematics.analyses.singularities import scara_singularities
+        from kinematics.mechanisms.scara.closed_form import ELBOWS
+
+        params = _scara(robot)
+        modes = tuple(args.modes or ELBOWS)
+        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=show_progress(args),
+                             check=True)
+        sing = scara_singularities(params)
+        singular_points = _scara_points(sing)
+        sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
+                                        "within_limits": sing["theta2_zero_within_limits"]}}
+        paper = {}
+    if args.points:
+        pts = _inside_points(kind, params, args.limits, args.step, modes)
+        _write_points(args.points, pts, "x,y,z" if kind == "p2us" else "x,y")
+    if args.plot:
+        from kinematics.views import plots
+
+        plots.headless()
+        fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01), singular=sing.locus)
+               if kind == "p2us" else plots.scara_workspace(params, sing))
+        plots.save(fig, args.plot)
+    payload = ws.as_dict()
+    payload.update(singular_points=singular_points, singularities=sing_summary, seconds=time.perf_counter() - t0,
+                   volume_seconds=ws.seconds, **paper)
+    if kind == "p2us":
+        payload["compiled_kernels"] = kernels_compiled()
+    if not ws.result.converged:
+        import sys
+
+        print("warning: the volume did not converge (budget exhausted, or the run at half the step disagreed "
+              "beyond the error estimates); try a smaller --step", file=sys.stderr)
+
+    def human() -> str:
+        return _report(ws, payload, paper)
+
+    out(args, payload, human)
+    return 0
+
+
+_LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}
+_ANGLES = {"beta", "alpha", "theta_limits", "phi_limits", "theta_zero", "lower", "upper"}
+
+
+def _parameter_rows(parameters: dict[str, Any]) -> list[tuple[str, str]]:
+    """(name [unit], value) rows: lengths in m, angles shown in degrees."""
+    rows = []
+    for k, v in parameters.items():
+        if k in _ANGLES:
+            deg = [math.degrees(x) for x in v] if isinstance(v, (list, tuple)) else math.degrees(v)
+            rows.append((f"{k} [deg]", fmt(deg, 6)))
+        else:
+            rows.append((f"{k} [m]" if k in _LENGTHS else k, fmt(v, 6)))
+    return rows
+
+
+MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
+               "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
+ELBOW_LEGEND = "elbow: 'up' takes theta2 < 0, 'down' theta2 > 0; 'union': either"
+
+
+def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
+    unit = "m^2" if ws.planar else "m^3"
+    key = "area" if ws.planar else "volume"
+    r = ws.result
+    rows = [(name, r.estimate[k], r.error[k]) for k, name in enumerate(ws.targets)]
+    lines = []
+    if payload.get("compiled_kernels"):
+        lines += ["(compiled the Numba kernels: first run only)"]
+    lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
+    lines.append(key_values(_parameter_rows(ws.parameters), digits=None))
+    lines += ["", table([("elbow" if ws.planar else "mode"), f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
+              ELBOW_LEGEND if ws.planar else MODE_LEGEND, ""]
+    lo, hi = payload["bbox"]
+    rel = ws.error / ws.total if ws.total > 0 else math.inf
+    lines.append(key_values([
+        (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
+                            f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
+        ("method", "exact columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
+                   f"shorter than the column step {fmt(r.step)} m can be missed" if payload.get("method") == "columns"
+         else "cell refinement"),
+        ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
+        ("points evaluated", f"{r.points_evaluated:,}"),
+        ("singular points inside", len(payload["singular_points"])),
+        ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())
+                                    for k, v in payload["singularities"].items())),
+        ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
+    ], digits=None))
+    if paper:
+        lines += ["", *paper_comparison_lines(paper)]
+    return "\n".join(lines)
+
+
+def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
+    """The report's paper-B keys: `design` (the built-in name or the URDF path), `binding_limits`
+    (the volume each passive limit removes from the working mode) and, for the built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
+    page), `paper_volume_m3` and `ratio_to_paper` (working mode over paper)."""
+    from kinematics.mechanisms.p2us.paper_b import volume_comparison
+
+    r = ws.result
+    per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
+    c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
+    from kinematics.mechanisms.p2us.paper_b import binding_limits
+
+    out: dict[str, Any] = {"design": c.pop("design"), "binding_limits": binding_limits(ws_params(ws))}
+    if c:
+        c["note"] = paper_volume_note(out["design"], limits)
+        out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
+    return out
+
+
+def ws_params(ws: Any) -> Any:
+    """The P2USParams a workspace was measured with (from its parameters record)."""
+    from kinematics.mechanisms.p2us.closed_form import P2USParams
+
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()}
+    return P2USParams(**fields)
+
+
+def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
+    """Human lines of `paper_comparison`."""
+    from kinematics.mechanisms.p2us.paper_b import comparison_lines
+
+    c = paper.get("paper_b", {"design": paper["design"]})
+    lines = comparison_lines({**c, "design": paper["design"]})
+    if "binding_limits" in paper:
+        b = paper["binding_limits"]
+        lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
+            f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
+            for k in ("theta", "phi")))
+    return lines + ([c["note"]] if "note" in c else [])
+
+
+def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
+    """JSON-ready points of the SCARA's theta2 = 0 locus (from `scara_singularities`)."""
+    return [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
+            for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
+
+
+def paper_volume_note(design: str, limits: str) -> str:
+    """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
+    if design == "p2us-results":
+        return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
+                "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
+                "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
+    common = ("Table 2's dimensions do not give paper B's computed results; the geometry that does is the "
+              "built-in p2us-results (docs/paper-b-reproduction.md). Paper B defines neither the universal "
+              "joints' zero references nor which working modes it counts. ")
+    if limits == "all":
+        return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "
+                         "limb's vertical plane) only working mode '---' respects the theta range, so every mode "
+                         "but '---' is empty and the union is that one mode. See docs/workspace.md.")
+    return common + ("With the actuator strokes alone, every working mode has a workspace and their union is "
+                     "close to the paper's figure; the passive-joint limits are what shrink ours. See "
+                     "docs/workspace.md.")
+
+
+def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    kind = _kind(robot)
+    if kind == "serial":
+        return _serial_singularities(args, robot, out)
+    if kind == "scara":
+        from kinematics.analyses.singularities import scara_singularities
+        from kinematics.errors import UnknownModeError
+        from kinematics.mechanisms.scara.closed_form import ELBOWS
+
+        for mode in args.modes or ():  # the singular arc is both elbows'; still, a typo is bad input
+            if mode not in ELBOWS:
+                raise UnknownModeError(mode, ELBOWS)
+
+        params = _scara(robot)
+        s = scara_singularities(params, math.radians(args.angle_step_deg))
+        pts = _scara_points(s)
+        payload = {
+            "robot": robot.name,
+            "singular_points": pts,
+            "theta2_zero_within_limits": s["theta2_zero_within_limits"],
+            "theta2_pi_within_limits": s["theta2_pi_within_limits"],
+            "min_radius": {"min": float(s["min_radius"].min()), "max": float(s["min_radius"].max())},
+            "grid": [len(s["theta1"]), len(s["theta2"])],
+        }
+        if args.plot:
+            from kinematics.views import plots
+
+            plots.headless()
+            plots.save(plots.scara_workspace(params, s), args.plot)
+
+        def human() -> str:
+            return "\n".join([
+                f"{robot.name}: det J = l1 l2 sin(theta2) = 0 at theta2 = 0 (stretched) and theta2 = +/-pi (folded)",
+                key_values([
+                    ("theta2 = 0 within limits", payload["theta2_zero_within_limits"]),
+                    ("theta2 = pi within limits", payload["theta2_pi_within_limits"]),
+                    ("singular points found", len(pts)),
+                    ("joint grid", f"{payload['grid'][0]} x {payload['grid'][1]}"),
+                    ("smallest radius [m]", f"{fmt(payload['min_radius']['min'])} .. {fmt(payload['min_radius']['max'])}"),
+                ], digits=None),
+            ])
+
+        out(args, payload, human)
+        return 0
+    from kinematics.analyses.singularities import p2us_singularities
+    from kinematics.cli.parallel import params_of
+    from kinematics.mechanisms.p2us.closed_form import MODES
+
+    params = params_of(robot)
+    modes = tuple(args.modes or MODES)
+    res = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
+    payload = {
+        "robot": robot.name,
+        "limits": args.limits,
+        "step_m": args.step,
+        "points_evaluated": res.points_evaluated,
+        "singularities": res.summary(),
+        "singular_points": res.locus.as_list(),
+        "any_inside_workspace": res.any_inside,
+        "seconds": res.seconds,
+    }
+    if args.paper_scan:
+        from kinematics.analyses.singularities import paper_scan
+
+        ps = paper_scan(params)
+        payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
+        payload["paper_scan"]["rows"] = ps["rows"]
+    if args.plot:
+        from kinematics.views import plots
+
+        plots.headless()
+        plots.save(plots.p2us_singular_loci(res), args.plot)
+
+    def p2us_human() -> str:
+        rows = [(k, *v.values()) for k, v in payload["singularities"].items()]
+        lines = [
+            (f"{robot.name}: singular loci on a {args.step:g} m grid ({args.limits} limits), "
+            f"{res.points_evaluated:,} points in {res.seconds:.2f} s"),
+            "",
+            table(["type", "locus points", "in the workspace (type I: on its boundary)"], rows),
+            "",
+            ("Type I points lie on reach boundaries, so at best on the workspace's boundary; type II/III"
+            " count as inside only with both grid neighbours inside the workspace."),
+            f"any singular point in the workspace: {res.any_inside}",
+        ]
+        if args.paper_scan:
+            ps = payload["paper_scan"]
+            lines += ["", (f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
+                          f"(both assembly modes), tolerance {ps['tolerance']:g}"),
+                      table(["type", "poses", "within limits"],
+                            [(k, v["all"], v["within_limits"]) for k, v in ps["counts"].items()]),
+                      f"smallest iota_I {fmt(ps['min_iota_I'])}, iota_II {fmt(ps['min_iota_II'])}"]
+        return "\n".join(lines)
+
+    out(args, payload, p2us_human)
+    return 0
+
+
+def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from kinematics.analyses import sweep as sw
+    from kinematics.cli.parallel import params_of
+
+    if _kind(robot) != "p2us":
+        raise UnsupportedRobotError(robot.name, "design sweeps are for the 3-[P2(US)]")
+    if not args.param:
+        raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
+    axes = [sw.Axis.parse(p) for p in args.param]
+    t0 = time.perf_counter()
+    rows = sw.run(axes, params_of(robot), step=args.step, rtol=args.rtol, scheduler=args.scheduler,
+                  workers=args.workers, progress=show_progress(args))
+    seconds = time.perf_counter() - t0
+    text = sw.to_csv(rows)
+    if args.out:
+        write_atomic(args.out, text, "--out")
+    payload = {"designs": rows, "columns": list(sw.COLUMNS), "seconds": seconds,
+               "scheduler": args.scheduler or "local"}
+
+    def human() -> str:
+        shown = [c for c in sw.COLUMNS if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
+        return "\n".join([
+            f"{len(rows)} designs on {payload['scheduler']} in {seconds:.1f} s"
+            + (f"; table written to {args.out}" if args.out else ""),
+            "",
+            table(shown, [[r[c] for c in shown] for r in rows]),
+        ])
+
+    out(args, payload, human)
+    return 0

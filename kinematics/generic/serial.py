@@ -1,0 +1,113 @@
+"""Serial kinematics through Pinocchio: frame poses and world-aligned frame Jacobians.
+
+The task space depends on the robot: a planar arm (every joint axis parallel to one world axis)
+moves its tool in the plane of the other two axes, so its task rows are those two translational
+rows (x-y for the SCARA); a spatial arm has three translational rows and, separately, three
+rotational rows.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Literal, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from kinematics.errors import InvalidInputError, UnknownNameError
+from kinematics.model.robot import Robot, matrix
+
+Task = Literal["auto", "planar", "translation", "rotation", "full"]
+TASKS: tuple[str, ...] = ("auto", "planar", "translation", "rotation", "full")
+
+_PARALLEL_TOL = 1e-12
+
+
+class Pose(NamedTuple):
+    """Frame placement in the world: position [m] (3,) and rotation matrix (3, 3)."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+
+
+def common_axis(model: pin.Model, q: np.ndarray | None = None) -> np.ndarray | None:
+    """Unit axis to which every revolute joint is parallel (and every prismatic one
+    perpendicular) at configuration q (default neutral), or None: the mechanism is planar
+    iff such an axis exists."""
+    data = model.createData()
+    pin.computeJointJacobians(model, data, pin.neutral(model) if q is None else q)
+    axes, slides = [], []
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        J = matrix(pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED), model.nv)
+        for col in J[:, joint.idx_v : joint.idx_v + joint.nv].T:  # this joint's own motion
+            lin, ang = col[:3], col[3:]
+            if np.linalg.norm(ang) < _PARALLEL_TOL:
+                slides.append(lin / np.linalg.norm(lin))
+            else:
+                axes.append(ang / np.linalg.norm(ang))
+    if not axes:
+        return None
+    normal = axes[0]
+    if any(np.linalg.norm(np.cross(a, normal)) > _PARALLEL_TOL for a in axes):
+        return None
+    if any(abs(d @ normal) > _PARALLEL_TOL for d in slides):
+        return None
+    return normal
+
+
+@functools.lru_cache(maxsize=64)
+def _plane_of(robot: Robot) -> tuple[int, int] | None:
+    normal = common_axis(robot.model)
+    if normal is None:
+        return None
+    k = int(np.argmax(np.abs(normal)))
+    if abs(abs(normal[k]) - 1.0) > _PARALLEL_TOL:
+        return None  # planar, but not in a plane spanned by world axes
+    rows = [i for i in range(3) if i != k]
+    return rows[0], rows[1]
+
+
+def plane(robot: Robot) -> tuple[int, int] | None:
+    """World axes (i, j) spanning the motion plane of a planar arm, else None.
+
+    A robot is planar when every revolute axis is parallel to one world axis k (and every
+    prismatic axis is perpendicular to it); rotations about parallel axes keep them parallel,
+    so checking the neutral configuration suffices.
+    """
+    return _plane_of(robot)
+
+
+def task_rows(robot: Robot, task: Task = "auto") -> tuple[int, ...]:
+    """Rows of the 6-row (linear; angular) world-aligned Jacobian that make up `task`."""
+    if task not in TASKS:
+        raise UnknownNameError(task, TASKS)
+    if task == "auto":
+        task = "planar" if plane(robot) is not None else "translation"
+    if task == "planar":
+        rows = plane(robot)
+        if rows is None:
+            raise InvalidInputError("task", f"{robot.name} is not a planar arm; use translation/rotation")
+        return rows
+    return {"translation": (0, 1, 2), "rotation": (3, 4, 5), "full": (0, 1, 2, 3, 4, 5)}[task]
+
+
+def forward_kinematics(robot: Robot, q: np.ndarray, frame: str | None = None) -> Pose:
+    """World placement of `frame` (default: the tool) at Pinocchio configuration `q`."""
+    fid = robot.frame_id(frame)
+    data = robot.data
+    pin.framesForwardKinematics(robot.model, data, q)
+    M = data.oMf[fid]
+    return Pose(M.translation.copy(), M.rotation.copy())
+
+
+def frame_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None) -> np.ndarray:
+    """6 x nv Jacobian of `frame`, LOCAL_WORLD_ALIGNED: [v; w] = J q_dot, v the frame origin's
+    velocity [m/s] and w the angular velocity [rad/s], both in world axes."""
+    fid = robot.frame_id(frame)
+    return matrix(pin.computeFrameJacobian(robot.model, robot.data, q, fid, pin.LOCAL_WORLD_ALIGNED), robot.nv).copy()
+
+
+def task_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None, task: Task = "auto") -> np.ndarray:
+    """The rows of `frame_jacobian` that make up `task` (see `task_rows`)."""
+    return frame_jacobian(robot, q, frame)[list(task_rows(robot, task))]

@@ -1,0 +1,245 @@
+"""The mechanism interface: what every analysis asks of a robot.
+
+A `Mechanism` describes a robot's task space (dimension, a bounding box) and, where the family
+has them, vectorised maps over arrays of task points or actuator values:
+
+* `margin(branches, limits)` -> a function points (N, d) [m] -> (N, B + 1) margins [m]: one
+  column per branch (working mode, elbow) and a last one for their union (the maximum).
+  Continuous, >= 0 exactly where the branch's inverse kinematics exists within the limits,
+  roughly the distance to the nearest limit (a slack in metres), negative outside. Its zero set
+  is the workspace boundary, which is what the volume engine integrates;
+* `ik(points, limits)` -> every branch's actuator values and whether they exist / respect limits;
+* `fk(q)` -> every assembly mode's task point;
+* `velocity(points, q)` -> the forward Jacobian pdot = J qdot, its inverse and the scale-free
+  singularity measures iota_I (the inverse map loses rank: an actuator velocity is undetermined
+  by the task velocity) and iota_II (locked actuators no longer hold the task point), both in
+  [0, 1] with 0 singular; type I, II or III (both) below `SINGULAR_TOL`;
+* `singular_fields(points, limits)` -> signed fields whose sign changes between grid neighbours
+  mark type I (per limb) and type II (per branch) loci, for scans.
+
+A mechanism that lacks one of these says so: calling it raises `MissingCapabilityError` naming
+the capability, the purpose and what the mechanism does provide (`capabilities`). Analyses take a
+mechanism (from `kinematics.mechanisms.mechanism_of(robot)`), never a robot family's parameters.
+"""
+
+from __future__ import annotations
+
+from abc import ABC
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from kinematics.errors import MissingCapabilityError, UnknownChoiceError, UnknownModeError
+
+MarginFn = Callable[[np.ndarray], np.ndarray]
+"""points (N, d) [m] -> (N, T) margins [m] (>= 0 inside target t)."""
+
+UNION = "union"
+"""The label of the union of every branch (the margin's last column)."""
+
+SINGULAR_TOL = 1e-6
+"""A pose is singular when iota_I or iota_II <= this. Both are cosines / unit-vector volumes;
+1e-6 is ~6e-5 degrees from exact singularity, above the ~1e-8 floor that rounding leaves in
+iota_I (which behaves like the square root of an IK discriminant)."""
+
+SINGULARITY_TYPES = ("none", "type I", "type II", "type III")
+"""Gosselin-Angeles labels, indexed by `classify`."""
+
+CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields")
+"""The optional parts of the interface, by method name."""
+
+
+def classify(iota_I: np.ndarray, iota_II: np.ndarray, tol: float = SINGULAR_TOL) -> np.ndarray:
+    """Singularity type codes: 0 none, 1 type I, 2 type II, 3 type III (index SINGULARITY_TYPES)."""
+    return (np.asarray(iota_I) <= tol).astype(np.int8) + 2 * (np.asarray(iota_II) <= tol).astype(np.int8)
+
+
+def parallel_forward(Jx: np.ndarray, Jq: np.ndarray, iota_II: np.ndarray) -> np.ndarray:
+    """The forward Jacobian J_x^-1 diag(J_q) of a parallel robot whose loop equations give
+    J_x pdot = diag(J_q) qdot; NaN where J_x is singular (iota_II <= SINGULAR_TOL).
+
+    Shapes: Jx S + (d, d), Jq S + (d,), iota_II S.
+    """
+    Jx = np.asarray(Jx, dtype=float)
+    bad = ~(np.asarray(iota_II) > SINGULAR_TOL) | ~np.isfinite(Jx).all(axis=(-2, -1))
+    eye = np.eye(Jx.shape[-1])
+    safe = np.where(bad[..., None, None], eye, Jx)
+    J = np.linalg.solve(safe, eye * np.where(np.isfinite(Jq), Jq, 0.0)[..., None, :])
+    return np.where(bad[..., None, None], np.nan, J)
+
+
+@dataclass(frozen=True)
+class BranchIK:
+    """Inverse kinematics of every branch at N task points.
+
+    Attributes:
+        q: (N, B, a) actuator values per branch (NaN where the branch does not exist) [m or rad].
+        reachable: (N, B) the branch exists (limits ignored).
+        within_limits: (N, B) it exists and respects the chosen limits.
+    """
+
+    q: np.ndarray
+    reachable: np.ndarray
+    within_limits: np.ndarray
+
+
+@dataclass(frozen=True)
+class Assemblies:
+    """Forward kinematics of every assembly mode at N actuator vectors.
+
+    Attributes:
+        p: (N, A, d) task points [m] (NaN where that assembly does not exist).
+        exists: (N, A) it exists.
+        labels: the A assembly-mode labels.
+    """
+
+    p: np.ndarray
+    exists: np.ndarray
+    labels: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Velocity:
+    """First-order kinematics at N (task point, actuator values) pairs.
+
+    Attributes:
+        J: (N, d, a) forward Jacobian, pdot = J qdot [m/s per actuator unit/s] (inf/NaN where
+            type II singular).
+        J_inverse: (N, a, d) qdot = J_inverse pdot (inf/NaN where type I singular).
+        iota_I, iota_II: (N,) scale-free measures in [0, 1] (1 for iota_II of a serial arm).
+    """
+
+    J: np.ndarray
+    J_inverse: np.ndarray
+    iota_I: np.ndarray
+    iota_II: np.ndarray
+
+    @property
+    def types(self) -> np.ndarray:
+        """(N,) 0 regular, 1 type I, 2 type II, 3 type III (`classify`)."""
+        return classify(self.iota_I, self.iota_II)
+
+
+@dataclass(frozen=True)
+class SingularFields:
+    """Signed fields for singular-locus scans at N task points.
+
+    Attributes:
+        margin: (N, B) the branches' margins [m] (no union column).
+        limb: (N, k) per limb (or actuator): a sign change between neighbours crosses a type I
+            locus of that limb (e.g. its IK discriminant [m^2]); >= 0 where the limb reaches.
+        det: (N, B) per branch: a sign change crosses a type II locus (e.g. det of the rod
+            directions); meaningful where every limb reaches.
+    """
+
+    margin: np.ndarray
+    limb: np.ndarray
+    det: np.ndarray
+
+
+class Mechanism(ABC):
+    """A robot as the analyses see it (see the module docstring).
+
+    Attributes:
+        family: the family's key ("scara", "p2us", "delta", "serial", "closed-loop").
+        description: the family in words.
+        name: the robot's (or design's) name.
+        task_dim: 2 (planar) or 3.
+        task_axes: names of the task coordinates, e.g. ("x", "y", "z").
+        actuator_unit: "m" or "rad" (mixed chains: "m or rad").
+        branch_kind: what a branch is called ("working mode", "elbow").
+        branches: the branch labels, in the margin's column order.
+        branch_legend: how to read a branch label.
+        limit_sets: the accepted `limits` values; the first is the default.
+    """
+
+    family: ClassVar[str]
+    description: ClassVar[str]
+    name: str
+    task_dim: int = 3
+    task_axes: tuple[str, ...] = ("x", "y", "z")
+    actuator_unit: str = "rad"
+    branch_kind: str = "branch"
+    branches: tuple[str, ...] = ()
+    branch_legend: str = ""
+    limit_sets: tuple[str, ...] = ("all",)
+
+    # -- what the mechanism provides ---------------------------------------------------------
+    @property
+    def capabilities(self) -> frozenset[str]:
+        """The optional methods this mechanism implements (a subset of CAPABILITIES)."""
+        return frozenset(c for c in CAPABILITIES if getattr(type(self), c) is not getattr(Mechanism, c))
+
+    def require(self, capability: str, purpose: str) -> None:
+        """Raise MissingCapabilityError unless `capability` is provided."""
+        if capability not in self.capabilities:
+            raise MissingCapabilityError(self.name, capability, purpose, self.capabilities)
+
+    def parameters(self) -> dict[str, Any]:
+        """The design's parameters, JSON-ready (SI units)."""
+        return {}
+
+    def check_limits(self, limits: str) -> str:
+        """`limits` if it is one of `limit_sets`; raises UnknownChoiceError otherwise."""
+        if limits not in self.limit_sets:
+            raise UnknownChoiceError(limits, self.limit_sets)
+        return limits
+
+    def check_branches(self, branches: Sequence[str] | None) -> tuple[str, ...]:
+        """The branches asked for (all when None), deduplicated; raises UnknownModeError."""
+        if branches is None:
+            return self.branches
+        for b in branches:
+            if b not in self.branches:
+                raise UnknownModeError(b, self.branches)
+        if not branches:
+            raise UnknownModeError("", self.branches)
+        return tuple(dict.fromkeys(branches))
+
+    def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        """A box [m] containing every reachable task point under `limits`."""
+        raise MissingCapabilityError(self.name, "bounding box", "a workspace scan", self.capabilities)
+
+    # -- optional capabilities ---------------------------------------------------------------
+    def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
+        """points (N, d) -> (N, len(branches) + 1): each branch's margin [m], then the union's."""
+        raise MissingCapabilityError(self.name, "margin", "a workspace measurement", self.capabilities)
+
+    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
+        """Every branch's inverse kinematics at task points (N, d) [m]."""
+        raise MissingCapabilityError(self.name, "ik", "inverse kinematics", self.capabilities)
+
+    def fk(self, q: np.ndarray) -> Assemblies:
+        """Every assembly mode's task point for actuator values (N, a)."""
+        raise MissingCapabilityError(self.name, "fk", "forward kinematics", self.capabilities)
+
+    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
+        """Jacobians and singularity measures at task points (N, d) with actuator values (N, a)."""
+        raise MissingCapabilityError(self.name, "velocity", "Jacobians", self.capabilities)
+
+    def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
+        """Signed type I / type II fields at task points (N, d) for locus scans."""
+        raise MissingCapabilityError(self.name, "singular_fields", "a singular-locus scan", self.capabilities)
+
+    # -- derived -----------------------------------------------------------------------------
+    def branch_velocity(self, points: np.ndarray, branch: str, limits: str = "all") -> tuple[Velocity, np.ndarray]:
+        """`velocity` in one branch at task points (N, d): (Velocity, (N,) inside the branch
+        within `limits`). Outside, the Jacobians are NaN."""
+        self.require("ik", "Jacobians at task points")
+        self.require("velocity", "Jacobians at task points")
+        b = self.check_branches([branch])[0]
+        res = self.ik(points, limits)
+        k = self.branches.index(b)
+        q = res.q[:, k]
+        ok = res.within_limits[:, k] & np.isfinite(q).all(axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            v = self.velocity(points, np.where(ok[:, None], q, 0.0))
+        nan = ~ok
+        J = np.where(nan[:, None, None], np.nan, v.J)
+        Ji = np.where(nan[:, None, None], np.nan, v.J_inverse)
+        return Velocity(J, Ji, np.where(nan, np.nan, v.iota_I), np.where(nan, np.nan, v.iota_II)), ok
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}: {self.description}>"

@@ -1,0 +1,130 @@
+"""Clavel's Delta as a `Mechanism`: its closed forms behind the common interface (branches: the 8
+working modes; limits: every limit, or the actuator range only).
+
+Margin of working mode m at platform position p [m]: the smallest, over the three limbs in the
+root that m takes, of
+
+* reach: min(l_b - near, far - l_b), the forearm's slack to the nearest and farthest points of
+  the elbow circle (`closed_form.limb_ik`) [m]: > 0 iff the limb reaches;
+* actuator: l_a min(theta - theta_min, theta_max - theta) (the elbow's travel to the limit) [m];
+* ball joints ("all" limits): l_b (cone - angle) at the elbow and at the platform (the rod tip's
+  travel to the cone) [m].
+
+Where a limb cannot reach, only its (negative) reach slack counts. The terms are continuous in
+p (the two IK roots merge where the reach slack is 0), so the margin is too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from kinematics.mechanisms.base import (
+    Assemblies,
+    BranchIK,
+    MarginFn,
+    Mechanism,
+    SingularFields,
+    Velocity,
+    parallel_forward,
+)
+from kinematics.mechanisms.delta import closed_form as cf
+
+LIMITS = ("all", "actuators")
+"""Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
+
+MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' turns the upper arm from the line actuator "
+               "axis -> platform joint towards larger theta, '-' the other way ('---': the usual elbows-out "
+               "Delta); 'union': any mode")
+
+
+def _check_limits(limits: str) -> bool:
+    from kinematics.errors import UnknownChoiceError
+
+    if limits not in LIMITS:
+        raise UnknownChoiceError(limits, LIMITS)
+    return limits == "all"
+
+
+def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all") -> np.ndarray:
+    """(N, 3, 2) per limb and root: the smallest slack [m] (see the module docstring)."""
+    passive = _check_limits(limits)
+    limbs = cf.limb_ik(params, np.asarray(points, dtype=float))
+    reach = np.minimum(params.lb - limbs.near, limbs.far - params.lb)  # (N, 3)
+    lo, hi = params.theta_limits
+    with np.errstate(invalid="ignore"):
+        slack = params.la * np.minimum(limbs.q - lo, hi - limbs.q)  # (N, 3, 2)
+        if passive:
+            ce, cp = cf.cone_angles(params, limbs.q, limbs.n)
+            slack = np.minimum(slack, params.lb * (params.cone - np.maximum(ce, cp)))
+        out = np.minimum(reach[..., None], slack)
+    return np.where(limbs.reach[..., None] & np.isfinite(out), out, np.minimum(reach, 0.0)[..., None])
+
+
+_MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in cf.MODES])  # (8, 3)
+
+
+class Delta(Mechanism):
+    """Clavel's 3-RUU Delta robot of a given design."""
+
+    family = "delta"
+    description = "3-RUU Delta robot (closed forms)"
+    actuator_unit = "rad"
+    branch_kind = "working mode"
+    branches = cf.MODES
+    branch_legend = MODE_LEGEND
+    limit_sets = LIMITS
+    assembly_modes = cf.ASSEMBLY_MODES
+
+    def __init__(self, params: cf.DeltaParams, name: str = "delta") -> None:
+        self.params = params
+        self.name = name
+
+    def parameters(self) -> dict[str, Any]:
+        return self.params.as_dict()
+
+    def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        """Limb i reaches p only if |p + (r - R) e_i| <= l_a + l_b: intersect the three balls' boxes."""
+        self.check_limits(limits)
+        P = self.params
+        centres = (P.R - P.r) * P.e
+        rad = P.la + P.lb
+        return (centres - rad).max(axis=0), (centres + rad).min(axis=0)
+
+    def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
+        cols = [cf.MODES.index(b) for b in self.check_branches(branches)]
+        self.check_limits(limits)
+        params = self.params
+
+        def margin(points: np.ndarray) -> np.ndarray:
+            lm = limb_margins(params, points, limits)
+            m = lm[:, np.arange(3), _MODE_ROOTS].min(axis=-1)[:, cols]  # (N, B)
+            return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
+
+        return margin
+
+    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
+        res = cf.ik(self.params, points, limits=_check_limits(limits))
+        return BranchIK(res.q, np.asarray(res.reachable), res.within_limits)
+
+    def fk(self, q: np.ndarray) -> Assemblies:
+        res = cf.fk(self.params, q)
+        return Assemblies(res.p, np.isfinite(res.p).all(axis=-1), cf.ASSEMBLY_MODES)
+
+    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
+        jac = cf.jacobians(self.params, points, q)
+        return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
+
+    def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
+        """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
+        mode m where det[n_1; n_2; n_3] of that mode's forearm directions does."""
+        points = np.asarray(points, dtype=float)
+        lm = limb_margins(self.params, points, limits)
+        margin = lm[:, np.arange(3), _MODE_ROOTS].min(axis=-1)
+        limbs = cf.limb_ik(self.params, points)
+        disc = (self.params.lb - limbs.near) * (limbs.far - self.params.lb)  # same sign as rho^2 - K^2
+        n = limbs.n[:, np.arange(3), _MODE_ROOTS]  # (N, 8, 3, 3)
+        det = np.linalg.det(np.where(np.isfinite(n), n, 0.0))
+        return SingularFields(margin, disc, det)

@@ -1,0 +1,62 @@
+"""The one place that decides what a loaded robot is.
+
+`mechanism_of(robot)`:
+
+1. a loop sidecar whose `mechanism:` names a family with closed forms (`FAMILIES`) -> that
+   family's mechanism, its design read back from the URDF;
+2. any other loop sidecar -> `GenericClosedLoop`;
+3. an open chain that is a planar 2R arm with joints about z (`ScaraParams.from_robot` accepts
+   it) -> `Scara` (closed forms);
+4. any other open chain -> `SerialArm`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from kinematics.errors import UnsupportedRobotError
+from kinematics.mechanisms.base import Mechanism
+from kinematics.model.robot import Robot
+
+
+def _p2us(robot: Robot) -> Mechanism:
+    from kinematics.mechanisms.p2us.mechanism import P2US
+    from kinematics.mechanisms.p2us.urdf import read_params
+
+    return P2US(read_params(robot.urdf_path, robot.name), robot.name)
+
+
+def _delta(robot: Robot) -> Mechanism:
+    from kinematics.mechanisms.delta.mechanism import Delta
+    from kinematics.mechanisms.delta.urdf import read_params
+
+    return Delta(read_params(robot.urdf_path, robot.name), robot.name)
+
+
+def families() -> dict[str, Callable[[Robot], Mechanism]]:
+    """Closed-form families by the sidecar's `mechanism:` value."""
+    from kinematics.mechanisms.delta.closed_form import MECHANISM as DELTA
+    from kinematics.mechanisms.p2us.urdf import MECHANISM as P2US
+
+    return {P2US: _p2us, DELTA: _delta}
+
+
+def mechanism_of(robot: Robot) -> Mechanism:
+    """The robot as a `Mechanism` (see the module docstring)."""
+    if robot.loops is not None:
+        build = families().get(robot.loops.mechanism or "")
+        if build is not None:
+            return build(robot)
+        from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+        return GenericClosedLoop(robot)
+    from kinematics.mechanisms.scara.closed_form import ScaraParams
+    from kinematics.mechanisms.scara.mechanism import Scara
+
+    try:
+        params = ScaraParams.from_robot(robot)
+    except UnsupportedRobotError:
+        from kinematics.mechanisms.serial.mechanism import SerialArm
+
+        return SerialArm(robot)
+    return Scara(params, robot.name)

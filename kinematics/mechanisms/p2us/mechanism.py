@@ -1,0 +1,91 @@
+"""The 3-[P2(US)] as a `Mechanism`: its closed forms and the compiled scan kernel behind the
+common interface (branches: the 8 working modes; limits: every limit, or the strokes only)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from kinematics.mechanisms.base import (
+    UNION,
+    Assemblies,
+    BranchIK,
+    MarginFn,
+    Mechanism,
+    SingularFields,
+    Velocity,
+    parallel_forward,
+)
+from kinematics.mechanisms.p2us import closed_form as cf
+from kinematics.mechanisms.p2us.scan import LIMITS, bounding_box, check_limits, scan
+
+MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
+               "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
+
+
+def p2us_margin(params: cf.P2USParams, modes: Sequence[str] = cf.MODES, limits: str = "all") -> MarginFn:
+    """points (N, 3) -> (N, len(modes) + 1) margins [m]: each mode (the scan kernel's smallest
+    constraint slack, `kinematics.mechanisms.p2us.scan`), then their union (the maximum)."""
+    for m in modes:
+        cf.mode_index(m)
+    check_limits(limits)
+    cols = [cf.MODES.index(m) for m in dict.fromkeys(modes)]
+
+    def margin(points: np.ndarray) -> np.ndarray:
+        m = scan(params, points, limits).margin[:, cols]
+        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
+
+    return margin
+
+
+class P2US(Mechanism):
+    """The 3-[P2(US)] translational parallel robot (paper B) of a given design.
+
+    Attributes:
+        params: the design, read from its URDF (`kinematics.mechanisms.p2us.urdf.read_params`).
+    """
+
+    family = "p2us"
+    description = "3-[P2(US)] translational parallel robot (closed forms)"
+    actuator_unit = "m"
+    branch_kind = "working mode"
+    branches = cf.MODES
+    branch_legend = MODE_LEGEND
+    limit_sets = LIMITS
+    assembly_modes = cf.ASSEMBLY_MODES
+
+    def __init__(self, params: cf.P2USParams, name: str = "p2us") -> None:
+        self.params = params
+        self.name = name
+
+    def parameters(self) -> dict[str, Any]:
+        return self.params.as_dict()
+
+    def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        self.check_limits(limits)
+        return bounding_box(self.params)
+
+    def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
+        return p2us_margin(self.params, self.check_branches(branches), limits)
+
+    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
+        res = cf.ik(self.params, points, limits=check_limits(limits))
+        return BranchIK(res.q, np.asarray(res.reachable), res.within_limits)
+
+    def fk(self, q: np.ndarray) -> Assemblies:
+        res = cf.fk(self.params, q)
+        exists = np.isfinite(res.p).all(axis=-1)
+        return Assemblies(res.p, exists, cf.ASSEMBLY_MODES)
+
+    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
+        jac = cf.jacobians(self.params, points, q)
+        return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
+
+    def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
+        s = scan(self.params, points, limits)
+        return SingularFields(s.margin, s.disc, s.det)
+
+
+__all__ = ["MODE_LEGEND", "P2US", "UNION", "p2us_margin"]

@@ -1,0 +1,5 @@
+"""Any open-chain URDF as a mechanism (no closed forms: compiled batched kinematics)."""
+
+from kinematics.mechanisms.serial.mechanism import SerialArm
+
+__all__ = ["SerialArm"]

@@ -1,0 +1,378 @@
+"""Robot model loading: built-in robots, URDF paths and example-robot-data names.
+
+A `Robot` bundles the Pinocchio model with what the rest of the toolkit needs to know about it:
+its source file, a default tool frame, the per-degree-of-freedom joint table (names, limits) and,
+for closed-loop mechanisms, the loop-closure sidecar (see `kinematics.model.loops`).
+
+Resolution order for `load_robot(spec)`: a built-in name (`scara`, `p2us`, `p2us-results`, `delta`), an
+existing path, an example-robot-data name (curated aliases such as `ur5`, `panda`, or any URDF
+file stem in that package). Robots are loaded with a fixed base.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from kinematics.errors import (
+    InvalidInputError,
+    ModelFileError,
+    UnknownFrameError,
+    UnknownRobotError,
+    UnsupportedRobotError,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from kinematics.model.loops import LoopSpec
+
+def _urdf_dir() -> Path:
+    package = Path(__file__).resolve().parent.parent  # kinematics/
+    installed = package / "urdf"  # a wheel maps the repository's urdf/ to kinematics/urdf
+    return installed if installed.is_dir() else package.parent / "urdf"
+
+
+URDF_DIR = _urdf_dir()
+"""Where the built-in URDFs live (the repository's top-level `urdf/`)."""
+
+BUILTIN = {"scara": "scara.urdf", "p2us": "p2us.urdf", "p2us-results": "p2us-results.urdf",
+           "delta": "delta.urdf"}
+"""Built-in robots: name -> file in `URDF_DIR`."""
+
+ERD_ALIASES = {
+    "ur3": "ur_description/urdf/ur3_robot.urdf",
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "ur10": "ur_description/urdf/ur10_robot.urdf",
+    "panda": "panda_description/urdf/panda.urdf",
+    "z1": "z1_description/urdf/z1.urdf",
+    "xarm7": "xarm_description/urdf/xarm7.urdf",
+    "kinova": "kinova_description/robots/kinova.urdf",
+    "so100": "so_arm_description/urdf/so100.urdf",
+    "double_pendulum": "double_pendulum_description/urdf/double_pendulum.urdf",
+    "finger_edu": "finger_edu_description/robots/finger_edu.urdf",
+}
+"""Short names for arms shipped by example-robot-data (paths relative to its `robots/`)."""
+
+JointKind = Literal["revolute", "prismatic", "continuous"]
+
+
+def matrix(J: object, ncols: int) -> np.ndarray:
+    """A Pinocchio matrix as a 2-D array with `ncols` columns: Pinocchio's Python bindings
+    return an n x 1 matrix (a 1-DOF robot's Jacobian) as a 1-D array."""
+    return np.asarray(J).reshape(-1, ncols)
+
+
+class Dof(NamedTuple):
+    """One degree of freedom: joint name, kind, indices into q and v, limits [rad] or [m]."""
+
+    name: str
+    kind: JointKind
+    idx_q: int
+    idx_v: int
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A loaded robot. Build with `load_robot`; the fields are read-only."""
+
+    name: str
+    urdf_path: Path
+    model: pin.Model
+    tool_frame: str
+    package_dirs: tuple[str, ...] = ()
+    loops: LoopSpec | None = None
+    dofs: tuple[Dof, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "dofs", _dof_table(self.name, self.model))
+
+    # -- names -------------------------------------------------------------------------------
+    @property
+    def nv(self) -> int:
+        """Number of degrees of freedom (velocity dimension)."""
+        return int(self.model.nv)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the moving joints, one per degree of freedom, in model order."""
+        return tuple(d.name for d in self.dofs)
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        """All frame names of the Pinocchio model (links, joints, fixed joints)."""
+        return tuple(dict.fromkeys(f.name for f in self.model.frames))
+
+    def frame_id(self, name: str | None = None) -> int:
+        """Index of frame `name` (default: the tool frame); raises `UnknownFrameError`."""
+        name = self.tool_frame if name is None else name
+        ids = [i for i, f in enumerate(self.model.frames) if f.name == name]
+        if not ids:
+            raise UnknownFrameError(name, self.frame_names)
+        # A joint and a link may share a name: the link (BODY) frame is the one meant.
+        body = [i for i in ids if self.model.frames[i].type == pin.FrameType.BODY]
+        return (body or ids)[0]
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits per degree of freedom [rad] or [m] (-inf if unbounded)."""
+        return np.array([d.lower for d in self.dofs])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits per degree of freedom [rad] or [m] (+inf if unbounded)."""
+        return np.array([d.upper for d in self.dofs])
+
+    @functools.cached_property
+    def data(self) -> pin.Data:
+        """A scratch `pin.Data` owned by this robot (not thread-safe: one per thread)."""
+        return self.model.createData()
+
+    # -- configurations ----------------------------------------------------------------------
+    def joint_values(self, values: Sequence[float] | np.ndarray, *, degrees: bool = False) -> np.ndarray:
+        """Validate one value per degree of freedom and return them as an array.
+
+        Args:
+            values: joint values in model order, [rad] for revolute joints, [m] for prismatic.
+            degrees: the revolute values are in degrees (prismatic ones stay in metres).
+        """
+        v = np.array(values, dtype=float).reshape(-1)
+        if v.size != self.nv:
+            raise InvalidInputError(
+                "joint values",
+                f"{self.name} has {self.nv} degrees of freedom ({', '.join(self.joint_names)}), "
+                f"got {v.size} value(s)",
+            )
+        bad = ~np.isfinite(v)
+        if bad.any():
+            names = [self.dofs[i].name for i in np.flatnonzero(bad)]
+            raise InvalidInputError("joint values", f"must be finite; got {v[bad].tolist()} for {names}")
+        if degrees:
+            angular = np.array([d.kind != "prismatic" for d in self.dofs])
+            v[angular] = np.radians(v[angular])
+        return v
+
+    def configuration(self, values: Sequence[float] | np.ndarray, *, degrees: bool = False) -> np.ndarray:
+        """Pinocchio configuration vector q from one value per degree of freedom."""
+        v = self.joint_values(values, degrees=degrees)
+        q = pin.neutral(self.model)
+        for d, x in zip(self.dofs, v, strict=True):
+            if d.kind == "continuous":
+                q[d.idx_q : d.idx_q + 2] = np.cos(x), np.sin(x)
+            else:
+                q[d.idx_q] = x
+        return q
+
+    def values_from_configuration(self, q: np.ndarray) -> np.ndarray:
+        """Inverse of `configuration`: one value per degree of freedom."""
+        out = np.empty(self.nv)
+        for i, d in enumerate(self.dofs):
+            if d.kind == "continuous":
+                out[i] = np.arctan2(q[d.idx_q + 1], q[d.idx_q])
+            else:
+                out[i] = q[d.idx_q]
+        return out
+
+    def within_limits(self, values: np.ndarray, tol: float = 0.0) -> np.ndarray:
+        """Per-degree-of-freedom flag: lower - tol <= value <= upper + tol."""
+        v = np.asarray(values, dtype=float)
+        return (v >= self.lower - tol) & (v <= self.upper + tol)
+
+
+def _dof_table(robot: str, model: pin.Model) -> tuple[Dof, ...]:
+    dofs = []
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        short = joint.shortname()
+        name = model.names[jid]
+        if joint.nq == 1 and joint.nv == 1:
+            kind: JointKind = "prismatic" if short.removeprefix("JointModel").startswith("P") else "revolute"
+            lo = float(model.lowerPositionLimit[joint.idx_q])
+            hi = float(model.upperPositionLimit[joint.idx_q])
+        elif joint.nq == 2 and joint.nv == 1:
+            kind, lo, hi = "continuous", -np.inf, np.inf
+        else:
+            raise UnsupportedRobotError(robot, f"joint {name!r} ({short}) is not a 1-DOF joint")
+        dofs.append(Dof(name, kind, joint.idx_q, joint.idx_v, lo, hi))
+    return tuple(dofs)
+
+
+# -- file handling ---------------------------------------------------------------------------
+@contextmanager
+def _quiet_stderr() -> Iterator[list[str]]:
+    """Capture C-level stderr (urdfdom prints parse errors there) into the yielded list."""
+    captured: list[str] = []
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            captured.append(tmp.read().decode(errors="replace"))
+
+
+def check_urdf_file(path: str | os.PathLike[str]) -> ET.Element:
+    """Return the parsed XML root of a URDF file, or raise `ModelFileError` saying what is wrong."""
+    p = Path(path)
+    if not p.exists():
+        raise ModelFileError(p, "no such file")
+    if not p.is_file():
+        raise ModelFileError(p, "not a file")
+    try:
+        root = ET.parse(p).getroot()
+    except ET.ParseError as exc:
+        raise ModelFileError(p, f"malformed XML ({exc})") from None
+    except OSError as exc:
+        raise ModelFileError(p, f"cannot read ({exc.strerror})") from None
+    if root.tag != "robot":
+        raise ModelFileError(p, f"not a URDF: root element is <{root.tag}>, expected <robot>")
+    return root
+
+
+def build_model(path: str | os.PathLike[str]) -> pin.Model:
+    """Parse a URDF with Pinocchio (fixed base); malformed files raise `ModelFileError`."""
+    check_urdf_file(path)
+    with _quiet_stderr() as log:
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except (ValueError, RuntimeError) as exc:
+            err: Exception | None = exc
+        else:
+            err = None
+    if err is not None:
+        detail = next((ln.strip() for ln in log[0].splitlines() if "Error" in ln), str(err))
+        raise ModelFileError(path, f"Pinocchio cannot parse it: {detail}")
+    return model
+
+
+@functools.cache
+def erd_robots_dir() -> Path | None:
+    """The `robots/` folder of the installed example-robot-data package, if any."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    root = Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
+    return root if root.is_dir() else None
+
+
+@functools.cache
+def erd_catalogue() -> dict[str, Path]:
+    """example-robot-data names -> URDF path: curated aliases, then every URDF file stem."""
+    root = erd_robots_dir()
+    if root is None:
+        return {}
+    names = {p.stem: p for p in sorted(root.glob("*/*/*.urdf"))}
+    names.update({k: root / v for k, v in ERD_ALIASES.items() if (root / v).exists()})
+    return names
+
+
+def robot_names() -> tuple[str, ...]:
+    """Every name `load_robot` accepts besides file paths: built-ins, aliases, then the rest."""
+    aliases = [k for k in ERD_ALIASES if k in erd_catalogue()]
+    rest = sorted(set(erd_catalogue()) - set(aliases))
+    return (*BUILTIN, *aliases, *rest)
+
+
+def _default_tool_frame(model: pin.Model) -> str:
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    return bodies[-1] if bodies else model.frames[-1].name
+
+
+def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -> Robot:
+    """Load a robot from a built-in name, a URDF path or an example-robot-data name.
+
+    A loop-closure sidecar next to the URDF (`<stem>.loops.yaml`) is loaded too; failing that, a
+    Gepetto-format `robot.yaml` in the same folder (see `kinematics.model.gepetto`), whose joint
+    substitutions change the model built from the URDF.
+
+    Raises:
+        UnknownRobotError: `spec` is no known name and no existing file.
+        ModelFileError: the file is missing or malformed.
+        UnknownFrameError: `tool_frame` is not in the model.
+    """
+    text = os.fspath(spec)
+    package_dirs: tuple[str, ...] = ()
+    if text in BUILTIN:
+        path, name = URDF_DIR / BUILTIN[text], text
+    elif Path(text).suffix.lower() in (".urdf", ".xml") or os.sep in text or Path(text).exists():
+        path, name = Path(text), Path(text).stem
+    elif text in erd_catalogue():
+        path, name = erd_catalogue()[text], text
+        package_dirs = (str(erd_robots_dir().parent.parent),)  # type: ignore[union-attr]
+    else:
+        raise UnknownRobotError(text, robot_names())
+    from kinematics.model.loops import find_loop_spec, sidecar_for
+
+    gepetto = None
+    if not sidecar_for(Path(path)).exists():  # our own sidecar wins over a Gepetto robot.yaml
+        from kinematics.model.gepetto import find_gepetto
+
+        gepetto = find_gepetto(path)
+    if gepetto is not None:
+        from kinematics.model import gepetto as gp
+
+        model = gp.build_model(path, gepetto)
+        loops: LoopSpec | None = gp.loop_spec(gepetto, model, tool_frame)
+    else:
+        model = build_model(path)
+        loops = find_loop_spec(path, model)
+    frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
+    robot = Robot(name, Path(path), model, frame, package_dirs, loops)
+    robot.frame_id(frame)  # validate
+    return robot
+
+
+# -- second, independent parser ---------------------------------------------------------------
+class ParserAgreement(NamedTuple):
+    """Largest disagreement between Pinocchio and yourdfpy over all link frames."""
+
+    frames: int
+    max_position_error: float  # [m]
+    max_rotation_error: float  # [rad]
+
+
+def parser_agreement(robot: Robot, values: np.ndarray | None = None) -> ParserAgreement:
+    """Compare every link placement computed by Pinocchio and by yourdfpy at `values`.
+
+    Mimic joints are driven by yourdfpy from their master; Pinocchio (which loads them as
+    independent joints) is given the same mimicked value.
+    """
+    import yourdfpy
+
+    urdf: Any = yourdfpy.URDF.load(str(robot.urdf_path), build_scene_graph=True, load_meshes=False)
+    v = np.zeros(robot.nv) if values is None else robot.joint_values(values)
+    by_name = dict(zip(robot.joint_names, v, strict=True))
+    cfg = {n: by_name[n] for n in urdf.actuated_joint_names if n in by_name}
+    urdf.update_cfg(cfg)
+    for name, joint in urdf.joint_map.items():
+        if joint.mimic is not None and name in by_name:
+            by_name[name] = joint.mimic.multiplier * by_name[joint.mimic.joint] + joint.mimic.offset
+    q = robot.configuration([by_name[n] for n in robot.joint_names])
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    dp = dr = 0.0
+    count = 0
+    for link in urdf.link_map:
+        if not robot.model.existFrame(link, pin.FrameType.BODY):
+            continue
+        T = urdf.get_transform(link)
+        M = data.oMf[robot.model.getFrameId(link, pin.FrameType.BODY)]
+        dp = max(dp, float(np.linalg.norm(T[:3, 3] - M.translation)))
+        dr = max(dr, float(np.linalg.norm(pin.log3(T[:3, :3].T @ M.rotation))))
+        count += 1
+    return ParserAgreement(count, dp, dr)

@@ -1,0 +1,103 @@
+"""Meshcat scenes and matplotlib figures.
+
+Modules: `meshcat`, `plots`. Public names are re-exported
+here and imported on first use, so importing the package stays light.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from kinematics.views.meshcat import (
+        BACKGROUND,
+        FOV_DEG,
+        GRID_SQUARES,
+        NEAR_SINGULAR,
+        VIEW_CELLS,
+        Scene,
+        closed_loop_view,
+        default_pose,
+        p2us_view,
+        scara_view,
+        serial_view,
+        visual_model,
+    )
+    from kinematics.views.plots import (
+        CONDITIONING_CMAP,
+        LIMITS_TEXT,
+        RADIUS_CMAP,
+        SCARA_SINGULAR_COLOUR,
+        SINGULAR_STYLE,
+        guidance_run,
+        guidance_title,
+        headless,
+        p2us_singular_loci,
+        p2us_workspace,
+        save,
+        scara_workspace,
+        volume_convergence,
+    )
+
+_LAZY = {
+    "BACKGROUND": "meshcat",
+    "CONDITIONING_CMAP": "plots",
+    "FOV_DEG": "meshcat",
+    "GRID_SQUARES": "meshcat",
+    "LIMITS_TEXT": "plots",
+    "NEAR_SINGULAR": "meshcat",
+    "RADIUS_CMAP": "plots",
+    "SCARA_SINGULAR_COLOUR": "plots",
+    "SINGULAR_STYLE": "plots",
+    "Scene": "meshcat",
+    "VIEW_CELLS": "meshcat",
+    "closed_loop_view": "meshcat",
+    "default_pose": "meshcat",
+    "guidance_run": "plots",
+    "guidance_title": "plots",
+    "headless": "plots",
+    "p2us_singular_loci": "plots",
+    "p2us_view": "meshcat",
+    "p2us_workspace": "plots",
+    "save": "plots",
+    "scara_view": "meshcat",
+    "scara_workspace": "plots",
+    "serial_view": "meshcat",
+    "visual_model": "meshcat",
+    "volume_convergence": "plots",
+}
+
+__all__ = [
+    "BACKGROUND",
+    "CONDITIONING_CMAP",
+    "FOV_DEG",
+    "GRID_SQUARES",
+    "LIMITS_TEXT",
+    "NEAR_SINGULAR",
+    "RADIUS_CMAP",
+    "SCARA_SINGULAR_COLOUR",
+    "SINGULAR_STYLE",
+    "VIEW_CELLS",
+    "Scene",
+    "closed_loop_view",
+    "default_pose",
+    "guidance_run",
+    "guidance_title",
+    "headless",
+    "p2us_singular_loci",
+    "p2us_view",
+    "p2us_workspace",
+    "save",
+    "scara_view",
+    "scara_workspace",
+    "serial_view",
+    "visual_model",
+    "volume_convergence",
+]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
