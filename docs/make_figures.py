@@ -176,14 +176,14 @@ def view_p2us():
     """`kinematics show p2us --ellipsoid`."""
     from kinematics.views import meshcat as viz
 
-    return _view(lambda: viz.p2us_view(load_robot("p2us"), ellipsoid=True))
+    return _view(lambda: viz.parallel_view(load_robot("p2us"), ellipsoid=True))
 
 
 def view_p2us_workspace():
     """`kinematics show p2us --workspace --singularities --limits actuators`."""
     from kinematics.views import meshcat as viz
 
-    return _view(lambda: viz.p2us_view(load_robot("p2us"), workspace=True, singularities=True, limits="actuators"))
+    return _view(lambda: viz.parallel_view(load_robot("p2us"), workspace=True, singularities=True, limits="actuators"))
 
 
 def view_ur5():

@@ -33,7 +33,7 @@ def test_scene_records_commands(scara, p2us):
     assert len(list(root["scara"]["visuals"])) >= 5  # the robot's link geometries
     assert {"ellipse", "workspace", "singular", "scara_trace"} <= set(root["overlays"])
     assert any(n.animation is not None for n in _walk(s._window.tree))
-    s2 = viz.p2us_view(p2us, [0.05, 0.0, -0.45], ellipsoid=True, workspace=True, step=0.04)
+    s2 = viz.parallel_view(p2us, [0.05, 0.0, -0.45], ellipsoid=True, workspace=True, step=0.04)
     assert {"ellipsoid", "workspace"} <= set(s2._window.tree["meshcat"]["overlays"])
 
 
@@ -43,11 +43,11 @@ def _walk(tree):
     return walk(tree)
 
 
-def test_p2us_view_is_closed_loop_solved(p2us):
+def test_parallel_view_is_closed_loop_solved(p2us):
     from kinematics.generic.closedloop import ClosedLoop
 
     p = np.array([0.05, -0.02, -0.45])
-    s = viz.p2us_view(p2us, p)
+    s = viz.parallel_view(p2us, p)
     q = s.configurations["p2us"]
     loop = ClosedLoop(p2us)
     assert np.linalg.norm(loop.residual(q)[0]) < 1e-9  # every loop closed
@@ -212,7 +212,7 @@ def test_builtin_robot_reads_well_in_a_real_browser(tmp_path, name):
     if robot.loops is None:
         scene = viz.scara_view(robot)
     elif robot.loops.mechanism == "3-[P2(US)]":
-        scene = viz.p2us_view(robot)
+        scene = viz.parallel_view(robot)
     else:
         scene = viz.closed_loop_view(robot)
     a, b, mask = _robot_pixels(scene, tmp_path)

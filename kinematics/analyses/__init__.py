@@ -71,6 +71,7 @@ if TYPE_CHECKING:
         p2us_singularities,
         paper_scan,
         scara_singularities,
+        singular_loci,
     )
     from kinematics.analyses.sweep import (
         COLUMNS,
@@ -97,13 +98,11 @@ if TYPE_CHECKING:
         shape_volume,
     )
     from kinematics.analyses.workspace import (
-        UNION,
         Workspace,
-        p2us_margin,
+        measure_workspace,
         p2us_volume_monte_carlo,
         p2us_workspace,
         scara_area_quadrature,
-        scara_margin,
         scara_workspace,
     )
 
@@ -140,7 +139,6 @@ _LAZY = {
     "SerialWorkspace": "serial_workspace",
     "SingularLocus": "singularities",
     "SingularityScan": "singularities",
-    "UNION": "workspace",
     "UsableShape": "usable",
     "VolumeEstimate": "cells",
     "Workspace": "workspace",
@@ -162,9 +160,9 @@ _LAZY = {
     "largest_shape": "usable",
     "local_cluster": "sweep",
     "margin_mesh": "boundary_mesh",
+    "measure_workspace": "workspace",
     "numeric_mobility": "mobility",
     "one_kernel_thread": "sweep",
-    "p2us_margin": "workspace",
     "p2us_mesh": "boundary_mesh",
     "p2us_singularities": "singularities",
     "p2us_usable": "usable",
@@ -176,7 +174,6 @@ _LAZY = {
     "regular_configuration": "mobility",
     "run": "sweep",
     "scara_area_quadrature": "workspace",
-    "scara_margin": "workspace",
     "scara_singularities": "singularities",
     "scara_workspace": "workspace",
     "screw_analysis": "mobility",
@@ -184,6 +181,7 @@ _LAZY = {
     "shape_samples": "usable",
     "shape_volume": "usable",
     "simplex_fraction": "cells",
+    "singular_loci": "singularities",
     "to_csv": "sweep",
     "to_params": "sweep",
 }
@@ -203,7 +201,6 @@ __all__ = [
     "SHAPES",
     "SPLIT",
     "SWEEPABLE",
-    "UNION",
     "Axis",
     "BoundaryMesh",
     "CellGrid",
@@ -243,9 +240,9 @@ __all__ = [
     "largest_shape",
     "local_cluster",
     "margin_mesh",
+    "measure_workspace",
     "numeric_mobility",
     "one_kernel_thread",
-    "p2us_margin",
     "p2us_mesh",
     "p2us_singularities",
     "p2us_usable",
@@ -257,7 +254,6 @@ __all__ = [
     "regular_configuration",
     "run",
     "scara_area_quadrature",
-    "scara_margin",
     "scara_singularities",
     "scara_workspace",
     "screw_analysis",
@@ -265,6 +261,7 @@ __all__ = [
     "shape_samples",
     "shape_volume",
     "simplex_fraction",
+    "singular_loci",
     "to_csv",
     "to_params",
 ]

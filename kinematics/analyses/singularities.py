@@ -1,16 +1,19 @@
-"""Singularity scans: the 3-[P2(US)]'s type I / II / III loci over a Cartesian grid, paper B's own
-512-point actuator scan, and the SCARA's theta2 = 0 boundary with its smallest-radius map.
+"""Singularity scans: type I / II / III loci of any mechanism with singular fields (the
+3-[P2(US)], the Delta) over a Cartesian grid, paper B's own 512-point actuator scan, and the
+SCARA's theta2 = 0 boundary with its smallest-radius map.
 
-3-[P2(US)] loci are found where a scale-free measure changes sign between grid neighbours (and
-placed by linear interpolation along that edge), which catches a singular surface whatever the
-grid step, where a threshold on |measure| would catch only the points that happen to land on it:
+Loci are found where a mechanism's signed fields (`Mechanism.singular_fields`) change sign
+between grid neighbours (and placed by linear interpolation along that edge), which catches a
+singular surface whatever the grid step, where a threshold on |measure| would catch only the
+points that happen to land on it:
 
-* type I (limb i): the IK discriminant of limb i changes sign: the limb's two roots merge, its
-  rod is perpendicular to its rail (J_q singular). Such points lie on the limb's reach boundary,
+* type I (limb i): the IK discriminant of limb i changes sign: the limb's two roots merge (for
+  the 3-[P2(US)] its rod is perpendicular to its rail; for the Delta its forearm lies in the
+  plane of its upper arm and actuator axis: J_q singular). Such points lie on the limb's reach boundary,
   so at best on the workspace's boundary, never in its interior; one counts as *on the
   workspace boundary* when its reachable end is in some working mode's workspace.
-* type II (mode m): det[n_1; n_2; n_3] changes sign with every limb reaching at both ends (J_x
-  singular); *in the workspace* when both ends are in mode m's workspace.
+* type II (mode m): det[n_1; n_2; n_3] of the rod (forearm) directions changes sign with every
+  limb reaching at both ends (J_x singular); *in the workspace* when both ends are in mode m's workspace.
 * type III: a type II edge that shares an end with a type I edge (both within one step).
 
 The grid is scanned plane by plane along z, so memory stays at a few planes whatever the step.
@@ -28,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from kinematics.analyses.cells import check_step
-from kinematics.errors import InvalidInputError, UnknownModeError
+from kinematics.errors import InvalidInputError
+from kinematics.mechanisms.base import Mechanism
 from kinematics.mechanisms.p2us.closed_form import (
     MODES,
     SINGULARITY_TYPES,
@@ -37,7 +41,6 @@ from kinematics.mechanisms.p2us.closed_form import (
     fk,
     jacobians,
 )
-from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
 from kinematics.mechanisms.scara.closed_form import ScaraParams
 from kinematics.sizes import check_points, grid_points
 
@@ -58,6 +61,7 @@ class SingularLocus:
     kind: np.ndarray
     which: np.ndarray
     inside: np.ndarray
+    branches: tuple[str, ...] = MODES
 
     @property
     def interior(self) -> np.ndarray:
@@ -81,7 +85,7 @@ class SingularLocus:
             if k == 1:
                 item["limb"] = int(w) + 1
             else:
-                item["mode"] = MODES[int(w)]
+                item["mode"] = self.branches[int(w)]
             out.append(item)
         return out
 
@@ -120,7 +124,7 @@ def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, p
     reach_b = (b["disc"] >= 0).all(axis=1)
     in_a = a["margin"] >= 0
     in_b = b["margin"] >= 0
-    for limb in range(3):
+    for limb in range(a["disc"].shape[1]):
         da, db = a["disc"][:, limb], b["disc"][:, limb]
         hit = np.flatnonzero((da >= 0) != (db >= 0))
         if len(hit):
@@ -137,16 +141,17 @@ def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, p
             out.append((2, m, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
 
 
-def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = "all",
-                       modes: Sequence[str] = MODES, progress: bool = False) -> SingularityScan:
-    """Type I / II / III loci of the 3-[P2(US)] over a grid of step `step` [m] on its bounding box."""
-    check_limits(limits)
+def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
+                  branches: Sequence[str] | None = None, progress: bool = False) -> SingularityScan:
+    """Type I / II / III loci of any mechanism with `singular_fields` over a grid of step `step`
+    [m] on its bounding box (see the module docstring; for the 3-[P2(US)] the fields come from
+    the fused scan kernel)."""
+    mech.require("singular_fields", "a singular-locus scan")
+    mech.check_limits(limits)
     check_step(step)
-    for m in modes:
-        if m not in MODES:
-            raise UnknownModeError(m, MODES)
-    mode_cols = [MODES.index(m) for m in modes]
-    lo, hi = bounding_box(params)
+    chosen = mech.check_branches(branches)
+    mode_cols = [mech.branches.index(m) for m in chosen]
+    lo, hi = mech.bounding_box(limits)
     check_points("step", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step")
     dims = np.ceil((hi - lo) / step).astype(int) + 1
     t0 = time.perf_counter()
@@ -161,8 +166,8 @@ def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = 
     prev = None
     for k in range(dims[2]):
         pts = np.stack([lo[0] + step * ix, lo[1] + step * iy, np.full(len(ix), lo[2] + step * k)], axis=1)
-        r = scan(params, pts, limits)
-        cur = {"margin": r.margin, "det": r.det, "disc": r.disc}
+        r = mech.singular_fields(pts, limits)
+        cur = {"margin": r.margin, "det": r.det, "disc": r.limb}
         ids = plane_ids + k * len(plane_ids)
         grid = np.arange(len(ix)).reshape(dims[0], dims[1])
         for sa, sb in ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel())):
@@ -176,15 +181,23 @@ def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = 
             bar.update(1)
     if bar is not None:
         bar.close()
-    locus = _assemble(found)
-    return SingularityScan(locus, step, limits, tuple(modes), int(np.prod(dims)), time.perf_counter() - t0,
+    locus = _assemble(found, mech.branches)
+    return SingularityScan(locus, step, limits, chosen, int(np.prod(dims)), time.perf_counter() - t0,
                            (lo.tolist(), hi.tolist()))
 
 
-def _assemble(found: list[tuple]) -> SingularLocus:
+def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = "all",
+                       modes: Sequence[str] = MODES, progress: bool = False) -> SingularityScan:
+    """`singular_loci` of the 3-[P2(US)] design `params`."""
+    from kinematics.mechanisms.p2us.mechanism import P2US
+
+    return singular_loci(P2US(params), step=step, limits=limits, branches=modes, progress=progress)
+
+
+def _assemble(found: list[tuple], branches: tuple[str, ...]) -> SingularLocus:
     if not found:
         e = np.empty(0)
-        return SingularLocus(np.empty((0, 3)), e.astype(int), e.astype(int), e.astype(bool))
+        return SingularLocus(np.empty((0, 3)), e.astype(int), e.astype(int), e.astype(bool), branches)
     kind = np.concatenate([np.full(len(f[2]), f[0]) for f in found])
     which = np.concatenate([np.full(len(f[2]), f[1]) for f in found])
     points = np.concatenate([f[2] for f in found])
@@ -194,7 +207,7 @@ def _assemble(found: list[tuple]) -> SingularLocus:
     type1_vertices = np.union1d(ends_a[kind == 1], ends_b[kind == 1])
     near = np.isin(ends_a, type1_vertices) | np.isin(ends_b, type1_vertices)
     kind = np.where((kind == 2) & near, 3, kind)
-    return SingularLocus(points, kind, which, inside)
+    return SingularLocus(points, kind, which, inside, branches)
 
 
 # -- paper B's 512-point scan ------------------------------------------------------------------------

@@ -1,16 +1,16 @@
-"""Workspaces: the 3-[P2(US)]'s volume per working mode and their union, the SCARA's area.
+"""Workspaces of any mechanism with a margin: volume (area for planar ones) per branch and of
+their union.
 
-Both are measured by `kinematics.analyses.columns.column_volume` (exact columns, adaptive quadrature, with
-an error estimate) on a continuous margin (> 0 inside); the earlier cell-refinement estimator
-`kinematics.analyses.cells.adaptive_volume` stays available (engine="cells", used by the design sweep and
-the benchmark):
+`measure_workspace(mech)` integrates the mechanism's continuous margin (> 0 inside; see
+`kinematics.mechanisms.base`) with `kinematics.analyses.columns.column_volume` (exact columns,
+adaptive quadrature, with an error estimate); the earlier cell-refinement estimator
+`kinematics.analyses.cells.adaptive_volume` stays available (engine="cells", used by the design
+sweep and the benchmark). The margins are the families' own: the 3-[P2(US)]'s fused scan kernel
+(`p2us_margin`), the SCARA's reach and joint slacks (`scara_margin`), the Delta's reach, actuator
+and ball-joint slacks.
 
-* 3-[P2(US)]: the fused kernel's per-mode margin (`p2us_scan`); the union is their maximum;
-* SCARA: per elbow, the smallest of the reach slacks (l1 + l2 - r, r - |l1 - l2|) [m] and the
-  joint-limit slacks [rad] times l1 + l2 (~ the tip's travel to the limit) [m].
-
-Every limit comes from the URDF (through `read_params` / `ScaraParams.from_robot`). Two
-independent checks, used by the tests: a Monte-Carlo volume from the NumPy closed forms of
+Every limit comes from the URDF (through the family's `read_params` / `ScaraParams.from_robot`).
+Two independent checks, used by the tests: a Monte-Carlo volume from the NumPy closed forms of
 `kinematics.mechanisms.p2us.closed_form`, and the SCARA's area by a 1D quadrature over the radius.
 """
 
@@ -26,12 +26,14 @@ import numpy as np
 
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
 from kinematics.analyses.columns import ColumnVolume, column_volume
-from kinematics.errors import UnknownModeError
+from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams
-from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
+from kinematics.mechanisms.p2us.mechanism import P2US
+from kinematics.mechanisms.p2us.mechanism import p2us_margin as p2us_margin
+from kinematics.mechanisms.p2us.scan import bounding_box, check_limits
 from kinematics.mechanisms.scara.closed_form import ELBOWS, ScaraParams
-
-UNION = "union"
+from kinematics.mechanisms.scara.mechanism import Scara
+from kinematics.mechanisms.scara.mechanism import scara_margin as scara_margin
 
 
 @dataclass(frozen=True)
@@ -96,30 +98,7 @@ class Workspace:
         return out
 
 
-def _check_modes(modes: Sequence[str], valid: Sequence[str]) -> tuple[str, ...]:
-    for m in modes:
-        if m not in valid:
-            raise UnknownModeError(m, tuple(valid))
-    if not modes:
-        raise UnknownModeError("", tuple(valid))
-    return tuple(dict.fromkeys(modes))
-
-
 # -- 3-[P2(US)] -----------------------------------------------------------------------------------
-def p2us_margin(params: P2USParams, modes: Sequence[str] = MODES, limits: str = "all"
-                ) -> Callable[[np.ndarray], np.ndarray]:
-    """points (N, 3) -> (N, len(modes) + 1) margins [m]: each mode, then their union (max)."""
-    modes = _check_modes(modes, MODES)
-    check_limits(limits)
-    cols = [MODES.index(m) for m in modes]
-
-    def margin(points: np.ndarray) -> np.ndarray:
-        m = scan(params, points, limits).margin[:, cols]
-        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
-
-    return margin
-
-
 def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float,
              rtol: float | None, engine: str, progress: bool, max_points: int | None, check: bool
              ) -> ColumnVolume | VolumeEstimate:
@@ -135,21 +114,32 @@ def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
                          progress=progress, **kw)
 
 
-def p2us_workspace(params: P2USParams, *, step: float = 0.005, rtol: float | None = 1e-4,
-                   modes: Sequence[str] = MODES, limits: str = "all", name: str = "p2us",
-                   progress: bool = False, max_points: int | None = None, engine: str = "columns",
-                   check: bool = False) -> Workspace:
-    """Volume of the 3-[P2(US)] workspace per working mode and of their union [m^3].
+def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | None = 1e-4,
+                      branches: Sequence[str] | None = None, limits: str = "all", progress: bool = False,
+                      max_points: int | None = None, engine: str = "columns", check: bool = False) -> Workspace:
+    """Volume [m^3] (area [m^2] for a planar mechanism) of each branch's workspace and of their union.
 
     engine "columns" (default): `column_volume` with column sampling step `step` [m] and relative
     tolerance `rtol` on its error estimate; "cells": the cell-refinement estimator with grid step
     `step`. check: rerun at half the step and compare (columns only).
     """
-    modes = _check_modes(modes, MODES)
-    lo, hi = bounding_box(params)
+    mech.require("margin", "a workspace measurement")
+    chosen = mech.check_branches(branches)
+    mech.check_limits(limits)
+    lo, hi = mech.bounding_box(limits)
     t0 = time.perf_counter()
-    res = _measure(p2us_margin(params, modes, limits), lo, hi, step, rtol, engine, progress, max_points, check)
-    return Workspace(name, False, (*modes, UNION), limits, res, time.perf_counter() - t0, params.as_dict())
+    res = _measure(mech.margin(chosen, limits), lo, hi, step, rtol, engine, progress, max_points, check)
+    return Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res, time.perf_counter() - t0,
+                     mech.parameters())
+
+
+def p2us_workspace(params: P2USParams, *, step: float = 0.005, rtol: float | None = 1e-4,
+                   modes: Sequence[str] = MODES, limits: str = "all", name: str = "p2us",
+                   progress: bool = False, max_points: int | None = None, engine: str = "columns",
+                   check: bool = False) -> Workspace:
+    """`measure_workspace` of the 3-[P2(US)] design `params` [m^3]."""
+    return measure_workspace(P2US(params, name), step=step, rtol=rtol, branches=modes, limits=limits,
+                             progress=progress, max_points=max_points, engine=engine, check=check)
 
 
 def p2us_volume_monte_carlo(params: P2USParams, n: int, rng: np.random.Generator,
@@ -167,47 +157,12 @@ def p2us_volume_monte_carlo(params: P2USParams, n: int, rng: np.random.Generator
 
 
 # -- SCARA ----------------------------------------------------------------------------------------
-def scara_margin(sp: ScaraParams, elbows: Sequence[str] = ELBOWS) -> Callable[[np.ndarray], np.ndarray]:
-    """points (N, 2) -> (N, len(elbows) + 1) margins [m]: each elbow, then their union."""
-    elbows = _check_modes(elbows, ELBOWS)
-    inner, outer = sp.reach
-    lo, hi = np.asarray(sp.lower), np.asarray(sp.upper)
-
-    def margin(points: np.ndarray) -> np.ndarray:
-        x, y = points[:, 0], points[:, 1]
-        r = np.hypot(x, y)
-        reach = np.minimum(outer - r, r - inner)
-        # joint angles of each elbow with the radius clamped into the annulus: continuous, and
-        # exactly the IK inside it
-        rc = np.clip(r, inner, outer)
-        c2 = np.clip((rc * rc - sp.l1**2 - sp.l2**2) / (2 * sp.l1 * sp.l2), -1.0, 1.0)
-        phi = np.arctan2(y, x)
-        cols = []
-        for elbow in elbows:
-            t2 = (-1.0 if elbow == "up" else 1.0) * np.arccos(c2)
-            t1 = phi - np.arctan2(sp.l2 * np.sin(t2), sp.l1 + sp.l2 * np.cos(t2))
-            t1 = (t1 + math.pi) % (2 * math.pi) - math.pi
-            q = np.stack([t1, t2], axis=-1)
-            joint = np.minimum(q - lo, hi - q).min(axis=-1) * outer
-            cols.append(np.minimum(reach, joint))
-        m = np.stack(cols, axis=1)
-        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
-
-    return margin
-
-
 def scara_workspace(sp: ScaraParams, *, step: float = 0.005, rtol: float | None = 1e-4,
                     elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = False,
                     engine: str = "columns", check: bool = False) -> Workspace:
-    """Reachable area of the planar arm per elbow and of their union [m^2] (engines as
-    `p2us_workspace`)."""
-    elbows = _check_modes(elbows, ELBOWS)
-    outer = sp.reach[1]
-    t0 = time.perf_counter()
-    res = _measure(scara_margin(sp, elbows), np.full(2, -outer), np.full(2, outer) + 1e-9, step, rtol, engine,
-                   progress, None, check)
-    return Workspace(name, True, (*elbows, UNION), "all", res, time.perf_counter() - t0,
-                     {"l1": sp.l1, "l2": sp.l2, "lower": list(sp.lower), "upper": list(sp.upper)})
+    """`measure_workspace` of the planar arm `sp` [m^2]."""
+    return measure_workspace(Scara(sp, name), step=step, rtol=rtol, branches=elbows, progress=progress,
+                             engine=engine, check=check)
 
 
 def scara_area_quadrature(sp: ScaraParams, n: int = 20001, elbows: Sequence[str] = ELBOWS) -> float:

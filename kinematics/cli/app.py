@@ -46,9 +46,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _out(args: argparse.Namespace, payload: dict[str, Any], human: Callable[[], str]) -> None:
-    from kinematics.cli.report import dumps
+    from kinematics.cli.report import emit
 
-    print(dumps(payload) if args.json else human())
+    emit(args, payload, human)
 
 
 # -- commands ------------------------------------------------------------------------------------
@@ -59,7 +59,10 @@ def _load(args: argparse.Namespace) -> Any:
 
 
 def _is_parallel(robot: Any) -> bool:
-    return robot.loops is not None
+    """A closed-loop mechanism, as the dispatcher (`mechanism_of`) decides."""
+    from kinematics.mechanisms import mechanism_of
+
+    return mechanism_of(robot).closed_loop
 
 
 def cmd_info(args: argparse.Namespace) -> int:

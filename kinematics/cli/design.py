@@ -11,12 +11,13 @@ from kinematics.model.robot import Robot
 
 
 def _params(robot: Robot) -> Any:
-    from kinematics.cli.parallel import _is_p2us, params_of
     from kinematics.errors import UnsupportedRobotError
+    from kinematics.mechanisms import mechanism_of
 
-    if not _is_p2us(robot):
+    mech = mechanism_of(robot)
+    if mech.family != "p2us":
         raise UnsupportedRobotError(robot.name, "usable workspaces and boundary meshes support the 3-[P2(US)]")
-    return params_of(robot)
+    return mech.params
 
 
 def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:

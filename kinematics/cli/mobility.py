@@ -35,38 +35,38 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     if args.position is not None and args.q is not None:
         raise InvalidInputError("--position/--q", "give one of them, not both")
     if args.position is not None:
-        from kinematics.cli.parallel import _position, require_family
+        from kinematics.cli.parallel import position_arg, require_family
 
         fam, params = require_family(robot)
-        p = _position(args)
+        p = position_arg(args)
         values = fam.joint_values_at(params, p, args.mode or "---")
         q = robot.configuration([values[n] for n in robot.joint_names])
         return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
     if args.q is not None:
-        from kinematics.cli.parallel import _actuated
+        from kinematics.cli.parallel import actuated_arg
 
-        return loop.solve(_actuated(args, robot)).q, f"actuators at {list(args.q)}"
+        return loop.solve(actuated_arg(args, robot)).q, f"actuators at {list(args.q)}"
     return loop.reference, "the sidecar's reference configuration"
 
 
 def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:
     """For a 3-[P2(US)] given --position or --q: None if the platform can be there, else the answer."""
-    from kinematics.cli.parallel import _is_p2us
+    from kinematics.mechanisms import mechanism_of
 
-    if robot.loops is None or not _is_p2us(robot) or (args.position is None) == (args.q is None):
+    if (args.position is None) == (args.q is None) or mechanism_of(robot).family != "p2us":
         return None
-    from kinematics.cli.parallel import _actuated, _position, limb_reasons, params_of
+    from kinematics.cli.parallel import actuated_arg, limb_reasons, params_of, position_arg
     from kinematics.mechanisms.p2us.closed_form import fk, ik, mode_index
 
     params = params_of(robot)
     if args.q is not None:
-        q = _actuated(args, robot)
+        q = actuated_arg(args, robot)
         if fk(params, q).exists:
             return None
         return {"robot": robot.name, "q": q.tolist(), "reachable": False,
                 "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
     mode_index(args.mode or "---")  # a bad mode is bad input even where nothing reaches
-    p = _position(args)
+    p = position_arg(args)
     res = ik(params, p)
     if res.limbs.reach.all():
         return None

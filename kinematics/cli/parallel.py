@@ -22,14 +22,10 @@ from kinematics.mechanisms.p2us.closed_form import (
     classify,
     mode_index,
 )
-from kinematics.mechanisms.p2us.urdf import MECHANISM, read_params
+from kinematics.mechanisms.p2us.urdf import MECHANISM
 from kinematics.model.robot import Robot
 
 EXIT_OK, EXIT_NO = 0, 1
-
-
-def _is_p2us(robot: Robot) -> bool:
-    return robot.loops is not None and robot.loops.mechanism == MECHANISM
 
 
 class Family(NamedTuple):
@@ -40,7 +36,6 @@ class Family(NamedTuple):
     """
 
     mechanism: str
-    read_params: Callable[..., Any]
     ik: Callable[..., Any]
     fk: Callable[..., Any]
     jacobians: Callable[..., Any]
@@ -60,17 +55,17 @@ def _p2us_fk_reason(params: P2USParams, res: Any) -> str:
 
 
 def families() -> dict[str, Family]:
-    """The mechanism families with closed forms, by the sidecar's `mechanism:` value."""
+    """The closed-form families' report functions, by `Mechanism.family`."""
     from kinematics.mechanisms.delta import closed_form as delta
     from kinematics.mechanisms.delta import urdf as delta_urdf
     from kinematics.mechanisms.p2us import closed_form as parallel
     from kinematics.mechanisms.p2us import urdf as p2us_urdf
 
     return {
-        MECHANISM: Family(MECHANISM, read_params, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,
+        "p2us": Family(MECHANISM, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,
                           parallel.violations, limb_reasons, _p2us_fk_reason, p2us_urdf.joint_values_at,
                           lambda p: p.L, "m", "iota_I = min |n.w|"),
-        delta.MECHANISM: Family(delta.MECHANISM, delta_urdf.read_params, delta.ik, delta.fk, delta.jacobians,
+        "delta": Family(delta.MECHANISM, delta.ik, delta.fk, delta.jacobians,
                                 delta.rod_vectors, delta.violations, delta.limb_reasons, delta.fk_reason,
                                 delta_urdf.joint_values_at, lambda p: p.lb, "rad", "iota_I = min |n.b|"),
     }
@@ -79,30 +74,34 @@ def families() -> dict[str, Family]:
 def family_of(robot: Robot) -> tuple[Family, Any] | None:
     """The robot's mechanism family and its parameters read from its URDF, or None when it has
     no closed forms (then the generic closed-loop solver answers)."""
-    if robot.loops is None or robot.loops.mechanism not in families():
-        return None
-    fam = families()[robot.loops.mechanism]
-    return fam, fam.read_params(robot.urdf_path, robot.name)
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    fam = families().get(mech.family)
+    return None if fam is None else (fam, mech.params)
 
 
 def require_family(robot: Robot) -> tuple[Family, Any]:
     found = family_of(robot)
     if found is None:
         raise UnsupportedRobotError(robot.name, "closed-form IK needs a mechanism with closed forms ("
-                                    + ", ".join(families()) + "); its sidecar declares mechanism "
+                                    + ", ".join(f.mechanism for f in families().values()) + "); its sidecar declares mechanism "
                                     f"{robot.loops.mechanism if robot.loops else None!r}")
     return found
 
 
 def params_of(robot: Robot) -> P2USParams:
     """The closed-form parameters of a 3-[P2(US)] robot, read from its URDF."""
-    if not _is_p2us(robot):
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    if mech.family != "p2us":
         raise UnsupportedRobotError(robot.name, f"not a {MECHANISM} (its sidecar declares mechanism "
                                     f"{robot.loops.mechanism if robot.loops else None!r})")
-    return read_params(robot.urdf_path, robot.name)
+    return mech.params
 
 
-def _position(args: argparse.Namespace) -> np.ndarray:
+def position_arg(args: argparse.Namespace) -> np.ndarray:
     if args.position is None or len(args.position) != 3:
         got = 0 if args.position is None else len(args.position)
         raise InvalidInputError("--position", f"give X Y Z of the platform [m], got {got} value(s)")
@@ -142,7 +141,7 @@ def _solutions_report(title: str, key: str, columns: list[str], digits: int,
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics ik p2us|delta --position X Y Z`: all working modes, limits, reasons."""
     fam, params = require_family(robot)
-    p = _position(args)
+    p = position_arg(args)
     res = fam.ik(params, p)
     limbs = fam.limb_reasons(params, res.limbs)
     solutions = []
@@ -171,7 +170,7 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     return EXIT_OK if reachable else EXIT_NO
 
 
-def _actuated(args: argparse.Namespace, robot: Robot) -> np.ndarray:
+def actuated_arg(args: argparse.Namespace, robot: Robot) -> np.ndarray:
     n = len(robot.loops.actuated)  # type: ignore[union-attr]
     if args.q is None or len(args.q) != n:
         got = 0 if args.q is None else len(args.q)
@@ -190,7 +189,7 @@ def _actuated(args: argparse.Namespace, robot: Robot) -> np.ndarray:
 def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics fk p2us|delta --q Q1 Q2 Q3`: both assembly modes (closed form); other loop
     robots through the Pinocchio closed-loop solver."""
-    q = _actuated(args, robot)
+    q = actuated_arg(args, robot)
     found = family_of(robot)
     if found is None:
         return _generic_fk(args, robot, q, out)
@@ -238,7 +237,7 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     fam, params = found
     if args.q is not None:
         raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
-    p = _position(args)
+    p = position_arg(args)
     res = fam.ik(params, p)
     if args.mode is not None:
         m = mode_index(args.mode)
@@ -279,7 +278,7 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.generic.closedloop import ClosedLoop
 
-    q = _actuated(args, robot)
+    q = actuated_arg(args, robot)
     cl = ClosedLoop(robot)
     sol = cl.solve(q)
     G = cl.constrained_jacobian(sol.q)
@@ -335,7 +334,7 @@ def cmd_urdf(args: argparse.Namespace) -> int:
                           + ("identical" if back == params else "DIFFERENT") + "):",
                           key_values(params.as_dict().items(), None)])
 
-    from kinematics.cli.app import _out
+    from kinematics.cli.report import emit
 
-    _out(args, payload, human)
+    emit(args, payload, human)
     return EXIT_OK

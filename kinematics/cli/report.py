@@ -78,6 +78,11 @@ def matrix(rows: Any, digits: int = 6) -> str:
     return "\n".join("  [" + "  ".join(v.rjust(width) for v in row) + "]" for row in values)
 
 
+def emit(args: argparse.Namespace, payload: dict[str, Any], human: Callable[[], str]) -> None:
+    """The CLI's `Out`: the payload as strict JSON with --json, else the human-readable report."""
+    print(dumps(payload) if args.json else human())
+
+
 def show_progress(args: argparse.Namespace) -> bool:
     """Progress bars in the CLI: only on a terminal, and never with --json."""
     import sys

@@ -16,12 +16,13 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import signal
     import sys
 
-    from kinematics.cli.workspace import robot_kind
+    from kinematics.mechanisms import mechanism_of
     from kinematics.views import meshcat as viz
 
-    kind = robot_kind(robot)
-    if kind == "p2us":
-        unreachable = _p2us_checks(args, robot)
+    mech = mechanism_of(robot)
+    kind = mech.family
+    if kind in ("p2us", "delta"):
+        unreachable = _parallel_checks(args, robot, mech)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
@@ -32,15 +33,15 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     scene = viz.Scene(live=not args.export)
     try:
-        if kind == "p2us":
+        if kind in ("p2us", "delta"):
             if args.guide is not None:
                 raise InvalidInputError("--guide", "guidance runs are for planar arms")
             actuators = None
             if args.q is not None:
                 if len(args.q) != 3:
-                    raise InvalidInputError("--q", f"give the 3 actuator values [m], got {len(args.q)}")
+                    raise InvalidInputError("--q", f"give the 3 actuator values [{mech.actuator_unit}], got {len(args.q)}")
                 actuators = np.array(args.q, dtype=float)
-            viz.p2us_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
+            viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits, step=args.step, scene=scene)
         elif kind in ("scara", "serial"):
@@ -87,36 +88,32 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         scene.close()
 
 
-def _p2us_checks(args: argparse.Namespace, robot: Any) -> dict[str, Any] | None:
-    """Before a scene starts: the overlay grid fits the view budget, and --position is reachable
-    in --mode (else the answer to report, exit 1)."""
-    from kinematics.cli.parallel import params_of
-    from kinematics.mechanisms.p2us.closed_form import ik, mode_index
-    from kinematics.mechanisms.p2us.scan import bounding_box
+def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[str, Any] | None:
+    """Before a scene starts: the overlay grid fits the view budget, and --position (or --q) is
+    reachable in --mode (else the answer to report, exit 1)."""
+    from kinematics.cli.parallel import families
     from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
 
-    params = params_of(robot)
+    fam = families()[mech.family]
+    params = mech.params
     if args.workspace or args.singularities:
-        lo, hi = bounding_box(params)
+        lo, hi = mech.bounding_box(args.limits)
         check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
                      hint=f"{args.step:g} m is too fine a step for a view")
     if args.q is not None and args.position is None and len(args.q) == 3:
-        from kinematics.mechanisms.p2us.closed_form import fk
-
-        if fk(params, np.array(args.q, dtype=float)).exists:
+        res = fam.fk(params, np.array(args.q, dtype=float))
+        if res.exists:
             return None
         return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
-                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
+                "reason": fam.fk_reason(params, res)}
     if args.position is None:
         return None
-    mode = args.mode or "---"
-    m = mode_index(mode)
+    mode = mech.check_branches([args.mode or "---"])[0]
+    m = mech.branches.index(mode)
     p = np.array(args.position, dtype=float)
-    sol = ik(params, p)
+    sol = fam.ik(params, p)
     if sol.reachable[m]:
         return None
-    from kinematics.cli.parallel import limb_reasons
-
-    reasons = [lb["reason"] for lb in limb_reasons(params, sol.limbs) if lb["reason"]]
+    reasons = [lb["reason"] for lb in fam.limb_reasons(params, sol.limbs) if lb["reason"]]
     return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
             "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}

@@ -6,7 +6,7 @@ import argparse
 import math
 import os
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -14,35 +14,10 @@ from kinematics.cli.report import Out, fmt, key_values, show_progress, table
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.files import write_atomic
 from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    from kinematics.mechanisms.base import Mechanism
 from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
-
-
-def robot_kind(robot: Robot) -> str:
-    """The one place that tells robots apart for scans and views: 'p2us' (the 3-[P2(US)]),
-    'scara' (any planar 2R URDF: closed forms), 'serial' (any other open chain: the generic
-    `serial_workspace`) or 'closed-loop' (any other URDF with a loop sidecar)."""
-    from kinematics.cli.parallel import _is_p2us
-
-    if _is_p2us(robot):
-        return "p2us"
-    if robot.loops is not None:
-        return "closed-loop"
-    from kinematics.mechanisms.scara.closed_form import ScaraParams
-
-    try:
-        ScaraParams.from_robot(robot)
-    except UnsupportedRobotError:
-        return "serial"
-    return "scara"
-
-
-def _kind(robot: Robot) -> str:
-    """robot_kind for workspace scans, which the generic closed-loop robots do not have."""
-    kind = robot_kind(robot)
-    if kind == "closed-loop":
-        raise UnsupportedRobotError(robot.name, "workspace scans support the 3-[P2(US)] and open chains")
-    return kind
-
 
 SERIAL_PROVED = ("proved: lower <= volume <= upper for the URDF's kinematics (Taylor balls with a global "
                  "second-derivative bound above, Graves' theorem and boundary-free cell components below; "
@@ -165,12 +140,6 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> i
     return 0
 
 
-def _scara(robot: Robot) -> Any:
-    from kinematics.mechanisms.scara.closed_form import ScaraParams
-
-    return ScaraParams.from_robot(robot)
-
-
 def _write_points(path: str, points: np.ndarray, header: str) -> None:
     """Write points as .npy or CSV (by suffix), atomically."""
     if os.path.splitext(path)[1].lower() == ".npy":
@@ -180,20 +149,10 @@ def _write_points(path: str, points: np.ndarray, header: str) -> None:
                                                   fmt="%.17g"), "--points")
 
 
-def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any) -> np.ndarray:
+def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...]) -> np.ndarray:
     """Grid points (cell centres at `step`) inside the union, for --points."""
-    if kind == "p2us":
-        from kinematics.analyses.workspace import p2us_margin
-        from kinematics.mechanisms.p2us.scan import bounding_box
-
-        lo, hi = bounding_box(params)
-        margin = p2us_margin(params, modes, limits)
-    else:
-        from kinematics.analyses.workspace import scara_margin
-
-        outer = params.reach[1]
-        lo, hi = np.full(2, -outer), np.full(2, outer)
-        margin = scara_margin(params, modes)
+    lo, hi = mech.bounding_box(limits)
+    margin = mech.margin(branches, limits)
     check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
                  hint=f"{step:g} m is too fine a step to list the points")
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
@@ -202,62 +161,65 @@ def _inside_points(kind: str, params: Any, limits: str, step: float, modes: Any)
 
 
 def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    from kinematics.analyses.workspace import p2us_workspace, scara_workspace
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms import mechanism_of
 
-    kind = _kind(robot)
-    if kind == "serial":
+    mech = mechanism_of(robot)
+    if mech.family == "serial":
         return _serial_volume(args, robot, out)
+    mech.require("margin", "workspace-volume")
+    mech.check_limits(args.limits)
+    branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     t0 = time.perf_counter()
-    sing_summary: dict[str, Any]
+    sing_summary: dict[str, Any] = {}
+    singular_points: list[dict[str, Any]] = []
     sing: Any = None
-    if kind == "p2us":
-        from kinematics.analyses.singularities import p2us_singularities
-        from kinematics.cli.parallel import params_of
-        from kinematics.mechanisms.p2us.closed_form import MODES
+    paper: dict[str, Any] = {}
+    compiled = None
+    if mech.family == "p2us":
         from kinematics.mechanisms.p2us.scan import kernels_cached, kernels_compiled
 
-        params = params_of(robot)
-        modes = tuple(args.modes or MODES)
+        compiled = kernels_compiled
         if show_progress(args) and not kernels_cached():  # a terminal's notice, like the progress bars
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
-        # check: a second run at half the column step; disagreement beyond the estimates -> not converged
-        ws = p2us_workspace(params, step=args.step, rtol=rtol, modes=modes, limits=args.limits, name=robot.name,
-                            progress=show_progress(args), check=True)
-        sing = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
+    # check: a second run at half the column step; disagreement beyond the estimates -> not converged
+    ws = measure_workspace(mech, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
+                           progress=show_progress(args), check=True)
+    if "singular_fields" in mech.capabilities:
+        from kinematics.analyses.singularities import singular_loci
+
+        sing = singular_loci(mech, step=args.step, limits=args.limits, branches=branches,
+                             progress=show_progress(args))
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
-        paper = paper_comparison(robot, args.limits, ws)
-    else:
+    elif mech.family == "scara":
         from kinematics.analyses.singularities import scara_singularities
-        from kinematics.mechanisms.scara.closed_form import ELBOWS
 
-        params = _scara(robot)
-        modes = tuple(args.modes or ELBOWS)
-        ws = scara_workspace(params, step=args.step, rtol=rtol, elbows=modes, name=robot.name, progress=show_progress(args),
-                             check=True)
-        sing = scara_singularities(params)
+        sing = scara_singularities(mech.params)
         singular_points = _scara_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
                                         "within_limits": sing["theta2_zero_within_limits"]}}
-        paper = {}
+    if mech.family == "p2us":
+        paper = paper_comparison(robot, args.limits, ws)
     if args.points:
-        pts = _inside_points(kind, params, args.limits, args.step, modes)
-        _write_points(args.points, pts, "x,y,z" if kind == "p2us" else "x,y")
+        pts = _inside_points(mech, args.limits, args.step, branches)
+        _write_points(args.points, pts, ",".join(mech.task_axes))
     if args.plot:
         from kinematics.views import plots
 
         plots.headless()
-        fig = (plots.p2us_workspace(params, args.limits, max(args.step, 0.01), singular=sing.locus)
-               if kind == "p2us" else plots.scara_workspace(params, sing))
+        fig = (plots.scara_workspace(mech.params, sing) if mech.family == "scara"
+               else plots.spatial_workspace(mech, args.limits, max(args.step, 0.01),
+                                            singular=sing.locus if sing is not None else None))
         plots.save(fig, args.plot)
     payload = ws.as_dict()
-    payload.update(singular_points=singular_points, singularities=sing_summary, seconds=time.perf_counter() - t0,
-                   volume_seconds=ws.seconds, **paper)
-    if kind == "p2us":
-        payload["compiled_kernels"] = kernels_compiled()
+    payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
+                   seconds=time.perf_counter() - t0, volume_seconds=ws.seconds, **paper)
+    if compiled is not None:
+        payload["compiled_kernels"] = compiled()
     if not ws.result.converged:
         import sys
 
@@ -265,7 +227,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
               "beyond the error estimates); try a smaller --step", file=sys.stderr)
 
     def human() -> str:
-        return _report(ws, payload, paper)
+        return _report(ws, payload, paper, mech)
 
     out(args, payload, human)
     return 0
@@ -287,12 +249,7 @@ def _parameter_rows(parameters: dict[str, Any]) -> list[tuple[str, str]]:
     return rows
 
 
-MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
-               "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
-ELBOW_LEGEND = "elbow: 'up' takes theta2 < 0, 'down' theta2 > 0; 'union': either"
-
-
-def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
+def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mechanism) -> str:
     unit = "m^2" if ws.planar else "m^3"
     key = "area" if ws.planar else "volume"
     r = ws.result
@@ -302,8 +259,8 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any]) -> str:
         lines += ["(compiled the Numba kernels: first run only)"]
     lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
     lines.append(key_values(_parameter_rows(ws.parameters), digits=None))
-    lines += ["", table([("elbow" if ws.planar else "mode"), f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
-              ELBOW_LEGEND if ws.planar else MODE_LEGEND, ""]
+    lines += ["", table([mech.branch_kind, f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
+              mech.branch_legend, ""]
     lo, hi = payload["bbox"]
     rel = ws.error / ws.total if ws.total > 0 else math.inf
     lines.append(key_values([
@@ -389,10 +346,12 @@ def paper_volume_note(design: str, limits: str) -> str:
 
 
 def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    kind = _kind(robot)
-    if kind == "serial":
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    if mech.family == "serial":
         return _serial_singularities(args, robot, out)
-    if kind == "scara":
+    if mech.family == "scara":
         from kinematics.analyses.singularities import scara_singularities
         from kinematics.errors import UnknownModeError
         from kinematics.mechanisms.scara.closed_form import ELBOWS
@@ -401,7 +360,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             if mode not in ELBOWS:
                 raise UnknownModeError(mode, ELBOWS)
 
-        params = _scara(robot)
+        params = mech.params
         s = scara_singularities(params, math.radians(args.angle_step_deg))
         pts = _scara_points(s)
         payload = {
@@ -452,7 +411,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if args.paper_scan:
         from kinematics.analyses.singularities import paper_scan
 
-        ps = paper_scan(params)
+        ps = paper_scan(mech.params)
         payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
         payload["paper_scan"]["rows"] = ps["rows"]
     if args.plot:
@@ -488,15 +447,16 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses import sweep as sw
-    from kinematics.cli.parallel import params_of
+    from kinematics.mechanisms import mechanism_of
 
-    if _kind(robot) != "p2us":
-        raise UnsupportedRobotError(robot.name, "design sweeps are for the 3-[P2(US)]")
+    mech = mechanism_of(robot)
+    if mech.family != "p2us":
+        raise UnsupportedRobotError(robot.name, f"design sweeps are for the 3-[P2(US)]; this is a {mech.description}")
     if not args.param:
         raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
     axes = [sw.Axis.parse(p) for p in args.param]
     t0 = time.perf_counter()
-    rows = sw.run(axes, params_of(robot), step=args.step, rtol=args.rtol, scheduler=args.scheduler,
+    rows = sw.run(axes, mech.params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
                   workers=args.workers, progress=show_progress(args))
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)

@@ -47,7 +47,7 @@ iota_I (which behaves like the square root of an IK discriminant)."""
 SINGULARITY_TYPES = ("none", "type I", "type II", "type III")
 """Gosselin-Angeles labels, indexed by `classify`."""
 
-CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields")
+CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values")
 """The optional parts of the interface, by method name."""
 
 
@@ -144,6 +144,7 @@ class Mechanism(ABC):
 
     Attributes:
         family: the family's key ("scara", "p2us", "delta", "serial", "closed-loop").
+        closed_loop: the model has loop closures (a parallel mechanism).
         description: the family in words.
         name: the robot's (or design's) name.
         task_dim: 2 (planar) or 3.
@@ -153,10 +154,13 @@ class Mechanism(ABC):
         branches: the branch labels, in the margin's column order.
         branch_legend: how to read a branch label.
         limit_sets: the accepted `limits` values; the first is the default.
+        params: the family's design object (`P2USParams`, `DeltaParams`, `ScaraParams`), None
+            for the generic families.
     """
 
     family: ClassVar[str]
     description: ClassVar[str]
+    closed_loop: ClassVar[bool] = False
     name: str
     task_dim: int = 3
     task_axes: tuple[str, ...] = ("x", "y", "z")
@@ -165,6 +169,7 @@ class Mechanism(ABC):
     branches: tuple[str, ...] = ()
     branch_legend: str = ""
     limit_sets: tuple[str, ...] = ("all",)
+    params: Any = None
 
     # -- what the mechanism provides ---------------------------------------------------------
     @property
@@ -222,6 +227,14 @@ class Mechanism(ABC):
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Signed type I / type II fields at task points (N, d) for locus scans."""
         raise MissingCapabilityError(self.name, "singular_fields", "a singular-locus scan", self.capabilities)
+
+    def reference_pose(self) -> tuple[np.ndarray, str]:
+        """A task point [m] and branch where the mechanism is assembled within its limits."""
+        raise MissingCapabilityError(self.name, "joint_values", "a reference pose", self.capabilities)
+
+    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
+        """Every URDF joint's value (loops closed) with the task point at `point` [m] in `branch`."""
+        raise MissingCapabilityError(self.name, "joint_values", "joint values at a task point", self.capabilities)
 
     # -- derived -----------------------------------------------------------------------------
     def branch_velocity(self, points: np.ndarray, branch: str, limits: str = "all") -> tuple[Velocity, np.ndarray]:

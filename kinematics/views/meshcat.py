@@ -674,75 +674,75 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, scene: 
     return scene
 
 
-def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---", actuators: np.ndarray | None = None,
-              *, ellipsoid: bool = False, workspace: bool = False, singularities: bool = False,
-              limits: str = "all", step: float = 0.02, scene: Scene | None = None) -> Scene:
-    """The 3-[P2(US)] at a platform position (closed forms -> actuators -> Pinocchio closed-loop
-    solve) or at actuator values, with its velocity ellipsoid (from J^-1), its workspace as a point
-    cloud coloured by the conditioning min(iota_I, iota_II), and its singular points by type; the
-    camera framed on all of it, a warning when the pose is singular."""
-    from kinematics.cli.parallel import params_of
+def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
+                  actuators: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: bool = False,
+                  singularities: bool = False, limits: str = "all", step: float = 0.02,
+                  scene: Scene | None = None) -> Scene:
+    """A closed-form parallel robot (the 3-[P2(US)], the Delta: any mechanism with ik, velocity
+    and joint values) at a platform position (closed forms -> actuators -> Pinocchio closed-loop
+    solve) or at actuator values, with its velocity ellipsoid (from J), its workspace as a point
+    cloud coloured by the conditioning min(iota_I, iota_II) of the best-conditioned branch, and
+    its singular points by type; the camera framed on all of it, a warning when the pose is
+    singular."""
     from kinematics.generic.closedloop import ClosedLoop
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
-    from kinematics.mechanisms.p2us.closed_form import (
-        SINGULARITY_TYPES,
-        classify,
-        ik,
-        jacobian_inverse,
-        jacobians,
-        mode_index,
-    )
-    from kinematics.mechanisms.p2us.urdf import joint_values_at, reference_pose
+    from kinematics.mechanisms import SINGULARITY_TYPES, mechanism_of
     from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
 
     scene = scene or Scene()
-    P = params_of(robot)
+    mech = mechanism_of(robot)
+    for need in ("ik", "velocity", "joint_values"):
+        mech.require(need, "a view of a parallel robot")
     loop = ClosedLoop(robot)
+    branches = mech.branches
     if actuators is None:
         if position is None:
-            position, mode = reference_pose(P)
+            position, mode = mech.reference_pose()
         p = np.asarray(position, dtype=float)
-        sol = ik(P, p)
-        m = mode_index(mode)
-        if not sol.reachable[m]:
-            raise InvalidInputError("position", f"{p.tolist()} is not reachable in mode {mode}")
-        values = joint_values_at(P, p, mode)
+        m = branches.index(mech.check_branches([mode])[0])
+        sol = mech.ik(p[None])
+        if not sol.reachable[0, m]:
+            raise InvalidInputError("position", f"{p.tolist()} is not reachable in {mech.branch_kind} {mode}")
+        values = mech.joint_values(p, mode)
         warm = robot.configuration([values[n] for n in robot.joint_names])
-        res = loop.solve(sol.q[m], q0=warm)
+        res = loop.solve(sol.q[0, m], q0=warm)
     else:
         res = loop.solve(np.asarray(actuators, dtype=float))
     scene.add_robot(robot, res.q)
-    p = res.pose.translation
-    s = ik(P, p)
-    m = mode_index(mode) if actuators is None else int(np.nanargmin(np.abs(s.q - actuators).sum(axis=-1)))
-    jac = jacobians(P, p, s.q[m])
-    kind = int(classify(jac.iota_I, jac.iota_II))
+    p = np.asarray(res.pose.translation, dtype=float)
+    s = mech.ik(p[None])
+    m = (branches.index(mode) if actuators is None
+         else int(np.nanargmin(np.abs(s.q[0] - np.asarray(actuators, dtype=float)).sum(axis=-1))))
+    vel = mech.velocity(p[None], s.q[0, m][None])
+    kind = int(vel.types[0])
     if kind:
-        scene.warnings.append(f"this pose is singular ({SINGULARITY_TYPES[kind]}: iota_I = {float(jac.iota_I):.2g}, "
-                              f"iota_II = {float(jac.iota_II):.2g})")
+        scene.warnings.append(f"this pose is singular ({SINGULARITY_TYPES[kind]}: iota_I = {float(vel.iota_I[0]):.2g}, "
+                              f"iota_II = {float(vel.iota_II[0]):.2g})")
     if ellipsoid:
-        e = ellipsoid_of(jacobian_inverse(P, p, s.q[m]))
+        if kind >= 2:
+            raise InvalidInputError("position", "J_x is singular (type II): no velocity ellipsoid here")
+        e = ellipsoid_of(vel.J[0])
         scene.add_ellipsoid(p, 0.1 * e.radii / e.radii.max(), e.directions, "overlays/ellipsoid",
                             label="velocity ellipsoid of the platform (largest radius drawn 0.1 m)")
     if workspace:
-        from kinematics.mechanisms.p2us.scan import bounding_box, scan
-
-        lo, hi = bounding_box(P)
+        lo, hi = mech.bounding_box(limits)
         axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        r = scan(P, pts, limits)
-        inside = r.margin >= 0
-        iota_I = np.sqrt(np.maximum(r.disc.min(axis=1), 0)) / P.L
-        cond = np.where(inside, np.minimum(np.abs(r.det), iota_I[:, None]), -1).max(axis=1)
-        keep = inside.any(axis=1)
+        margin = mech.margin(None, limits)(pts)[:, :-1]
+        keep = (margin >= 0).any(axis=1)
+        pts = pts[keep]
+        cond = np.full(len(pts), -1.0)
+        for b in branches:
+            v, ok = mech.branch_velocity(pts, b, limits)
+            cond = np.where(ok, np.fmax(cond, np.minimum(v.iota_I, v.iota_II)), cond)
         # small, half-transparent points: the robot stays visible inside its workspace
-        scene.add_points(pts[keep], cond[keep], "overlays/workspace", size=step * 0.35, cmap=CONDITIONING_CMAP,
+        scene.add_points(pts, cond, "overlays/workspace", size=step * 0.35, cmap=CONDITIONING_CMAP,
                          vrange=(0.0, 1.0), opacity=0.5,
                          label=f"workspace ({LIMITS_TEXT[limits]}), coloured by min(\u03b9_I, \u03b9_II), 0 = singular")
     if singularities:
-        from kinematics.analyses.singularities import p2us_singularities
+        from kinematics.analyses.singularities import singular_loci
 
-        loc = p2us_singularities(P, step=step, limits=limits, progress=False).locus
+        loc = singular_loci(mech, step=step, limits=limits, progress=False).locus
         for k, (rgb, label) in _singular_colours().items():
             sel = loc.inside & (loc.kind == k)
             if sel.any():

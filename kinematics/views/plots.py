@@ -17,8 +17,8 @@ RADIUS_CMAP = "magma"
 """Colour map of the smallest manipulability radius (SCARA plots and views)."""
 CONDITIONING_CMAP = "viridis"
 """Colour map of the 3-[P2(US)] conditioning min(iota_I, iota_II) and mode counts."""
-LIMITS_TEXT = {"all": "all limits", "actuators": "actuator strokes only"}
-"""How the 3-[P2(US)] `limits` choices read in titles."""
+LIMITS_TEXT = {"all": "all limits", "actuators": "actuator limits only"}
+"""How the `limits` choices read in titles."""
 SCARA_SINGULAR_COLOUR = "cyan"
 """The theta2 = 0 singular arc: stands out on magma and on the views' light background."""
 
@@ -52,15 +52,23 @@ def save(fig: Any, path: str | os.PathLike[str], option: str = "--plot") -> None
 
 def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_z: int = 3,
                    singular: Any = None) -> Any:
-    """Horizontal slices of the union workspace (coloured by the number of valid working modes)
-    and a 3D view of its sampled points, with type II / I singular points when given."""
-    from kinematics.mechanisms.p2us.scan import bounding_box, scan
+    """`spatial_workspace` of the 3-[P2(US)] design `params`."""
+    from kinematics.mechanisms.p2us.mechanism import P2US
 
-    lo, hi = bounding_box(params)
+    return spatial_workspace(P2US(params), limits, step, slices_z, singular)
+
+
+def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices_z: int = 3,
+                      singular: Any = None) -> Any:
+    """Horizontal slices of a spatial mechanism's union workspace (coloured by the number of
+    branches, e.g. working modes, within limits there) and a 3D view of its sampled points, with
+    type II / I singular points when given."""
+    lo, hi = mech.bounding_box(limits)
+    nb = len(mech.branches)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(3)]
     X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
     pts3 = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    margin = scan(params, pts3, limits).margin
+    margin = mech.margin(None, limits)(pts3)[:, :-1]
     count = (margin >= 0).sum(axis=1).reshape(len(axes[0]), len(axes[1]), len(axes[2]))
     filled = np.flatnonzero(count.reshape(-1, len(axes[2])).any(axis=0))
     picks = np.linspace(0.2, 0.8, slices_z) * (len(filled) - 1)
@@ -68,13 +76,13 @@ def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_
     fig, ax = _figure(slices_z + 1, (4.2, 4.0), [None] * slices_z + ["3d"])
     for a, z in zip(ax[:-1], zs, strict=True):
         k = int(np.argmin(np.abs(axes[2] - z)))
-        im = a.pcolormesh(X, Y, np.ma.masked_equal(count[:, :, k], 0), vmin=0, vmax=8, cmap=CONDITIONING_CMAP,
+        im = a.pcolormesh(X, Y, np.ma.masked_equal(count[:, :, k], 0), vmin=0, vmax=nb, cmap=CONDITIONING_CMAP,
                           shading="auto")
         a.set_title(f"z = {z:.3f} m")
         a.set_aspect("equal")
         a.set_xlabel("x [m]")
         a.set_ylabel("y [m]")
-    fig.colorbar(im, ax=ax[:-1], shrink=0.8, label="working modes within limits")
+    fig.colorbar(im, ax=ax[:-1], shrink=0.8, label=f"{mech.branch_kind}s within limits")
     inside = pts3[(margin >= 0).any(axis=1)]
     sub = inside[:: max(1, len(inside) // 20000)]
     # grey, and faint under singular points so that they show

@@ -21,6 +21,7 @@ class GenericClosedLoop(Mechanism):
     """Any closed-loop robot (URDF tree + loop sidecar)."""
 
     family = "closed-loop"
+    closed_loop = True
     description = "closed-loop model (generic Pinocchio solver)"
     actuator_unit = "rad or m"
     assembly_modes = ("reached from the reference",)

@@ -1,6 +1,6 @@
 """Clavel's 3-RUU Delta robot: closed forms and the URDF generator.
 
-Modules: `closed_form`, `urdf`. Public names are re-exported
+Modules: `closed_form`, `mechanism`, `urdf`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -32,6 +32,12 @@ if TYPE_CHECKING:
         sphere_centres,
         violations,
     )
+    from kinematics.mechanisms.delta.mechanism import (
+        LIMITS,
+        MODE_LEGEND,
+        Delta,
+        limb_margins,
+    )
     from kinematics.mechanisms.delta.urdf import (
         LIMBS,
         RODS,
@@ -47,12 +53,15 @@ if TYPE_CHECKING:
     )
 
 _LAZY = {
+    "Delta": "mechanism",
     "DeltaParams": "closed_form",
     "IKResult": "closed_form",
     "Jacobians": "closed_form",
     "LIMBS": "urdf",
+    "LIMITS": "mechanism",
     "LimbSolutions": "closed_form",
     "MECHANISM": "closed_form",
+    "MODE_LEGEND": "mechanism",
     "RODS": "urdf",
     "SPHERICAL": "urdf",
     "cone_angles": "closed_form",
@@ -66,6 +75,7 @@ _LAZY = {
     "joint_values_at": "urdf",
     "limb_ik": "closed_form",
     "limb_limits": "closed_form",
+    "limb_margins": "mechanism",
     "limb_reasons": "closed_form",
     "passive_angles": "closed_form",
     "read_params": "urdf",
@@ -82,9 +92,12 @@ _LAZY = {
 
 __all__ = [
     "LIMBS",
+    "LIMITS",
     "MECHANISM",
+    "MODE_LEGEND",
     "RODS",
     "SPHERICAL",
+    "Delta",
     "DeltaParams",
     "IKResult",
     "Jacobians",
@@ -100,6 +113,7 @@ __all__ = [
     "joint_values_at",
     "limb_ik",
     "limb_limits",
+    "limb_margins",
     "limb_reasons",
     "passive_angles",
     "read_params",

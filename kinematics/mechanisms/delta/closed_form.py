@@ -51,14 +51,12 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from kinematics.errors import InvalidDesignError, InvalidInputError
-from kinematics.mechanisms.p2us.closed_form import (
+from kinematics.mechanisms.base import SINGULAR_TOL, SINGULARITY_TYPES, classify
+from kinematics.mechanisms.translational import (
     ASSEMBLY_MODES,
     BOUNDARY_TOL,
     MODES,
-    SINGULAR_TOL,
-    SINGULARITY_TYPES,
     FKResult,
-    classify,
     intersect_spheres,
     mode_index,
 )

@@ -70,6 +70,7 @@ class Delta(Mechanism):
     """Clavel's 3-RUU Delta robot of a given design."""
 
     family = "delta"
+    closed_loop = True
     description = "3-RUU Delta robot (closed forms)"
     actuator_unit = "rad"
     branch_kind = "working mode"
@@ -116,6 +117,16 @@ class Delta(Mechanism):
     def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
         jac = cf.jacobians(self.params, points, q)
         return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
+
+    def reference_pose(self) -> tuple[np.ndarray, str]:
+        from kinematics.mechanisms.delta.urdf import reference_pose
+
+        return reference_pose(self.params)
+
+    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
+        from kinematics.mechanisms.delta.urdf import joint_values_at
+
+        return joint_values_at(self.params, point, self.check_branches([branch])[0])
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of

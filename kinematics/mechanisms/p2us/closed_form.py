@@ -43,29 +43,22 @@ A pose is classified singular when a measure is <= SINGULAR_TOL.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from kinematics.errors import InvalidDesignError, InvalidInputError, UnknownModeError
+from kinematics.errors import InvalidDesignError, InvalidInputError
 from kinematics.mechanisms.base import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.mechanisms.base import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.mechanisms.base import classify as classify
-
-MODES: tuple[str, ...] = tuple("".join(m) for m in itertools.product("+-", repeat=3))
-"""The 8 working modes, in a fixed order: "+++", "++-", "+-+", ..., "---"."""
-
-ASSEMBLY_MODES: tuple[str, ...] = ("below", "above")
-"""FK assembly modes: the platform below or above the plane of the three sphere centres."""
-
-
-BOUNDARY_TOL = 1e-12
-"""IK discriminants (and FK's h^2) down to -BOUNDARY_TOL * L^2 count as zero: exactly on a
-reach boundary (a type I pose) rounding leaves them at +/-1e-17 m^2."""
-
+from kinematics.mechanisms.translational import ASSEMBLY_MODES as ASSEMBLY_MODES
+from kinematics.mechanisms.translational import BOUNDARY_TOL as BOUNDARY_TOL
+from kinematics.mechanisms.translational import MODES as MODES
+from kinematics.mechanisms.translational import FKResult as FKResult
+from kinematics.mechanisms.translational import intersect_spheres as intersect_spheres
+from kinematics.mechanisms.translational import mode_index as mode_index
 
 THETA_CONVENTIONS: tuple[str, ...] = ("elevation", "rod-rail")
 """Readings of the first universal-joint angle theta (see the module docstring)."""
@@ -282,7 +275,9 @@ def rod_rail_bounds(params: P2USParams) -> tuple[bool, float, float]:
     return params.theta_convention == "rod-rail", c_lo, c_hi
 
 
-def _angle_bounds(params: P2USParams) -> tuple[np.ndarray, np.ndarray, bool, float, float]:
+def angle_bounds(params: P2USParams) -> tuple[np.ndarray, np.ndarray, bool, float, float]:
+    """The elevation-convention theta arc as trig-free tests: (direction of its lower end,
+    direction of its upper end, the arc is at most 180 degrees, sin phi_min, sin phi_max)."""
     lo = params.theta_zero + params.theta_limits[0]
     hi = params.theta_zero + params.theta_limits[1]
     narrow = hi - lo <= math.pi
@@ -302,7 +297,7 @@ def passive_limits_ok(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np
     ex = -np.sum(n * e, axis=-1)
     ez = -n[..., 2]
     sphi = -np.sum(n * t, axis=-1)
-    d_lo, d_hi, narrow, s_lo, s_hi = _angle_bounds(params)
+    d_lo, d_hi, narrow, s_lo, s_hi = angle_bounds(params)
     rod_rail, c_lo, c_hi = rod_rail_bounds(params)
     if rod_rail:  # cos(theta) = n.w within [c_hi, c_lo]
         nw = np.sum(n * _limb_rails(params, n), axis=-1)
@@ -336,14 +331,6 @@ class IKResult(NamedTuple):
 _MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in MODES])  # (8, 3)
 
 
-def mode_index(mode: str) -> int:
-    """Index of a working-mode label in MODES; raises UnknownModeError."""
-    try:
-        return MODES.index(mode)
-    except ValueError:
-        raise UnknownModeError(mode, MODES) from None
-
-
 def limb_limits(params: P2USParams, limbs: LimbSolutions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per limb and root: (stroke ok, theta ok, phi ok), each S + (3, 2)."""
     with np.errstate(invalid="ignore"):
@@ -372,22 +359,6 @@ def ik(params: P2USParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
 
 
 # -- forward kinematics ----------------------------------------------------------------------
-class FKResult(NamedTuple):
-    """Both assembly modes for actuator values of shape S + (3,).
-
-    Attributes:
-        p: S + (2, 3) platform positions [m] per ASSEMBLY_MODES (NaN where none exists).
-        exists: S, the three rod spheres meet.
-        gap: S, how much longer the rods would have to be for the spheres to meet [m]: the
-            centres' circumradius minus L where they do not meet (inf if the centres are
-            collinear), 0 where they do.
-    """
-
-    p: np.ndarray
-    exists: np.ndarray
-    gap: np.ndarray
-
-
 def _actuators(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     if q.shape[-1:] != (3,):
@@ -407,41 +378,6 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
     """Forward kinematics (paper eqs. 19-21): intersect three spheres of radius L around the
     centres c_i = B_i - d e_i (`intersect_spheres`)."""
     return intersect_spheres(sphere_centres(params, q), params.L)
-
-
-def intersect_spheres(c: np.ndarray, L: float) -> FKResult:
-    """Both points at distance L [m] from three centres c, shape S + (3, 3) (row i: centre i).
-
-    In the frame ex = (c2 - c1)/|c2 - c1|, ey in the plane towards c3, ez = +/-(ex x ey) turned
-    to point up (ex x ey points down when the limbs are numbered clockwise), p = c1 + x ex + y ey
-    -/+ h ez with x = D/2, y = (i^2 + j^2 - 2 i x)/(2 j), h = sqrt(L^2 - x^2 - y^2): "below" takes
-    -h. c1 + x ex + y ey is the centres' circumcentre, R = sqrt(x^2 + y^2) their circumradius:
-    the spheres meet iff L >= R, and `gap` = R - L is how much longer the rods would need to be.
-    If the centres' plane is vertical (never for rails inclined below the horizontal) "below"
-    and "above" are ex x ey's -/+ side.
-    """
-    c1, c2, c3 = c[..., 0, :], c[..., 1, :], c[..., 2, :]
-    d12 = c2 - c1
-    D = np.linalg.norm(d12, axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ex = d12 / D[..., None]
-        d13 = c3 - c1
-        i = np.sum(ex * d13, axis=-1)
-        ey_raw = d13 - i[..., None] * ex
-        j = np.linalg.norm(ey_raw, axis=-1)
-        ey = ey_raw / j[..., None]
-        ez = np.cross(ex, ey)
-        ez *= np.where(ez[..., 2:] < 0, -1.0, 1.0)  # up, whatever the limbs' numbering
-        x = 0.5 * D
-        y = (i * i + j * j - 2.0 * i * x) / (2.0 * j)
-        h2 = L**2 - x * x - y * y
-    exists = np.isfinite(h2) & (h2 >= -BOUNDARY_TOL * L**2)
-    h = np.sqrt(np.where(exists, np.maximum(h2, 0.0), np.nan))
-    base = c1 + x[..., None] * ex + y[..., None] * ey
-    p = np.stack([base - h[..., None] * ez, base + h[..., None] * ez], axis=-2)
-    with np.errstate(invalid="ignore"):
-        short = np.hypot(x, y) - L  # circumradius - L; inf for collinear centres (j = 0)
-    return FKResult(p, exists, np.where(exists, 0.0, np.where(np.isnan(short), np.inf, short)))
 
 
 # -- velocity and singularities ---------------------------------------------------------------

@@ -48,6 +48,7 @@ class P2US(Mechanism):
     """
 
     family = "p2us"
+    closed_loop = True
     description = "3-[P2(US)] translational parallel robot (closed forms)"
     actuator_unit = "m"
     branch_kind = "working mode"
@@ -82,6 +83,16 @@ class P2US(Mechanism):
     def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
         jac = cf.jacobians(self.params, points, q)
         return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
+
+    def reference_pose(self) -> tuple[np.ndarray, str]:
+        from kinematics.mechanisms.p2us.urdf import reference_pose
+
+        return reference_pose(self.params)
+
+    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
+        from kinematics.mechanisms.p2us.urdf import joint_values_at
+
+        return joint_values_at(self.params, point, self.check_branches([branch])[0])
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         s = scan(self.params, points, limits)

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit, prange
 
 from kinematics.errors import UnknownChoiceError
-from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, _angle_bounds, rod_rail_bounds
+from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, angle_bounds, rod_rail_bounds
 
 LIMITS = ("all", "actuators")
 """Which limits a scan applies: every limit, or the actuator strokes only."""
@@ -61,7 +61,7 @@ def check_limits(limits: str) -> bool:
 
 def _geometry(params: P2USParams) -> np.ndarray:
     """Everything the kernel needs, packed in one float array (see `_kernel`)."""
-    d_lo, d_hi, narrow, s_lo, s_hi = _angle_bounds(params)
+    d_lo, d_hi, narrow, s_lo, s_hi = angle_bounds(params)
     limbs = np.concatenate([params.e[:, :2], params.w], axis=1).ravel()  # ex ey wx wy wz per limb
     rod_rail, c_lo, c_hi = rod_rail_bounds(params)
     rest = [params.L, params.d - params.b, *params.stroke, *d_lo, *d_hi, float(narrow), s_lo, s_hi,

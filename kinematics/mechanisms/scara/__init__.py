@@ -1,6 +1,6 @@
 """The planar 2R arm (paper A's SCARA): closed forms.
 
-Modules: `closed_form`. Public names are re-exported
+Modules: `closed_form`, `mechanism`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -26,12 +26,19 @@ if TYPE_CHECKING:
         manipulability,
         solve_ik,
     )
+    from kinematics.mechanisms.scara.mechanism import (
+        ELBOW_LEGEND,
+        Scara,
+        scara_margin,
+    )
 
 _LAZY = {
     "BOUNDARY_TOL": "closed_form",
     "ELBOWS": "closed_form",
+    "ELBOW_LEGEND": "mechanism",
     "IKAnswer": "closed_form",
     "IKSolution": "closed_form",
+    "Scara": "mechanism",
     "ScaraIK": "closed_form",
     "ScaraParams": "closed_form",
     "det_jacobian": "closed_form",
@@ -41,14 +48,17 @@ _LAZY = {
     "ik_elbow": "closed_form",
     "jacobian": "closed_form",
     "manipulability": "closed_form",
+    "scara_margin": "mechanism",
     "solve_ik": "closed_form",
 }
 
 __all__ = [
     "BOUNDARY_TOL",
     "ELBOWS",
+    "ELBOW_LEGEND",
     "IKAnswer",
     "IKSolution",
+    "Scara",
     "ScaraIK",
     "ScaraParams",
     "det_jacobian",
@@ -58,6 +68,7 @@ __all__ = [
     "ik_elbow",
     "jacobian",
     "manipulability",
+    "scara_margin",
     "solve_ik",
 ]
 

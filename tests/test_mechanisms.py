@@ -1,0 +1,145 @@
+"""The mechanism interface: the one dispatcher, what each family provides (and says it lacks),
+and the families' maps held against each other (margin vs IK limits, IK vs FK, J vs J^-1)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinematics.errors import MissingCapabilityError, UnknownChoiceError, UnknownModeError
+from kinematics.mechanisms import CAPABILITIES, Mechanism, mechanism_of
+from kinematics.model import load_robot
+
+MODELS = Path(__file__).parent / "models"
+
+
+@pytest.mark.parametrize(("name", "family", "task_dim"), [
+    ("scara", "scara", 2), ("p2us", "p2us", 3), ("p2us-results", "p2us", 3), ("delta", "delta", 3),
+    ("ur5", "serial", 3), (str(MODELS / "rssr.urdf"), "closed-loop", 3),
+])
+def test_the_dispatcher_decides_the_family(name, family, task_dim):
+    mech = mechanism_of(load_robot(name))
+    assert isinstance(mech, Mechanism)
+    assert (mech.family, mech.task_dim) == (family, task_dim)
+    assert mech.capabilities <= set(CAPABILITIES)
+    assert mech.closed_loop == (family in ("p2us", "delta", "closed-loop"))
+
+
+def test_a_missing_capability_names_what_is_missing_and_what_exists():
+    ur5 = mechanism_of(load_robot("ur5"))
+    with pytest.raises(MissingCapabilityError) as err:
+        ur5.margin()
+    assert err.value.capability == "margin"
+    assert set(err.value.available) == {"fk", "velocity"}
+    assert "margin" in str(err.value) and "fk, velocity" in str(err.value)
+    loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
+    with pytest.raises(MissingCapabilityError, match="ik"):
+        loop.ik(np.zeros((1, 3)))
+
+
+def test_bad_branches_and_limits_name_the_valid_choices():
+    delta = mechanism_of(load_robot("delta"))
+    with pytest.raises(UnknownModeError, match=r"\+\+\+"):
+        delta.margin(["+0+"])
+    with pytest.raises(UnknownChoiceError, match="actuators"):
+        delta.margin(limits="strokes")
+    scara = mechanism_of(load_robot("scara"))
+    with pytest.raises(UnknownChoiceError):
+        scara.margin(limits="actuators")
+
+
+CLOSED_FORMS = ["scara", "p2us", "p2us-results", "delta"]
+
+
+def _sample(mech: Mechanism, n: int, seed: int, grow: float = 1.0) -> np.ndarray:
+    lo, hi = mech.bounding_box()
+    mid, half = (lo + hi) / 2, grow * (hi - lo) / 2
+    return mid - half + 2 * half * np.random.default_rng(seed).random((n, len(lo)))
+
+
+@pytest.mark.parametrize("name", CLOSED_FORMS)
+@pytest.mark.parametrize("limits", ["all", "actuators"])
+def test_the_margin_is_non_negative_exactly_where_ik_is_within_limits(name, limits):
+    mech = mechanism_of(load_robot(name))
+    if limits not in mech.limit_sets:
+        pytest.skip(f"{name} has one set of limits")
+    p = _sample(mech, 20000, seed=1)
+    m = mech.margin(None, limits)(p)
+    ok = mech.ik(p, limits).within_limits
+    # a margin within 1e-9 m of 0 is on a boundary, where the IK's own tolerances decide
+    clear = np.abs(m[:, :-1]) > 1e-9
+    assert np.array_equal((m[:, :-1] >= 0)[clear], ok[clear])
+    assert np.array_equal(m[:, -1], m[:, :-1].max(axis=1))
+    assert ok.any(), "the sample must see the workspace"
+
+
+@pytest.mark.parametrize("name", CLOSED_FORMS)
+def test_the_bounding_box_holds_the_whole_workspace(name):
+    mech = mechanism_of(load_robot(name))
+    lo, hi = mech.bounding_box("actuators" if "actuators" in mech.limit_sets else "all")
+    p = _sample(mech, 40000, seed=2, grow=1.6)
+    inside = mech.ik(p, mech.limit_sets[-1]).within_limits.any(axis=1)  # the widest limits
+    assert inside.any()
+    assert np.all((p[inside] >= lo) & (p[inside] <= hi))
+
+
+@pytest.mark.parametrize("name", CLOSED_FORMS)
+def test_forward_kinematics_returns_the_point_of_every_branch(name):
+    mech = mechanism_of(load_robot(name))
+    p = _sample(mech, 4000, seed=3)
+    res = mech.ik(p, mech.limit_sets[-1])
+    k, b = np.nonzero(res.reachable)
+    asm = mech.fk(res.q[k, b])
+    err = np.nanmin(np.linalg.norm(asm.p - p[k, None, :], axis=-1), axis=1)
+    # IK then FK: a few roundings of metre-sized coordinates, amplified near singular poses
+    assert np.nanmax(err) < 1e-8, np.nanmax(err)
+
+
+@pytest.mark.parametrize("name", CLOSED_FORMS)
+def test_the_forward_jacobian_inverts_the_inverse_one(name):
+    mech = mechanism_of(load_robot(name))
+    p = _sample(mech, 4000, seed=4)
+    for branch in mech.branches:
+        v, ok = mech.branch_velocity(p, branch, mech.limit_sets[-1])
+        regular = ok & (np.minimum(v.iota_I, v.iota_II) > 1e-3)
+        if not regular.any():
+            continue
+        prod = v.J[regular] @ v.J_inverse[regular]
+        eye = np.eye(mech.task_dim)
+        # relative to the condition number: |J J^-1 - I| <~ kappa eps, kappa <~ 1 / iota^2 here
+        assert np.max(np.abs(prod - eye)) < 1e-8
+        assert np.all(np.isnan(v.J[~ok]))
+
+
+def test_finite_differences_of_ik_give_the_inverse_jacobian():
+    """J^-1 = dq/dp from the closed forms of IK, by central differences (h = 1e-6 m: truncation
+    ~h^2 |q'''| ~ 1e-12, rounding ~eps |q| / h ~ 1e-10)."""
+    for name in ("p2us", "delta"):
+        mech = mechanism_of(load_robot(name))
+        p0, branch = mech.reference_pose()
+        b = mech.branches.index(branch)
+        h = 1e-6
+        cols = []
+        for k in range(3):
+            d = np.zeros(3)
+            d[k] = h
+            cols.append((mech.ik((p0 + d)[None]).q[0, b] - mech.ik((p0 - d)[None]).q[0, b]) / (2 * h))
+        v, _ = mech.branch_velocity(p0[None], branch)
+        assert np.allclose(np.stack(cols, axis=1), v.J_inverse[0], atol=1e-7)
+
+
+def test_the_serial_arm_jacobian_is_pinocchios():
+    import pinocchio as pin
+
+    robot = load_robot("ur5")
+    mech = mechanism_of(robot)
+    pin.seed(5)
+    q = np.stack([pin.randomConfiguration(robot.model) for _ in range(5)])
+    v = mech.velocity(np.zeros((5, 3)), q)
+    for k in range(5):
+        J = pin.computeFrameJacobian(robot.model, robot.data, q[k], robot.frame_id(), pin.LOCAL_WORLD_ALIGNED)[:3]
+        assert np.allclose(v.J[k], J, atol=1e-12)
+        s = np.linalg.svd(J, compute_uv=False)
+        assert np.isclose(v.iota_I[k], s[-1] / s[0], rtol=1e-9)
