@@ -239,6 +239,9 @@ CASES: list[tuple[list[str], str]] = [
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),
     (["show", "ur5", "--export", "v.html", "--guide", "1"], "planar arms"),
+    (["show", "scara", "--export", "v.html", "--mesh", "nofile.stl"], "no such file"),
+    (["show", "scara", "--export", "v.html", "--mesh", "m.obj"], "unknown suffix"),
+    (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], "+0+"),
     # urdf
     (["urdf", "p2us"], "required: -o/--output"),
     (["urdf", "scara", "-o", "d.urdf"], "invalid choice"),

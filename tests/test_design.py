@@ -149,12 +149,11 @@ def test_cli_usable_workspace_errors(capsys):
 
 
 def test_mesh_in_a_meshcat_scene():
-    from kinematics.analyses.boundary_mesh import add_to_scene
     from kinematics.views import meshcat as viz
 
     m = margin_mesh(ball, *BOX, 0.02)
     scene = viz.Scene()
-    add_to_scene(scene, m)
+    scene.add_mesh(m.mesh.vertices, m.mesh.faces)
     node = scene._window.tree["meshcat"]["overlays"]["boundary"]
     # a msgpack'd set_object: a buffer geometry carrying every float32 vertex and uint32 index
     assert b"BufferGeometry" in node.object and b"MeshLambertMaterial" in node.object

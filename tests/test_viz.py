@@ -227,3 +227,24 @@ def test_builtin_robot_reads_well_in_a_real_browser(tmp_path, name):
     hue = hsv[(hsv[:, 1] > 0.35) & (hsv[:, 2] > 0.2), 0]
     share = np.bincount((hue * 12).astype(int) % 12, minlength=12) / mask.sum()
     assert (share > 0.03).sum() >= MIN_HUES, f"part colours: hue shares {np.round(share, 3)}"
+
+
+def test_show_draws_a_mesh_file_and_the_delta(capsys, tmp_path):
+    """`show --mesh` draws any triangle mesh over any robot; `show delta --workspace` colours the
+    Delta's workspace through the mechanism interface."""
+    import trimesh
+
+    box = tmp_path / "box.stl"
+    box.write_bytes(trimesh.creation.box(extents=(0.2, 0.1, 0.05)).export(file_type="stl"))
+    out = tmp_path / "scene.html"
+    code, _, err = run(capsys, "show", "scara", "--mesh", str(box), "--export", str(out))
+    assert code == 0, err
+    html = out.read_text()
+    assert f"mesh {box}" in html
+    code, _, err = run(capsys, "show", "delta", "--workspace", "--step", "0.08", "--export", str(out))
+    assert code == 0, err
+    assert "workspace (all limits)" in out.read_text()
+    empty = tmp_path / "empty.stl"
+    empty.write_text("solid empty\nendsolid empty\n")
+    code, _, err = run(capsys, "show", "scara", "--mesh", str(empty), "--export", str(out))
+    assert code == 2 and ("no triangles" in err or "not a readable" in err), err

@@ -13,7 +13,6 @@ if TYPE_CHECKING:
     from kinematics.analyses.boundary_mesh import (
         MESH_SUFFIXES,
         BoundaryMesh,
-        add_to_scene,
         export,
         margin_mesh,
         p2us_mesh,
@@ -145,7 +144,6 @@ _LAZY = {
     "Wrench": "mobility",
     "adaptive_1d": "columns",
     "adaptive_volume": "cells",
-    "add_to_scene": "boundary_mesh",
     "analyse": "mobility",
     "check_step": "cells",
     "column_lengths": "columns",
@@ -225,7 +223,6 @@ __all__ = [
     "Wrench",
     "adaptive_1d",
     "adaptive_volume",
-    "add_to_scene",
     "analyse",
     "check_step",
     "column_lengths",

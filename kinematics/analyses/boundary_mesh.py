@@ -118,13 +118,3 @@ def export(mesh: BoundaryMesh, path: str) -> None:
     data = mesh.mesh.export(file_type=ext[1:])
     with open(path, "wb") as f:
         f.write(data if isinstance(data, bytes) else data.encode())
-
-
-def add_to_scene(scene: Any, mesh: BoundaryMesh, name: str = "overlays/boundary",
-                 colour: int = 0x3388CC, opacity: float = 0.4) -> None:
-    """Draw the mesh, translucent, in a `kinematics.views.meshcat.Scene` (or anything with a meshcat `vis`)."""
-    import meshcat.geometry as mg
-
-    geom = mg.TriangularMeshGeometry(np.asarray(mesh.mesh.vertices, np.float32),
-                                     np.asarray(mesh.mesh.faces, np.uint32))
-    scene.vis[name].set_object(geom, mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=True))

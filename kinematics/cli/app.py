@@ -642,6 +642,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--limits", default="all", choices=["all", "actuators"], help="p2us: limits for --workspace")
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="p2us: grid step [m] (default 0.02)")
     serial_args(p)
+    p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
+                                                  "boundary from `workspace-mesh`")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=_non_negative, metavar="S", help=argparse.SUPPRESS)
 

@@ -28,6 +28,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
+    mesh = _load_mesh(args.mesh) if args.mesh else None
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
@@ -64,6 +65,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                                 scene=scene)
         else:
             viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float), scene=scene)
+        if mesh is not None:
+            scene.add_mesh(mesh.vertices, mesh.faces, label=f"mesh {args.mesh}")
+            scene.fit_camera()
         print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
               end="", file=sys.stderr)
         notes = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
@@ -86,6 +90,26 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         return 0
     finally:
         scene.close()
+
+
+def _load_mesh(path: str) -> Any:
+    """A triangle mesh file (.stl, .ply, .glb) through trimesh, or one line of bad input."""
+    import os
+
+    import trimesh
+
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in (".stl", ".ply", ".glb"):
+        raise InvalidInputError("--mesh", f"{path!r}: unknown suffix {ext or '(none)'!r}; use .stl, .ply or .glb")
+    if not os.path.isfile(path):
+        raise InvalidInputError("--mesh", f"{path!r}: no such file")
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file
+        raise InvalidInputError("--mesh", f"{path!r} is not a readable {ext[1:]} mesh: {exc}") from None
+    if len(getattr(mesh, "faces", ())) == 0:
+        raise InvalidInputError("--mesh", f"{path!r} holds no triangles")
+    return mesh
 
 
 def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[str, Any] | None:

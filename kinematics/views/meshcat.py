@@ -309,6 +309,24 @@ class Scene:
         self._include(T[:3, 3] + np.array([[s * r[k] * R[:, k] for k in range(3)] for s in (-1, 1)]).reshape(-1, 3))
         self.legend.append((label, _css(colour)))
 
+    def add_mesh(self, vertices: np.ndarray, faces: np.ndarray, name: str = "overlays/boundary",
+                 colour: Sequence[float] = (0.2, 0.53, 0.8), opacity: float = 0.4,
+                 label: str = "workspace boundary mesh") -> None:
+        """A triangle mesh (vertices (V, 3) [m], faces (F, 3) indices), translucent, e.g. a
+        workspace boundary from `kinematics.analyses.boundary_mesh`."""
+        import meshcat.geometry as mg
+
+        V = np.asarray(vertices, dtype=float)
+        F = np.asarray(faces)
+        if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
+            raise InvalidInputError("mesh", f"expected (V, 3) vertices and (F, 3) faces, got {V.shape} and {F.shape}")
+        if F.min() < 0 or F.max() >= len(V):
+            raise InvalidInputError("mesh", f"face indices must lie in [0, {len(V)}), got {F.min()} .. {F.max()}")
+        self.vis[name].set_object(mg.TriangularMeshGeometry(V.astype(np.float32), F.astype(np.uint32)),
+                                  mg.MeshLambertMaterial(color=_hex(colour), opacity=opacity, transparent=opacity < 1))
+        self._include(V)
+        self.legend.append((label, _css(colour)))
+
     def add_points(self, points: np.ndarray, values: np.ndarray | None = None, name: str = "overlays/points",
                    size: float = 0.006, cmap: str = "viridis", colour: Sequence[float] = (0.1, 0.1, 0.1),
                    vrange: tuple[float, float] | None = None, label: str | None = None,
