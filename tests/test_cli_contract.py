@@ -107,7 +107,9 @@ CASES: list[tuple[list[str], str]] = [
     (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], "unknown mode"),
     # workspace-volume
     (["workspace-volume", "nosuchbot"], "unknown robot"),
-    (["workspace-volume", "delta"], "open chains"),
+    (["workspace-volume", str(MODELS / "rssr.urdf")], "needs its mechanism's margin"),
+    (["workspace-volume", "delta", "--modes", "+0+"], "+0+"),
+    (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
     (["workspace-volume", "ur5", "--max-points", "10"], "at least 1000"),
     (["workspace-volume", "ur5", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["workspace-volume", "ur5", "--max-points", "nan"], POSITIVE),
@@ -144,7 +146,8 @@ CASES: list[tuple[list[str], str]] = [
     (["workspace-volume", "p2us", "--points", "adir/"], "is a directory"),
     # singularities
     (["singularities", "nosuchbot"], "unknown robot"),
-    (["singularities", "delta"], "open chains"),
+    (["singularities", str(MODELS / "rssr.urdf")], "needs its mechanism's singular_fields"),
+    (["singularities", "delta", "--paper-scan"], "3-[P2(US)]"),
     (["singularities", "ur5", "--max-points", "0"], POSITIVE),
     (["singularities", "ur5", "--modes", "+++"], "working modes"),
     (["singularities", "p2us", "--step", "0"], POSITIVE),

@@ -62,9 +62,10 @@ def test_workspace_volume_bad_input(capsys, argv, needle):
     assert code == 2 and out == "" and needle in err and len(err.strip().splitlines()) == 1
 
 
-def test_workspace_volume_rejects_other_robots(capsys):
-    code, _, err = run(capsys, "workspace-volume", "delta")
-    assert code == 2 and "delta" in err
+def test_workspace_volume_says_what_a_generic_closed_loop_lacks(capsys):
+    rssr = str(Path(__file__).parent / "models" / "rssr.urdf")
+    code, _, err = run(capsys, "workspace-volume", rssr)
+    assert code == 2 and "margin" in err and "it provides: fk" in err
 
 
 REVOLVED = str(Path(__file__).parent / "models" / "arm3r_revolved.urdf")

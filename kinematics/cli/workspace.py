@@ -391,13 +391,13 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
         out(args, payload, human)
         return 0
-    from kinematics.analyses.singularities import p2us_singularities
-    from kinematics.cli.parallel import params_of
-    from kinematics.mechanisms.p2us.closed_form import MODES
+    from kinematics.analyses.singularities import singular_loci
 
-    params = params_of(robot)
-    modes = tuple(args.modes or MODES)
-    res = p2us_singularities(params, step=args.step, limits=args.limits, modes=modes, progress=show_progress(args))
+    mech.require("singular_fields", "singularities")
+    if args.paper_scan and mech.family != "p2us":
+        raise InvalidInputError("--paper-scan", "paper B's 512-point scan is for the 3-[P2(US)]")
+    res = singular_loci(mech, step=args.step, limits=args.limits, branches=args.modes or None,
+                        progress=show_progress(args))
     payload = {
         "robot": robot.name,
         "limits": args.limits,

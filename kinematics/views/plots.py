@@ -127,7 +127,7 @@ def p2us_singular_loci(scan_result: Any) -> Any:
     _singular_scatter(ax[0], loc.points, loc.kind, None, 3)
     _singular_scatter(ax[1], loc.points, loc.kind, None, 2)
     _singular_scatter(ax[2], loc.points, loc.kind, loc.inside, 2)
-    ax[0].set_title(f"singular loci over the strokes (step {scan_result.step:g} m)", fontsize=9)
+    ax[0].set_title(f"singular loci over the bounding box (step {scan_result.step:g} m)", fontsize=9)
     ax[1].set_title("the same, side view (x-z)", fontsize=9)
     ax[2].set_title(f"in / on the workspace ({LIMITS_TEXT[scan_result.limits]})", fontsize=9)
     ax[0].set_xlabel("x [m]")
