@@ -129,7 +129,7 @@ def test_conditioning_grid_matches_pointwise(scara):
 def test_cli_dexterity(capsys, tmp_path):
     png, html = tmp_path / "k.png", tmp_path / "k.html"
     code, d, _ = run_json(capsys, "dexterity", "delta", "--samples", "1024", "--replicates", "3", "--seed", "2",
-                          "--plot", str(png), "--export", str(html))
+                          "--step", "0.1", "--plot", str(png), "--export", str(html))
     assert code == 0
     assert {"gci", "gci_error", "yoshikawa_mean", "yoshikawa_error", "modes", "samples", "seconds"} <= set(d)
     assert 0 < d["gci"] <= 1 and d["gci_error"] > 0 and d["samples"] == 1024 and len(d["modes"]) == 8

@@ -1,6 +1,6 @@
-"""Analyses over any mechanism: workspace volumes (exact columns, cells), serial workspaces, singular loci, mobility, usable workspace, boundary meshes, design sweeps.
+"""Analyses over any mechanism: workspace volumes (exact columns, cells), serial workspaces, singular loci, mobility, usable workspace, dexterity, boundary meshes, design sweeps, dimensional synthesis.
 
-Modules: `boundary_mesh`, `cells`, `columns`, `mobility`, `serial_workspace`, `singularities`, `sweep`, `usable`, `workspace`. Public names are re-exported
+Modules: `boundary_mesh`, `cells`, `columns`, `dexterity`, `mobility`, `serial_workspace`, `singularities`, `sweep`, `synthesis`, `usable`, `workspace`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -34,6 +34,11 @@ if TYPE_CHECKING:
         adaptive_1d,
         column_lengths,
         column_volume,
+    )
+    from kinematics.analyses.dexterity import (
+        Dexterity,
+        conditioning_grid,
+        dexterity,
     )
     from kinematics.analyses.mobility import (
         RANK_RTOL,
@@ -76,13 +81,24 @@ if TYPE_CHECKING:
         COLUMNS,
         SWEEPABLE,
         Axis,
+        connect,
         designs,
         evaluate_design,
         local_cluster,
         one_kernel_thread,
         run,
+        split_param,
         to_csv,
         to_params,
+        wait_for,
+    )
+    from kinematics.analyses.synthesis import (
+        Bound,
+        Settings,
+        Synthesis,
+        gap_to_front,
+        non_dominated,
+        synthesize,
     )
     from kinematics.analyses.usable import (
         KAPPA_MAX,
@@ -90,11 +106,15 @@ if TYPE_CHECKING:
         UsableShape,
         condition_slack,
         contains,
+        default_branch,
+        inverse_condition,
         largest_shape,
         p2us_usable,
         p2us_usable_field,
         shape_samples,
         shape_volume,
+        usable,
+        usable_field,
     )
     from kinematics.analyses.workspace import (
         UNION,
@@ -108,6 +128,22 @@ if TYPE_CHECKING:
     )
 
 _LAZY = {
+    "Dexterity": "dexterity",
+    "conditioning_grid": "dexterity",
+    "dexterity": "dexterity",
+    "default_branch": "usable",
+    "inverse_condition": "usable",
+    "usable": "usable",
+    "usable_field": "usable",
+    "connect": "sweep",
+    "split_param": "sweep",
+    "wait_for": "sweep",
+    "Bound": "synthesis",
+    "Settings": "synthesis",
+    "Synthesis": "synthesis",
+    "gap_to_front": "synthesis",
+    "non_dominated": "synthesis",
+    "synthesize": "synthesis",
     "Axis": "sweep",
     "BoundaryMesh": "boundary_mesh",
     "CELL_CHUNK": "cells",
@@ -205,9 +241,11 @@ __all__ = [
     "SWEEPABLE",
     "UNION",
     "Axis",
+    "Bound",
     "BoundaryMesh",
     "CellGrid",
     "ColumnVolume",
+    "Dexterity",
     "Edge",
     "Freedom",
     "GrublerCount",
@@ -220,8 +258,10 @@ __all__ = [
     "RegularConfiguration",
     "ScrewAnalysis",
     "SerialWorkspace",
+    "Settings",
     "SingularLocus",
     "SingularityScan",
+    "Synthesis",
     "UsableShape",
     "VolumeEstimate",
     "Workspace",
@@ -234,15 +274,22 @@ __all__ = [
     "column_lengths",
     "column_volume",
     "condition_slack",
+    "conditioning_grid",
+    "connect",
     "contains",
+    "default_branch",
     "designs",
+    "dexterity",
     "evaluate_design",
     "export",
+    "gap_to_front",
     "grubler",
+    "inverse_condition",
     "joint_graph",
     "largest_shape",
     "local_cluster",
     "margin_mesh",
+    "non_dominated",
     "numeric_mobility",
     "one_kernel_thread",
     "p2us_margin",
@@ -265,8 +312,13 @@ __all__ = [
     "shape_samples",
     "shape_volume",
     "simplex_fraction",
+    "split_param",
+    "synthesize",
     "to_csv",
     "to_params",
+    "usable",
+    "usable_field",
+    "wait_for",
 ]
 
 

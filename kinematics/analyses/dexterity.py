@@ -56,6 +56,8 @@ with a bounded w over N >= 10^3 inside samples, one carries about 1/N (<< 1 %)."
 
 CHUNK = 1 << 14
 """Points per Jacobian batch (bounds the (N, d, a) temporaries)."""
+MAX_SAMPLES = 1 << 26
+"""Points per replicate (64 Mi: minutes per replicate already)."""
 
 
 @dataclass(frozen=True)
@@ -195,7 +197,11 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
     chosen = mech.check_branches(branches)
     if not (isinstance(replicates, int) and replicates >= 2):
         raise InvalidInputError("replicates", f"need at least 2 independent replicates for an error bar, got {replicates}")
-    m = max(int(math.ceil(math.log2(max(int(samples), 1)))), 4)
+    if samples < 16:
+        raise InvalidInputError("samples", f"need at least 16 points per replicate, got {samples}")
+    if samples > MAX_SAMPLES:
+        raise InvalidInputError("samples", f"at most {MAX_SAMPLES:,} points per replicate, got {samples:,}")
+    m = math.ceil(math.log2(samples))
     n = 1 << m
     check_points("samples", float(n) * replicates * len(chosen), hint="use fewer samples")
     lo, hi = (np.asarray(a, dtype=float) for a in mech.bounding_box(limits))
@@ -255,22 +261,27 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
                      time.perf_counter() - t0, mech.parameters())
 
 
-def conditioning_grid(mech: Mechanism, branch: str, *, limits: str = "all", step: float = 0.02
+MAP_CELLS = 50
+"""Default grid of the conditioning maps: this many steps along the bounding box's longest side."""
+
+
+def conditioning_grid(mech: Mechanism, branch: str, *, limits: str = "all", step: float | None = None
                       ) -> tuple[list[np.ndarray], np.ndarray]:
     """1/kappa on a regular grid over the bounding box, for maps: (axes, values shaped like the
     grid; NaN outside the branch, or outside every branch for "union", where the best is taken).
 
     Args:
-        step: grid step [m].
+        step: grid step [m] (default: the box's longest side / MAP_CELLS).
     """
     from kinematics.mechanisms.base import UNION
     from kinematics.sizes import grid_points
 
     mech.check_limits(limits)
     chosen = mech.branches if branch == UNION else mech.check_branches([branch])
+    lo, hi = (np.asarray(a, dtype=float) for a in mech.bounding_box(limits))
+    step = float(np.max(hi - lo)) / MAP_CELLS if step is None else step
     if not (step > 0 and math.isfinite(step)):
         raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
-    lo, hi = (np.asarray(a, dtype=float) for a in mech.bounding_box(limits))
     check_points("step", grid_points(lo, hi, step) * len(chosen), hint="use a larger step")
     axes = [np.arange(a, b + step / 2, step) for a, b in zip(lo, hi, strict=True)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(axes))

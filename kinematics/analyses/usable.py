@@ -42,6 +42,8 @@ if TYPE_CHECKING:
 Field = Callable[[np.ndarray], np.ndarray]
 Shape = Literal["cube", "cylinder", "sphere"]
 SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
+EMPTY = "no grid point is usable: the usable region is empty at this step"
+"""The problem text of the InvalidInputError `largest_shape` raises when nothing is usable."""
 KAPPA_MAX = 10.0
 """Default bound on the condition number sigma_max / sigma_min."""
 
@@ -188,7 +190,7 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
     ok = (field(grid.reshape(-1, 3)) >= 0).reshape(grid.shape[:-1])
     if not ok.any():
-        raise InvalidInputError("kappa_max", "no grid point is usable: the usable region is empty at this step")
+        raise InvalidInputError("kappa_max", EMPTY)
     idx, size0 = _coarse(shape, ok, step)
     center = grid[idx]
     if min(size0) <= 0:

@@ -625,10 +625,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--replicates", type=_integer, default=8, metavar="R",
                    help="independently scrambled Sobol' sets, >= 2 (default 8)")
     p.add_argument("--seed", type=_integer, default=0, metavar="S", help="random seed of the scrambling (default 0)")
-    p.add_argument("--step", type=_positive, default=0.02, metavar="M",
-                   help="grid step of the maps (--plot, --export) [m] (default 0.02)")
+    p.add_argument("--step", type=_positive, metavar="M",
+                   help="grid step of the maps (--plot, --export) [m] (default: the bounding box's longest side / 50)")
     p.add_argument("--plot", metavar="FILE.png", help="write a conditioning map (slices of 1/kappa)")
     p.add_argument("--export", metavar="FILE.html", help="write a Meshcat scene: points coloured by 1/kappa")
+
+    p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
+                "Dask: maximise the usable cube and the GCI, minimise the footprint; the Pareto front")
+    robot_arg(p)
+    p.add_argument("--param", action="append", metavar="NAME=LOWER:UPPER",
+                   help="a design variable and its bounds (repeatable) [m, rad]: p2us b, d, L, beta, theta_zero, "
+                        "rod_spacing, stroke_min, stroke_max; delta R, r, la, lb, cone, theta_min, theta_max, "
+                        "elbow_socket, platform_socket")
+    p.add_argument("--population", type=_integer, default=16, metavar="N", help="designs per generation (default 16)")
+    p.add_argument("--generations", type=_integer, default=8, metavar="G", help="generations (default 8)")
+    p.add_argument("--seed", type=_integer, default=0, metavar="S", help="random seed (default 0): same seed, same front")
+    p.add_argument("--mode", help="working mode of the cube and the GCI: --- (default) or union")
+    p.add_argument("--kappa-max", type=_positive, default=10.0, metavar="K",
+                   help="largest condition number in the usable cube (default 10)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--cube-cells", type=_integer, default=40, metavar="N",
+                   help="coarse grid of the cube search: steps along the design's bounding box (default 40)")
+    p.add_argument("--gci-samples", type=_integer, default=4096, metavar="N",
+                   help="GCI points per replicate (4 replicates; default 4096)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
+                                                            "local cluster)")
+    p.add_argument("--workers", type=_integer, metavar="N",
+                   help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
 
     p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
                 "watertight triangle mesh (STL, PLY or glTF binary)")

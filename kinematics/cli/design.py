@@ -137,3 +137,41 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     out(args, payload, human)
     return 0
+
+
+def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from kinematics.analyses import synthesis as syn
+    from kinematics.cli.report import show_progress, table
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    family = syn.family_of(mech)
+    bounds = [syn.Bound.parse(p, family) for p in args.param or []]
+    settings = syn.Settings(branch=args.mode or "---", kappa_max=args.kappa_max, limits=args.limits,
+                            cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed)
+    res = syn.synthesize(mech, bounds, population=args.population, generations=args.generations, seed=args.seed,
+                         settings=settings, scheduler=args.scheduler, workers=args.workers,
+                         progress=show_progress(args))
+    if args.out:
+        write_atomic(args.out, res.to_csv(), "--out")
+    if args.plot:
+        from kinematics.views import plots
+
+        plots.headless()
+        plots.save(plots.pareto_front(res), args.plot)
+    payload = {"robot": robot.name, **res.as_dict(), "scheduler": args.scheduler or "local"}
+
+    def human() -> str:
+        cols = list(res.columns)
+        return "\n".join([
+            (f"{robot.name}: NSGA-II, {res.generations} generations x {res.population} designs "
+             f"({len(res.history)} evaluated on {payload['scheduler']}) in {res.seconds:.1f} s, seed {res.seed}"),
+            (f"objectives: usable cube edge (mode {res.branch}, kappa <= {fmt(res.kappa_max)}; a checked lower "
+             f"bound) max, GCI max, footprint ({res.footprint_text}) min"),
+            f"Pareto front: {len(res.rows)} designs" + (f"; written to {args.out}" if args.out else ""),
+            "",
+            table(cols, [[r[c] for c in cols] for r in res.rows], digits=4),
+        ])
+
+    out(args, payload, human)
+    return 0

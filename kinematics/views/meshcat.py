@@ -756,7 +756,7 @@ def p2us_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
     return scene
 
 
-def conditioning_view(mech: Any, branch: str, *, limits: str = "all", step: float = 0.02,
+def conditioning_view(mech: Any, branch: str, *, limits: str = "all", step: float | None = None,
                       scene: Scene | None = None) -> Scene:
     """A mechanism's workspace (one branch, or "union": the best branch at each point) as points
     coloured by 1/kappa of the forward Jacobian (0 singular, 1 isotropic); camera framed on them."""
@@ -767,6 +767,7 @@ def conditioning_view(mech: Any, branch: str, *, limits: str = "all", step: floa
     scene = scene or Scene()
     axes, g = conditioning_grid(mech, branch, limits=limits, step=step)
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(axes))
+    step = float(axes[0][1] - axes[0][0]) if len(axes[0]) > 1 else 0.01
     v = g.ravel()
     keep = np.isfinite(v)
     check_points("step", int(keep.sum()), limit=MAX_VIEW_POINTS, hint="use a larger step")

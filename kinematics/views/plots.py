@@ -239,7 +239,8 @@ INVERSE_KAPPA_CMAP = "viridis"
 """Colour map of 1/kappa (0 singular, 1 isotropic) in conditioning maps and views."""
 
 
-def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float = 0.02, slices_z: int = 3) -> Any:
+def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float | None = None,
+                     slices_z: int = 3) -> Any:
     """Conditioning map of a mechanism's branch (or "union": the best branch at each point): 1/kappa
     of the forward Jacobian over the plane (planar arms) or over `slices_z` horizontal slices through
     the workspace (spatial mechanisms), blank outside it (`analyses.dexterity.conditioning_grid`)."""
