@@ -136,7 +136,16 @@ def test_cli_dexterity(capsys, tmp_path):
     assert png.stat().st_size > 10_000 and "MeshCat.Viewer" in html.read_text()
     code, d1, _ = run_json(capsys, "dexterity", "scara", "--mode", "up", "--samples", "1024", "--replicates", "3")
     assert code == 0 and list(d1["modes"]) == ["up"] and d1["target"] == "up"
+    # a working-mode label that looks like an option is a value
+    code, d2, _ = run_json(capsys, "dexterity", "p2us", "--mode", "---", "--samples", "256", "--replicates", "2")
+    assert code == 0 and d2["target"] == "---"
     code, _, err = run(capsys, "dexterity", "scara", "--mode", "sideways")
     assert code == 2 and "sideways" in err
     code, _, err = run(capsys, "dexterity", "scara", "--replicates", "1")
     assert code == 2 and "replicates" in err
+
+
+def test_a_sliver_gets_no_error_bar(p2us):
+    # few points and a replicate without any: the spread of the others says nothing, so no bar
+    d = dexterity(p2us, ["---"], samples=16, replicates=4, seed=0)
+    assert d.inside[0] < 16 and not math.isfinite(d.gci_error[0])

@@ -28,7 +28,9 @@ G = sum S_r / sum c_r, and its standard error the ratio estimator's over the R i
 se^2 = sum (S_r - G c_r)^2 / (R (R - 1) cbar^2); the reported error is t_{0.975, R-1} se, a 95 %
 confidence half-width (Student t over the replicates, exact for normal replicate means, which
 scrambled nets with n >= 2^10 come close to). The ratio's own bias is O(1/(R n)), far below se.
-The volume |W_t| = box x mean(c_r / n) comes with the same kind of error bar.
+The volume |W_t| = box x mean(c_r / n) comes with the same kind of error bar. A target some
+replicate misses entirely (a sliver of a working mode) gets an infinite error: its estimate rests
+on a handful of points.
 
 What can be missed: a part of W_t smaller than the points' spacing (n^(-1/d) of the box) that no
 replicate samples; the error bar does not cover it.
@@ -165,11 +167,15 @@ def _values(mech: Mechanism, points: np.ndarray, branches: Sequence[str], limits
 
 
 def _ratio(S: np.ndarray, c: np.ndarray, t: float) -> tuple[float, float]:
-    """Pooled ratio sum S / sum c over replicates and its t half-width (NaN, NaN if c sums to 0)."""
+    """Pooled ratio sum S / sum c over replicates and its t half-width (NaN, NaN if c sums to 0;
+    an infinite half-width when a replicate has no point inside: the spread of the others then
+    says nothing about the error)."""
     R = len(c)
     if c.sum() == 0:
         return math.nan, math.nan
     G = float(S.sum() / c.sum())
+    if (c == 0).any():
+        return G, math.inf
     with np.errstate(invalid="ignore"):
         resid = S - G * c
         se = math.sqrt(float((resid**2).sum()) / (R * (R - 1))) / float(c.mean())

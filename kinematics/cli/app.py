@@ -33,13 +33,16 @@ ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or e
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (no usage dump) and exit status 2, and numbers such as -1e-3
-    and -inf taken as values, not options (as Python 3.12's argparse does)."""
+    and -inf taken as values, not options (as Python 3.12's argparse does), as are working-mode
+    labels such as --- and -+-."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         import re
 
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$", re.I)
+        # working-mode labels such as --- and -+- are values too (no option is spelled that way)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$|^-[+-]{2}$",
+                                                   re.I)
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
