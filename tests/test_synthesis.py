@@ -90,6 +90,9 @@ def test_synthesis_front_is_reproducible_and_non_dominated(p2us, client):
     again = evaluate("p2us", p2us.params, {"b": r["b"], "L": r["L"]}, TINY)
     assert again["cube_edge_m"] == r["cube_edge_m"] and again["gci"] == r["gci"]
     assert a.to_csv().splitlines()[0] == "b,L,cube_edge_m,gci,footprint_m,gci_error"
+    # the starting design is reported with its distance to the front
+    here = evaluate("p2us", p2us.params, {}, TINY)
+    assert a.reference["cube_edge_m"] == here["cube_edge_m"] and "epsilon" in a.reference["gap"]
     c = synthesize(p2us, bounds, population=4, generations=2, seed=6, settings=TINY, client=client)
     assert [h["b"] for h in c.history] != [h["b"] for h in a.history]
 
@@ -144,4 +147,4 @@ def test_cli_synthesize(capsys, tmp_path):
     assert code == 0 and d["family"] == "delta" and d["designs_evaluated"] == 4
     lines = out.read_text().splitlines()
     assert lines[0] == "la,lb,cube_edge_m,gci,footprint_m,gci_error" and len(lines) == len(d["pareto_front"]) + 1
-    assert png.stat().st_size > 10_000
+    assert png.stat().st_size > 10_000 and {"cube_edge_m", "gci", "gap"} <= set(d["reference"])

@@ -104,7 +104,8 @@ class Settings:
 @dataclass(frozen=True)
 class Synthesis:
     """The result: the Pareto front (rows of design variables, objectives and the GCI's error),
-    every evaluated design (`history`), and how it was obtained."""
+    every evaluated design (`history`), how it was obtained, and the starting design's objectives
+    with its `gap_to_front` (`reference`)."""
 
     family: str
     names: tuple[str, ...]
@@ -119,6 +120,7 @@ class Synthesis:
     seconds: float
     footprint_text: str = ""
     base: dict[str, Any] = field(default_factory=dict)
+    reference: dict[str, Any] = field(default_factory=dict)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -139,7 +141,7 @@ class Synthesis:
                 "pareto_front": self.rows, "designs_evaluated": len(self.history),
                 "population": self.population, "generations": self.generations, "seed": self.seed,
                 "branch": self.branch, "kappa_max": self.kappa_max, "settings": self.settings.__dict__,
-                "seconds": self.seconds, "base_design": self.base}
+                "seconds": self.seconds, "base_design": self.base, "reference": self.reference}
 
 
 # -- one design ----------------------------------------------------------------------------------
@@ -304,6 +306,8 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
                 out["G"] = np.array([[0.0 if r["feasible"] else 1.0] for r in rows])
 
         result = minimize(_Problem(), NSGA2(pop_size=population), ("n_gen", generations), seed=seed, verbose=False)
+        # the design the search started from, for comparison with the front
+        reference = cl.submit(_task, family, base, {}, settings, pure=False).result()
     feasible = [r for r in history if r["feasible"]]
     front: list[dict[str, Any]] = []
     if feasible:
@@ -317,5 +321,8 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
                 front.append({c: float(feasible[k][c]) for c in (*names, *OBJECTIVES, "gci_error")})
         front.sort(key=lambda r: (-r["cube_edge_m"], -r["gci"], r["footprint_m"]))
     del result
+    ref = {c: reference[c] for c in (*OBJECTIVES, "gci_error")}
+    if front:
+        ref["gap"] = gap_to_front(front, reference)
     return Synthesis(family, names, front, history, population, generations, seed, settings, settings.branch,
-                     settings.kappa_max, time.perf_counter() - t0, FOOTPRINT_TEXT[family], mech.parameters())
+                     settings.kappa_max, time.perf_counter() - t0, FOOTPRINT_TEXT[family], mech.parameters(), ref)

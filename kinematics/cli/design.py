@@ -158,8 +158,11 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.views import plots
 
         plots.headless()
-        plots.save(plots.pareto_front(res), args.plot)
+        plots.save(plots.pareto_front(res, {**res.reference, "label": f"{robot.name} as built"}), args.plot)
     payload = {"robot": robot.name, **res.as_dict(), "scheduler": args.scheduler or "local"}
+
+    ref = res.reference
+    gap = ref.get("gap")
 
     def human() -> str:
         cols = list(res.columns)
@@ -171,6 +174,11 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             f"Pareto front: {len(res.rows)} designs" + (f"; written to {args.out}" if args.out else ""),
             "",
             table(cols, [[r[c] for c in cols] for r in res.rows], digits=4),
+            "",
+            (f"{robot.name} as built: edge {fmt(ref['cube_edge_m'], 4)} m, GCI {fmt(ref['gci'], 4)}, footprint "
+             f"{fmt(ref['footprint_m'], 4)} m; " + (
+                 f"{'dominated by' if gap['dominated'] else 'not dominated by'} the front, epsilon "
+                 f"{gap['epsilon']:+.3f} of the objectives' ranges" if gap else "no feasible front")),
         ])
 
     out(args, payload, human)
