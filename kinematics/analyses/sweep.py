@@ -42,6 +42,18 @@ COLUMNS = ("design", *SWEEPABLE, "volume_m3", "volume_lower_m3", "volume_upper_m
            "singularity_free_fraction", "conditioning_index", "grid_points_inside")
 
 
+def split_param(text: str, names: Sequence[str], form: str) -> tuple[str, list[str]]:
+    """'NAME=A:B:...' -> (NAME, ['A', 'B', ...]); NAME must be one of `names` (UnknownParameterError),
+    `form` shows the expected syntax in the error (InvalidInputError)."""
+    name, sep, rng = text.partition("=")
+    name = name.strip()
+    if not sep:
+        raise InvalidInputError("--param", f"expected {form}, got {text!r}")
+    if name not in names:
+        raise UnknownParameterError(name, tuple(names))
+    return name, rng.split(":")
+
+
 @dataclass(frozen=True)
 class Axis:
     """One swept parameter: `count` values evenly from `start` to `stop` (inclusive)."""
@@ -54,13 +66,7 @@ class Axis:
     @classmethod
     def parse(cls, text: str) -> Axis:
         """'b=0.25:0.40:16' -> Axis('b', 0.25, 0.40, 16); 'L=0.34' is a single value."""
-        name, sep, rng = text.partition("=")
-        name = name.strip()
-        if not sep:
-            raise InvalidInputError("--param", f"expected NAME=START:STOP:COUNT, got {text!r}")
-        if name not in SWEEPABLE:
-            raise UnknownParameterError(name, SWEEPABLE)
-        parts = rng.split(":")
+        name, parts = split_param(text, SWEEPABLE, "NAME=START:STOP:COUNT")
         try:
             if len(parts) == 1:
                 v = float(parts[0])
@@ -196,33 +202,11 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
         client: an existing distributed.Client (overrides scheduler).
         workers: worker processes of the embedded cluster (default: the cores).
     """
-    from kinematics.chunks import default_workers
-    from kinematics.sizes import check_points
-
     todo = designs(base or P2USParams(), axes, step)
-    if workers is not None:
-        check_points("--workers", workers, limit=4 * default_workers(), unit="worker processes",
-                     hint="at most 4 per core")
-    own = None
-    own_client = client is None
     futures: list[Any] = []
-    try:
-        if own_client:
-            from distributed import Client
-
-            if scheduler is None:
-                # a half-started cluster cannot be closed cleanly: Ctrl-C waits for the start
-                with _interrupts_deferred(), _children_quiet():
-                    own = local_cluster(workers or default_workers())
-                client = Client(own)
-            else:
-                try:
-                    client = Client(scheduler, timeout="10s")
-                except Exception as exc:  # noqa: BLE001 - bad address, refused, timeout: all one answer
-                    raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
-                                            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    with connect(scheduler, workers, client) as client:
         futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
-        _wait(futures, progress)
+        wait_for(futures, progress)
         try:
             results = client.gather(futures)
         except Exception as exc:  # noqa: BLE001 - a task failed: name the design, not the worker's traceback
@@ -232,14 +216,47 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             why = lines[0] if lines else ""
             raise SweepError(f"{where}: {why}" if isinstance(exc, KinematicsError)
                              else f"{where} failed: {type(exc).__name__}: {why}") from None
+    return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r}
+            for k, (d, r) in enumerate(zip(todo, results, strict=True))]
+
+
+@contextlib.contextmanager
+def connect(scheduler: str | None = None, workers: int | None = None, client: Any = None) -> Iterator[Any]:
+    """A distributed.Client for the block: `client` itself when given (left open), else one on the
+    scheduler at `scheduler` (e.g. tcp://10.0.0.5:8786), else on an embedded LocalCluster of
+    `workers` single-threaded processes (default: the cores); what it opened, it closes (Ctrl-C
+    held until closed)."""
+    from kinematics.chunks import default_workers
+    from kinematics.sizes import check_points
+
+    if workers is not None:
+        check_points("--workers", workers, limit=4 * default_workers(), unit="worker processes",
+                     hint="at most 4 per core")
+    if client is not None:
+        yield client
+        return
+    from distributed import Client
+
+    own = None
+    try:
+        if scheduler is None:
+            # a half-started cluster cannot be closed cleanly: Ctrl-C waits for the start
+            with _interrupts_deferred(), _children_quiet():
+                own = local_cluster(workers or default_workers())
+            client = Client(own)
+        else:
+            try:
+                client = Client(scheduler, timeout="10s")
+            except Exception as exc:  # noqa: BLE001 - bad address, refused, timeout: all one answer
+                raise InvalidInputError("--scheduler", f"cannot reach {scheduler!r}: "
+                                        f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        yield client
     finally:
         with _interrupts_deferred():
-            if own_client and client is not None:
+            if client is not None:
                 client.close()
             if own is not None:
                 own.close()
-    return [{"design": k, **{n: d[n] for n in SWEEPABLE}, **r}
-            for k, (d, r) in enumerate(zip(todo, results, strict=True))]
 
 
 @contextlib.contextmanager
@@ -303,7 +320,7 @@ def local_cluster(workers: int) -> Any:
                         silence_logs=logging.CRITICAL, env={"NUMBA_NUM_THREADS": "1"})
 
 
-def _wait(futures: list[Any], progress: bool) -> None:
+def wait_for(futures: list[Any], progress: bool, desc: str = "sweep", unit: str = "design") -> None:
     """Wait for every future (or the first error) by polling from this thread: no gather runs in
     the background, so an interrupt leaves nothing pending for the client to report at close."""
     import time
@@ -312,7 +329,7 @@ def _wait(futures: list[Any], progress: bool) -> None:
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(futures), desc="sweep", unit="design", delay=1.0, leave=False)
+        bar = tqdm(total=len(futures), desc=desc, unit=unit, delay=1.0, leave=False)
     try:
         done = 0
         while done < len(futures):

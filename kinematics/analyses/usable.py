@@ -1,15 +1,16 @@
 """Usable workspace: the largest axis-aligned cube, vertical cylinder and sphere inside a region
 where the robot is both reachable and well conditioned.
 
-The region is {p : u(p) >= 0} for a *usable field* u. For the 3-[P2(US)] in one working mode,
+The region is {p : u(p) >= 0} for a *usable field* u. For any `Mechanism` in one branch (working
+mode, elbow), `usable_field` builds
 
     u(p) = min(margin(p), 1/kappa(p) - 1/kappa_max),
 
-margin [m] the per-mode workspace margin of `kinematics.analyses.workspace.p2us_margin` (>= 0 inside every
-limit) and kappa = sigma_max / sigma_min of J = J_q^-1 J_x (dimensionless: the platform only
-translates). A singular pose (type I: a J_q entry 0, type II: J_x rank-deficient; either measure of
-`parallel.jacobians` <= SINGULAR_TOL) gets u < 0. Only the sign of u is used. The union of the
-modes is u = max over modes.
+margin [m] the branch's workspace margin (`Mechanism.margin`, >= 0 inside every limit) and
+kappa = sigma_max / sigma_min of the forward Jacobian J (`Mechanism.branch_velocity`; for the
+3-[P2(US)] J = J_x^-1 diag(J_q), dimensionless; for the Delta m/rad, a common unit, so kappa is
+still scale-free). A singular pose (iota_I or iota_II <= SINGULAR_TOL) gets u < 0. Only the sign
+of u is used. The union of the branches is u = max over branches.
 
 Method (any field, `largest_shape`): (1) sample u on a grid of step h over a box; distance
 transforms of the usable voxels give, at every voxel, the largest sphere (Euclidean), cube
@@ -27,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -35,9 +36,14 @@ from numpy.typing import ArrayLike
 from kinematics.errors import InvalidInputError, UnknownChoiceError
 from kinematics.sizes import check_points, grid_points
 
+if TYPE_CHECKING:
+    from kinematics.mechanisms.base import Mechanism
+
 Field = Callable[[np.ndarray], np.ndarray]
 Shape = Literal["cube", "cylinder", "sphere"]
 SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
+EMPTY = "no grid point is usable: the usable region is empty at this step"
+"""The problem text of the InvalidInputError `largest_shape` raises when nothing is usable."""
 KAPPA_MAX = 10.0
 """Default bound on the condition number sigma_max / sigma_min."""
 
@@ -53,7 +59,7 @@ class UsableShape:
         samples: points of the final membership test; spacing: its solid-grid spacing [m].
         min_field: the smallest u over those samples (>= 0).
         larger_fails: the same shape 1 % larger fails the test at the centre and the 26
-            neighbouring centres (offsets of half a grid step).
+            neighbouring centres (offsets of half a grid step); False when not tested (no search).
     """
 
     shape: str
@@ -166,11 +172,13 @@ def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tupl
 
 
 def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
-                  spacing: float | None = None) -> UsableShape:
+                  spacing: float | None = None, search: bool = True) -> UsableShape:
     """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
 
     Args:
         step: grid step of the coarse search [m]; spacing: membership-test spacing (default step / 2).
+        search: False skips the pattern search (centre and aspect stay at the coarse optimum's):
+            a checked lower bound, several times cheaper.
     """
     _check_shape(shape)
     if not (step > 0 and math.isfinite(step)):
@@ -182,7 +190,7 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
     ok = (field(grid.reshape(-1, 3)) >= 0).reshape(grid.shape[:-1])
     if not ok.any():
-        raise InvalidInputError("kappa_max", "no grid point is usable: the usable region is empty at this step")
+        raise InvalidInputError("kappa_max", EMPTY)
     idx, size0 = _coarse(shape, ok, step)
     center = grid[idx]
     if min(size0) <= 0:
@@ -215,8 +223,8 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
 
     aspect = 1.0
     t = max_scale(center, sized(aspect))
-    delta = step
-    while delta >= step / 8:
+    delta = step if search else 0.0
+    while delta >= step / 8 and delta > 0:
         improved = False
         moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
         if shape == "cylinder":
@@ -236,56 +244,121 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     final = contains(field, shape, center, size, spacing)
     bigger = [1.01 * s for s in size]
     offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * 3, indexing="ij"), -1).reshape(-1, 3)
-    larger_fails = all(contains(field, shape, center + o, bigger, spacing) < 0 for o in offs)
+    # (without the search the result is a lower bound, not claimed near-maximal: not tested)
+    larger_fails = search and all(contains(field, shape, center + o, bigger, spacing) < 0 for o in offs)
     n = len(shape_samples(shape, center, size, spacing))
     return UsableShape(shape, center, size, n, spacing, final, larger_fails)
 
 
-# -- the 3-[P2(US)] ---------------------------------------------------------------------------------
-def condition_slack(params: object, points: np.ndarray, q: np.ndarray, kappa_max: float) -> np.ndarray:
-    """1/kappa - 1/kappa_max per point (dimensionless): >= 0 iff kappa <= kappa_max; -1 where q is
-    undefined (NaN) or the pose is singular (type I or II)."""
-    from kinematics.mechanisms.p2us.closed_form import SINGULAR_TOL, jacobians
-
-    bad = np.isnan(q).any(axis=-1)
-    qq = np.where(bad[:, None], 0.0, q)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        jac = jacobians(params, points, qq)  # type: ignore[arg-type]
-        J = np.where(np.isfinite(jac.J), jac.J, 0.0)
-        sv = np.linalg.svd(J, compute_uv=False)
-        inv_kappa = sv[:, -1] / sv[:, 0]
-    singular = (jac.iota_I <= SINGULAR_TOL) | (jac.iota_II <= SINGULAR_TOL) | ~np.isfinite(jac.J).all(axis=(1, 2))
-    return np.where(bad | singular | ~np.isfinite(inv_kappa), -1.0, inv_kappa - 1.0 / kappa_max)
+# -- any mechanism ------------------------------------------------------------------------------------
+def inverse_condition(J: np.ndarray) -> np.ndarray:
+    """1/kappa = sigma_min / sigma_max of each (N, d, a) Jacobian (dimensionless, in [0, 1]);
+    0 where J is not finite (a type II pose: the forward map blows up) or zero."""
+    J = np.asarray(J, dtype=float)
+    finite = np.isfinite(J).all(axis=(-2, -1))
+    sv = np.linalg.svd(np.where(finite[..., None, None], J, 0.0), compute_uv=False)
+    top = sv[..., 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(finite & (top > 0), sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)
+    return out
 
 
-def p2us_usable_field(params: object, mode: str = "---", kappa_max: float = KAPPA_MAX,
-                      limits: str = "all") -> Field:
-    """u(p) for the 3-[P2(US)] in `mode` (a MODES label, or "union" for the best mode at each point)."""
-    from kinematics.analyses.workspace import UNION, p2us_margin
-    from kinematics.mechanisms.p2us.closed_form import MODES, ik, mode_index
+def condition_slack_of(v: Any, inside: np.ndarray, kappa_max: float) -> np.ndarray:
+    """1/kappa - 1/kappa_max per point from a `Velocity` (dimensionless): >= 0 iff kappa <= kappa_max;
+    -1 outside the branch (`inside` False) and at singular poses (type I, II or III)."""
+    from kinematics.mechanisms.base import SINGULAR_TOL
 
+    with np.errstate(invalid="ignore"):
+        singular = ~(v.iota_I > SINGULAR_TOL) | ~(v.iota_II > SINGULAR_TOL)
+    inv = inverse_condition(v.J)
+    return np.where(~inside | singular | ~(inv > 0), -1.0, inv - 1.0 / kappa_max)
+
+
+def _check_kappa(kappa_max: float) -> float:
     if not (kappa_max >= 1 and math.isfinite(kappa_max)):
         raise InvalidInputError("kappa_max", f"must be a finite number >= 1, got {kappa_max!r}")
-    modes = tuple(MODES) if mode == UNION else (MODES[mode_index(mode)],)
-    margin = p2us_margin(params, modes, limits)  # type: ignore[arg-type]
+    return float(kappa_max)
+
+
+def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, limits: str = "all") -> Field:
+    """u(p) of a mechanism in one branch (working mode, elbow), or "union" (the best branch at each
+    point): min(margin, 1/kappa - 1/kappa_max) with kappa the 2-norm condition number of the forward
+    Jacobian J (`Mechanism.branch_velocity`); singular poses get u < 0 (module docstring).
+
+    kappa of J and of J^-1 agree for a square J; it is scale-free as long as J's columns share a
+    unit (every actuator prismatic, or every one revolute), true of the built-in families.
+    """
+    from kinematics.mechanisms.base import UNION
+
+    _check_kappa(kappa_max)
+    mech.check_limits(limits)
+    branches = mech.branches if branch == UNION else mech.check_branches([branch])
+    margin = mech.margin(branches, limits)
 
     def field(points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=float)
         m = margin(points)
-        q = ik(params, points, limits=False).q  # type: ignore[arg-type]
         out = np.full(len(points), -np.inf)
-        for k, mo in enumerate(modes):
-            slack = condition_slack(params, points, q[:, mode_index(mo)], kappa_max)
-            out = np.maximum(out, np.minimum(m[:, k], slack))
+        for k, b in enumerate(branches):
+            v, inside = mech.branch_velocity(points, b, limits)
+            out = np.maximum(out, np.minimum(m[:, k], condition_slack_of(v, inside, kappa_max)))
         return out
 
     return field
 
 
+def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max: float = KAPPA_MAX,
+           limits: str = "all", step: float = 0.01, spacing: float | None = None,
+           search: bool = True) -> UsableShape:
+    """The largest `shape` in the usable workspace of a spatial mechanism (module docstring).
+
+    Args:
+        branch: a branch label or "union" (default: "---" where the mechanism has it, else its
+            first branch).
+        search: False skips the pattern search of the centre (the coarse optimum's centre, the
+            size still bisected and checked): faster, a lower bound on the optimum.
+    """
+    from kinematics.errors import UnsupportedRobotError
+
+    _check_shape(shape)
+    if mech.task_dim != 3:
+        raise UnsupportedRobotError(mech.name, "usable shapes (cube, cylinder, sphere) need a spatial task "
+                                    f"space; this mechanism's is {mech.task_dim}-dimensional")
+    field = usable_field(mech, default_branch(mech) if branch is None else branch, kappa_max, limits)
+    lo, hi = mech.bounding_box(limits)
+    return largest_shape(field, lo, hi, shape, step=step, spacing=spacing, search=search)
+
+
+def default_branch(mech: Mechanism) -> str:
+    """ "---" (the usual working mode of the 3-[P2(US)] and the Delta) where it exists, else the first
+    branch."""
+    return "---" if "---" in mech.branches else mech.branches[0]
+
+
+# -- the 3-[P2(US)] (kept for callers holding parameters) ---------------------------------------------
+def condition_slack(params: object, points: np.ndarray, q: np.ndarray, kappa_max: float) -> np.ndarray:
+    """1/kappa - 1/kappa_max per point (dimensionless) of the 3-[P2(US)] with actuator values q:
+    >= 0 iff kappa <= kappa_max; -1 where q is undefined (NaN) or the pose is singular."""
+    from kinematics.mechanisms.p2us.mechanism import P2US
+
+    bad = np.isnan(q).any(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        v = P2US(params).velocity(points, np.where(bad[:, None], 0.0, q))  # type: ignore[arg-type]
+    return condition_slack_of(v, ~bad, kappa_max)
+
+
+def p2us_usable_field(params: object, mode: str = "---", kappa_max: float = KAPPA_MAX,
+                      limits: str = "all") -> Field:
+    """u(p) for the 3-[P2(US)] in `mode` (a MODES label, or "union"): `usable_field` of its mechanism."""
+    from kinematics.mechanisms.p2us.mechanism import P2US
+
+    return usable_field(P2US(params), mode, kappa_max, limits)  # type: ignore[arg-type]
+
+
 def p2us_usable(params: object, shape: str, *, mode: str = "---", kappa_max: float = KAPPA_MAX,
                 step: float = 0.01, spacing: float | None = None) -> UsableShape:
     """The largest `shape` in the usable workspace of a 3-[P2(US)] (see the module doc)."""
-    from kinematics.mechanisms.p2us.scan import bounding_box
+    from kinematics.mechanisms.p2us.mechanism import P2US
 
-    lo, hi = bounding_box(params)  # type: ignore[arg-type]
-    return largest_shape(p2us_usable_field(params, mode, kappa_max), lo, hi, shape, step=step, spacing=spacing)
+    return usable(P2US(params), shape, branch=mode, kappa_max=kappa_max, step=step,  # type: ignore[arg-type]
+                  spacing=spacing)

@@ -33,13 +33,16 @@ ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or e
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (no usage dump) and exit status 2, and numbers such as -1e-3
-    and -inf taken as values, not options (as Python 3.12's argparse does)."""
+    and -inf taken as values, not options (as Python 3.12's argparse does), as are working-mode
+    labels such as --- and -+-."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         import re
 
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$", re.I)
+        # working-mode labels such as --- and -+- are values too (no option is spelled that way)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$|^-[+-]{2}$",
+                                                   re.I)
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
@@ -380,6 +383,20 @@ def cmd_usable_workspace(args: argparse.Namespace) -> int:
     return usable_workspace(args, _load(args), _out)
 
 
+def cmd_dexterity(args: argparse.Namespace) -> int:
+    """Global conditioning index and mean Yoshikawa index with error bars; conditioning maps."""
+    from kinematics.cli.design import dexterity
+
+    return dexterity(args, _load(args), _out)
+
+
+def cmd_synthesize(args: argparse.Namespace) -> int:
+    """Multi-objective dimensional synthesis (NSGA-II) on Dask."""
+    from kinematics.cli.design import synthesize
+
+    return synthesize(args, _load(args), _out)
+
+
 def cmd_workspace_mesh(args: argparse.Namespace) -> int:
     """A working mode's workspace boundary as a watertight mesh."""
     from kinematics.cli.design import workspace_mesh
@@ -590,14 +607,60 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rtol", type=_positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
 
-    p = command("usable-workspace", cmd_usable_workspace, "p2us: the largest axis-aligned cube, vertical "
-                "cylinder or sphere where every point is reachable, non-singular and has kappa <= K")
+    p = command("usable-workspace", cmd_usable_workspace, "p2us, delta (any spatial mechanism with closed forms): "
+                "the largest axis-aligned cube, vertical cylinder or sphere where every point is reachable, "
+                "non-singular and has kappa <= K")
     robot_arg(p)
     p.add_argument("--shape", required=True, choices=["cube", "cylinder", "sphere"], help="the shape")
     p.add_argument("--kappa-max", type=_positive, default=10.0, metavar="K",
-                   help="largest condition number sigma_max/sigma_min of J = Jq^-1 Jx (default 10)")
+                   help="largest condition number sigma_max/sigma_min of the forward Jacobian J (default 10)")
     p.add_argument("--mode", help="working mode such as --- (default), or union")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
     p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
+
+    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa) and mean Yoshikawa index "
+                "with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their union; conditioning "
+                "maps")
+    robot_arg(p)
+    p.add_argument("--mode", help="one working mode / elbow such as --- or up (default: every one, and the union)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--samples", type=_integer, default=16384, metavar="N",
+                   help="points per replicate, rounded up to a power of two (default 16384)")
+    p.add_argument("--replicates", type=_integer, default=8, metavar="R",
+                   help="independently scrambled Sobol' sets, >= 2 (default 8)")
+    p.add_argument("--seed", type=_integer, default=0, metavar="S", help="random seed of the scrambling (default 0)")
+    p.add_argument("--step", type=_positive, metavar="M",
+                   help="grid step of the maps (--plot, --export) [m] (default: the bounding box's longest side / 50)")
+    p.add_argument("--plot", metavar="FILE.png", help="write a conditioning map (slices of 1/kappa)")
+    p.add_argument("--export", metavar="FILE.html", help="write a Meshcat scene: points coloured by 1/kappa")
+
+    p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
+                "Dask: maximise the usable cube and the GCI, minimise the footprint; the Pareto front")
+    robot_arg(p)
+    p.add_argument("--param", action="append", metavar="NAME=LOWER:UPPER",
+                   help="a design variable and its bounds (repeatable) [m, rad]: p2us b, d, L, beta, theta_zero, "
+                        "rod_spacing, stroke_min, stroke_max; delta R, r, la, lb, cone, theta_min, theta_max, "
+                        "elbow_socket, platform_socket")
+    p.add_argument("--population", type=_integer, default=16, metavar="N", help="designs per generation (default 16)")
+    p.add_argument("--generations", type=_integer, default=8, metavar="G", help="generations (default 8)")
+    p.add_argument("--seed", type=_integer, default=0, metavar="S", help="random seed (default 0): same seed, same front")
+    p.add_argument("--mode", help="working mode of the cube and the GCI: --- (default) or union")
+    p.add_argument("--kappa-max", type=_positive, default=10.0, metavar="K",
+                   help="largest condition number in the usable cube (default 10)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--cube-cells", type=_integer, default=40, metavar="N",
+                   help="coarse grid of the cube search: steps along the design's bounding box (default 40)")
+    p.add_argument("--gci-samples", type=_integer, default=4096, metavar="N",
+                   help="GCI points per replicate (4 replicates; default 4096)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
+                                                            "local cluster)")
+    p.add_argument("--workers", type=_integer, metavar="N",
+                   help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
 
     p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
                 "watertight triangle mesh (STL, PLY or glTF binary)")

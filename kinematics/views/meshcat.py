@@ -772,3 +772,26 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
     # a low camera: the base disk hangs above the mechanism and hides it from the usual 30 deg
     scene.fit_camera(direction=(1.0, -1.4, 0.2))
     return scene
+
+
+def conditioning_view(mech: Any, branch: str, *, limits: str = "all", step: float | None = None,
+                      scene: Scene | None = None) -> Scene:
+    """A mechanism's workspace (one branch, or "union": the best branch at each point) as points
+    coloured by 1/kappa of the forward Jacobian (0 singular, 1 isotropic); camera framed on them."""
+    from kinematics.analyses.dexterity import conditioning_grid
+    from kinematics.sizes import MAX_VIEW_POINTS, check_points
+    from kinematics.views.plots import INVERSE_KAPPA_CMAP, LIMITS_TEXT
+
+    scene = scene or Scene()
+    axes, g = conditioning_grid(mech, branch, limits=limits, step=step)
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(axes))
+    step = float(axes[0][1] - axes[0][0]) if len(axes[0]) > 1 else 0.01
+    v = g.ravel()
+    keep = np.isfinite(v)
+    check_points("step", int(keep.sum()), limit=MAX_VIEW_POINTS, hint="use a larger step")
+    scene.add_points(pts[keep], v[keep], "overlays/conditioning", size=step * 0.4, cmap=INVERSE_KAPPA_CMAP,
+                     vrange=(0.0, 1.0), opacity=0.6,
+                     label=f"1/\u03ba of J, {mech.branch_kind} {branch} ({LIMITS_TEXT.get(limits, limits)})")
+    scene.fit_camera()
+    return scene
+

@@ -241,3 +241,57 @@ def guidance_run(run: Any, title: str = "") -> Any:
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+INVERSE_KAPPA_CMAP = "viridis"
+"""Colour map of 1/kappa (0 singular, 1 isotropic) in conditioning maps and views."""
+
+
+def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float | None = None,
+                     slices_z: int = 3) -> Any:
+    """Conditioning map of a mechanism's branch (or "union": the best branch at each point): 1/kappa
+    of the forward Jacobian over the plane (planar arms) or over `slices_z` horizontal slices through
+    the workspace (spatial mechanisms), blank outside it (`analyses.dexterity.conditioning_grid`)."""
+    from kinematics.analyses.dexterity import conditioning_grid
+
+    axes, g = conditioning_grid(mech, branch, limits=limits, step=step)
+    if len(axes) == 2:
+        fig, ax = _figure(1, (6.0, 5.0))
+        levels = [(ax[0], g, "")]
+    else:
+        filled = np.flatnonzero(np.isfinite(g).reshape(-1, g.shape[2]).any(axis=0))
+        picks = np.linspace(0.2, 0.8, slices_z) * max(len(filled) - 1, 0)
+        ks = filled[picks.round().astype(int)] if len(filled) else np.zeros(slices_z, int)
+        fig, ax = _figure(slices_z, (4.2, 4.0))
+        levels = [(a, g[:, :, k], f"z = {axes[2][k]:.3f} m") for a, k in zip(ax, ks, strict=True)]
+    X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
+    im = None
+    for a, values, title in levels:
+        im = a.pcolormesh(X, Y, np.ma.masked_invalid(values), vmin=0.0, vmax=1.0, cmap=INVERSE_KAPPA_CMAP,
+                          shading="auto")
+        a.set_title(title)
+        a.set_aspect("equal")
+        a.set_xlabel("x [m]")
+        a.set_ylabel("y [m]")
+    fig.colorbar(im, ax=ax, shrink=0.8, label="1/\u03ba of J (0 singular, 1 isotropic)")
+    fig.suptitle(f"{mech.name}: conditioning, {mech.branch_kind} {branch}, {LIMITS_TEXT.get(limits, limits)}")
+    return fig
+
+
+def pareto_front(front: Any, reference: dict[str, Any] | None = None) -> Any:
+    """The Pareto front of a dimensional synthesis (`analyses.synthesis.Synthesis`): usable-cube
+    edge against GCI, coloured by footprint, with an optional reference design marked."""
+    fig, ax = _figure(1, (6.5, 5.0))
+    F = np.asarray([[r["cube_edge_m"], r["gci"], r["footprint_m"]] for r in front.rows], dtype=float)
+    sc = ax[0].scatter(F[:, 0], F[:, 1], c=F[:, 2], cmap="plasma", s=36, edgecolors="k", linewidths=0.4)
+    fig.colorbar(sc, ax=ax[0], label=f"footprint [m] ({front.footprint_text})")
+    if reference is not None:
+        ax[0].scatter([reference["cube_edge_m"]], [reference["gci"]], marker="*", s=220, c="red",
+                      edgecolors="k", label=reference.get("label", "reference design"))
+        ax[0].legend(loc="best")
+    ax[0].set_xlabel(f"usable cube edge [m] (\u03ba \u2264 {front.kappa_max:g}, mode {front.branch})")
+    ax[0].set_ylabel("GCI (mean 1/\u03ba)")
+    ax[0].set_title(f"{front.family}: Pareto front, {len(front.rows)} designs "
+                    f"({front.generations} generations x {front.population})")
+    ax[0].grid(alpha=0.3)
+    return fig
