@@ -96,8 +96,15 @@ SINGULAR_TOL = 1e-6
 
 SINGULARITY_TYPES = ("none", "type I", "type II", "type III")
 
+STALL = 1e-2
+"""After 3 iterations a start stops when an accepted step lowers ||r||^2 by less than this fraction
+(it is heading for a least-squares point, not a root)."""
+
 WARM_RADIUS_FACTOR = 0.1
 """A solved point warm-starts another when closer than this x `scale` [m]."""
+
+CACHE_POINTS = 100_000
+"""Solved points kept for warm starts (the most recent first)."""
 
 REVOLUTE, PRISMATIC = 0, 1
 
@@ -130,6 +137,8 @@ class BranchSolutions(NamedTuple):
         margin: (N, B) joint-limit margin [m] where found, minus the residual elsewhere.
         unlabelled: converged solutions whose label is not in the atlas (not returned).
         conflicts: physically different solutions that shared a label at one target.
+        end: (N, B, n) where each branch's best start ended: the solution, or the least-squares
+            point where there is none (the next targets' warm starts).
     """
 
     x: np.ndarray
@@ -138,6 +147,7 @@ class BranchSolutions(NamedTuple):
     margin: np.ndarray
     unlabelled: int
     conflicts: int
+    end: np.ndarray
 
 
 class Singularities(NamedTuple):
@@ -199,16 +209,28 @@ def _frames(fparent, fR, ft, oR, op, FR, Fp):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _orient_err(A, B, scale, out, k):  # pragma: no cover - compiled
-    """out[k:k+3] = scale vee(A B^T - B A^T) / 2."""
-    m01 = m02 = m12 = 0.0
-    for c in range(3):
-        m01 += A[0, c] * B[1, c] - B[0, c] * A[1, c]
-        m02 += A[0, c] * B[2, c] - B[0, c] * A[2, c]
-        m12 += A[1, c] * B[2, c] - B[1, c] * A[2, c]
-    out[k] = -0.5 * scale * m12
-    out[k + 1] = 0.5 * scale * m02
-    out[k + 2] = -0.5 * scale * m01
+def _orient(A, B, scale, out, k, H_A, H_B, jac):  # pragma: no cover - compiled
+    """Orientation error of A against B: out[k:k+3] = 2 l v / (1 + T), C = A B^T, v = vee(C - C^T),
+    T = tr C: l tan(angle/2) axis x 2, ~ l angle axis near A = B, infinite at a half-turn (which
+    vee(C - C^T) alone would take for a root). Its rate is H_A w_A - H_B w_B with
+    H = 2 l / (1 + T) (2 G + v v^T / (1 + T)), G_A = (T I - C)/2, G_B = (T I - C^T)/2 (from
+    vee([w] C + C^T [w]) = (T I - C) w and dT = -v . (w_A - w_B))."""
+    C = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            C[a, b] = A[a, 0] * B[b, 0] + A[a, 1] * B[b, 1] + A[a, 2] * B[b, 2]
+    T = C[0, 0] + C[1, 1] + C[2, 2]
+    v0, v1, v2 = C[2, 1] - C[1, 2], C[0, 2] - C[2, 0], C[1, 0] - C[0, 1]
+    d = max(1.0 + T, 1e-9)
+    f = 2.0 * scale / d
+    out[k], out[k + 1], out[k + 2] = f * v0, f * v1, f * v2
+    if jac:
+        v = (v0, v1, v2)
+        for a in range(3):
+            for b in range(3):
+                vv = v[a] * v[b] / d
+                H_A[a, b] = f * ((T if a == b else 0.0) - C[a, b] + vv)
+                H_B[a, b] = f * ((T if a == b else 0.0) - C[b, a] + vv)
 
 
 @njit(cache=True)
@@ -220,7 +242,6 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - co
     n = parent.shape[0]
     k = 0
     nc = ctype.shape[0]
-    Cm = np.empty((3, 3))
     GA = np.empty((3, 3))
     GB = np.empty((3, 3))
     # rows: closures, orientation (if held), task position
@@ -230,12 +251,12 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - co
             for a in range(3):
                 r[k + a] = Fp[f1, a] - Fp[f2, a]
             if rot:
-                _orient_err(FR[f1], FR[f2], scale, r, k + 3)
+                _orient(FR[f1], FR[f2], scale, r, k + 3, GA, GB, jac)
         elif c == nc:
             if not orient:
                 continue
             f1, f2, rot = ee, -1, True
-            _orient_err(FR[ee], R0, scale, r, k)
+            _orient(FR[ee], R0, scale, r, k, GA, GB, jac)
         else:
             f1, f2, rot = ee, -1, False
             for a in range(taxes.shape[0]):
@@ -245,19 +266,6 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - co
             for i in range(rows):
                 for j in range(n):
                     J[k + i, j] = 0.0
-            if rot:
-                # e = l vee(C - C^T)/2, C = A B^T: de = l (G_A w_A - G_B w_B), G_A = (tr C I - C)/2,
-                # G_B = (tr C I - C^T)/2 (vee(S C + C^T S) = (tr C I - C) w for S = [w]x)
-                Bm = R0 if c == nc else FR[f2]
-                Am = FR[f1]
-                for a in range(3):
-                    for b in range(3):
-                        Cm[a, b] = Am[a, 0] * Bm[b, 0] + Am[a, 1] * Bm[b, 1] + Am[a, 2] * Bm[b, 2]
-                tr = Cm[0, 0] + Cm[1, 1] + Cm[2, 2]
-                for a in range(3):
-                    for b in range(3):
-                        GA[a, b] = 0.5 * ((tr if a == b else 0.0) - Cm[a, b])
-                        GB[a, b] = 0.5 * ((tr if a == b else 0.0) - Cm[b, a])
             ko = k + 3 if c < nc else k  # first orientation row
             for side in range(2):
                 f = f1 if side == 0 else f2
@@ -278,7 +286,7 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - co
                         if rot:
                             G = GA if side == 0 else GB
                             for a in range(3):
-                                J[ko + a, j] += sg * scale * (G[a, 0] * wx + G[a, 1] * wy + G[a, 2] * wz)
+                                J[ko + a, j] += sg * (G[a, 0] * wx + G[a, 1] * wy + G[a, 2] * wz)
                     if c < nc:
                         J[k, j] += sg * lx
                         J[k + 1, j] += sg * ly
@@ -325,6 +333,16 @@ def _wrap(x, kind, centre):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
+def _weigh(w, r, J, jac):  # pragma: no cover - compiled
+    for i in range(r.shape[0]):
+        if w[i] != 1.0:
+            r[i] *= w[i]
+            if jac:
+                for j in range(J.shape[1]):
+                    J[i, j] *= w[i]
+
+
+@njit(cache=True, inline="always")
 def _maxabs(r):  # pragma: no cover - compiled
     m = 0.0
     for i in range(r.shape[0]):
@@ -363,7 +381,7 @@ def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, parallel=True)
-def _lm_kernel(targets, x0, g, m, centre, free, iters, tol, x_out, res_out, it_out):  # pragma: no cover - compiled
+def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out):  # pragma: no cover - compiled
     """Levenberg-Marquardt from every row's start x0 towards its target (see the module docstring)."""
     kind = g[1]
     nrows = targets.shape[0]
@@ -390,6 +408,7 @@ def _lm_kernel(targets, x0, g, m, centre, free, iters, tol, x_out, res_out, it_o
                 x[j] = x0[row, j]
             _wrap(x, kind, centre)
             _residual(x, t, g, oR, op, FR, Fp, r, J, True)
+            _weigh(roww, r, J, True)
             cost = 0.0
             for i in range(m):
                 cost += r[i] * r[i]
@@ -397,18 +416,25 @@ def _lm_kernel(targets, x0, g, m, centre, free, iters, tol, x_out, res_out, it_o
             it = 0
             while it < iters and _maxabs(r) > tol:
                 it += 1
+                # J^T J and -J^T r over each row's structurally non-zero columns only
+                for a in range(n):
+                    gr[a] = 0.0
+                    for b in range(a + 1):
+                        A[a, b] = 0.0
+                for i in range(m):
+                    ri = r[i]
+                    for u in range(nzn[i]):
+                        a = nzc[i, u]
+                        ja = J[i, a]
+                        gr[a] -= ja * ri
+                        for v in range(nzn[i]):
+                            b = nzc[i, v]
+                            if b <= a:
+                                A[a, b] += ja * J[i, b]
                 trace = 0.0
                 for a in range(n):
-                    s = 0.0
-                    for i in range(m):
-                        s -= J[i, a] * r[i]
-                    gr[a] = s
-                    for b in range(a + 1):
-                        s = 0.0
-                        for i in range(m):
-                            s += J[i, a] * J[i, b]
-                        A[a, b] = s
-                        A[b, a] = s
+                    for b in range(a):
+                        A[b, a] = A[a, b]
                     trace += A[a, a]
                 for a in range(n):
                     if not free[a]:  # frozen unknown: dx[a] = 0
@@ -431,6 +457,7 @@ def _lm_kernel(targets, x0, g, m, centre, free, iters, tol, x_out, res_out, it_o
                         xt[j] = x[j] + dx[j]
                     _wrap(xt, kind, centre)
                     _residual(xt, t, g, oR, op, FR, Fp, rt, J, False)
+                    _weigh(roww, rt, J, False)
                     c2 = 0.0
                     for i in range(m):
                         c2 += rt[i] * rt[i]
@@ -448,7 +475,10 @@ def _lm_kernel(targets, x0, g, m, centre, free, iters, tol, x_out, res_out, it_o
                 drop = cost - c2
                 cost = c2
                 _residual(x, t, g, oR, op, FR, Fp, r, J, True)
-                if step < 1e-15 or drop <= 1e-16 * cost:
+                _weigh(roww, r, J, True)
+                # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
+                # convergence drops it by far more than this each step)
+                if step < 1e-15 or drop <= 1e-16 * cost or (it >= 3 and drop <= STALL * cost):
                     break
             for j in range(n):
                 x_out[row, j] = x[j]
@@ -511,10 +541,12 @@ class LoopBatch:
     restarts: int = 8
     _g: tuple[Any, ...] = ()
     _m: int = 0
+    _nzc: np.ndarray = field(default_factory=lambda: np.empty((0, 0), dtype=np.int64))
+    _nzn: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     _centre: np.ndarray = field(default_factory=lambda: np.empty(0))
     _reference: np.ndarray = field(default_factory=lambda: np.empty(0))
     _anchor: np.ndarray = field(default_factory=lambda: np.empty(0))
-    _cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    _cache: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- construction ----------------------------------------------------------------------------
     @classmethod
@@ -616,7 +648,15 @@ class LoopBatch:
         self._m = int(sum(3 if t == 0 else 6 for t in ctype) + (3 if self.translational else 0) + len(self.task_axes))
         lo, hi = robot.lower, robot.upper
         self._centre = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
-        self._closure_rows = int(sum(3 if t == 0 else 6 for t in ctype))
+        # structural pattern: the columns each residual row can depend on
+        cols = []
+        for c, t in enumerate(ctype):
+            mask = anc[cf1[c]] | anc[cf2[c]]
+            cols += [np.flatnonzero(mask)] * (3 if t == 0 else 6)
+        cols += [np.flatnonzero(anc[ee])] * ((3 if self.translational else 0) + len(self.task_axes))
+        width = max(len(c) for c in cols)
+        self._nzn = np.array([len(c) for c in cols], dtype=np.int64)
+        self._nzc = np.array([np.pad(c, (0, width - len(c)), constant_values=-1) for c in cols], dtype=np.int64)
 
     # -- basic properties ------------------------------------------------------------------------
     @property
@@ -664,18 +704,21 @@ class LoopBatch:
 
     # -- kernels ---------------------------------------------------------------------------------
     def newton(self, targets: np.ndarray, x0: np.ndarray, iters: int = 40, tol: float = TOL,
-               free: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               free: np.ndarray | None = None, rows: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Levenberg-Marquardt rows: (R, d) targets, (R, n) starts -> (x, max |residual| [m], iterations).
 
-        free: (n,) bool, the unknowns that may move (default: all)."""
+        free: (n,) bool, the unknowns that may move (default: all); rows: (m,) bool, the equations
+        solved (default: all)."""
         free = np.ones(self.n, dtype=np.bool_) if free is None else np.asarray(free, dtype=np.bool_)
+        roww = np.ones(self._m) if rows is None else np.asarray(rows, dtype=float)
         t = np.ascontiguousarray(targets, dtype=float)
         x0 = np.ascontiguousarray(x0, dtype=float)
         x = np.empty_like(x0)
         res = np.empty(len(t))
         its = np.empty(len(t), dtype=np.int64)
         if len(t):
-            _lm_kernel(t, x0, self._g, self._m, self._centre, free, iters, tol, x, res, its)
+            _lm_kernel(t, x0, self._g, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its)
         return x, res, its
 
     def evaluate(self, targets: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -905,47 +948,47 @@ class LoopBatch:
         p = self._points(points)
         N = len(p)
         if N > 64:
-            # continuation inside the batch: a coarse subset first, the rest from its solutions
-            stride = 8
-            first = np.arange(0, N, stride)
+            # continuation inside the batch: a coarse subset first, the rest from its ends
+            first = np.arange(0, N, 8)
             sub = self._solve(p[first], warm)
-            cache = (p[first], sub.x, sub.found)
             rest = np.setdiff1d(np.arange(N), first)
-            other = self._solve(p[rest], warm, extra=cache)
+            other = self._solve(p[rest], warm, extra=(p[first], sub.end))
             out = _merge(N, (first, sub), (rest, other))
         else:
             out = self._solve(p, warm)
         if warm:
-            self._remember(p, out.x, out.found)
+            self._remember(p, out.end)
         return out
 
-    def _remember(self, p: np.ndarray, x: np.ndarray, found: np.ndarray) -> None:
-        keep = found.any(axis=1)
-        p, x, found = p[keep], x[keep], found[keep]
+    def _remember(self, p: np.ndarray, end: np.ndarray) -> None:
         if self._cache is not None:
-            p = np.vstack([p, self._cache[0]])[:200_000]
-            x = np.vstack([x, self._cache[1]])[:200_000]
-            found = np.vstack([found, self._cache[2]])[:200_000]
-        self._cache = (p, x, found)
+            p = np.vstack([p, self._cache[0]])[:CACHE_POINTS]
+            end = np.vstack([end, self._cache[1]])[:CACHE_POINTS]
+        self._cache = (p, end)
 
     def forget(self) -> None:
         """Drop the warm-start cache."""
         self._cache = None
 
     def _solve(self, p: np.ndarray, warm: bool,
-               extra: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> BranchSolutions:
+               extra: tuple[np.ndarray, np.ndarray] | None = None) -> BranchSolutions:
         from scipy.spatial import cKDTree
 
         N, B, n = len(p), len(self.labels), self.n
         best_x = np.full((N, B, n), np.nan)
         best_d = np.full((N, B), np.inf)
         residual = np.full((N, B), np.inf)
+        end_x = np.full((N, B, n), np.nan)  # where each slot's best start ended (root or least-squares point)
         counters = [0, 0]
+        code = {lb: k for k, lb in enumerate(self.labels)}
 
         def attempt(idx: np.ndarray, slot: np.ndarray, x0: np.ndarray, iters: int) -> None:
             if not len(idx):
                 return
             x, res, _ = self.newton(p[idx], x0, iters=iters)
+            better = res < residual[idx, slot]
+            order = np.argsort(-res[better])  # ties: the smallest residual is written last
+            end_x[idx[better][order], slot[better][order]] = x[better][order]
             np.minimum.at(residual, (idx, slot), res)
             ok = res <= TOL
             if not ok.any():
@@ -953,7 +996,6 @@ class LoopBatch:
             i, x, slot = idx[ok], self.canonical(x[ok]), slot[ok]
             _, J, _ = self.evaluate(p[i], x)
             lab = self.label_of(J, x)
-            code = {lb: k for k, lb in enumerate(self.labels)}
             target = np.array([code.get(tuple(int(v) for v in row), -1) for row in lab])
             counters[0] += int(np.sum(target < 0))
             good = target >= 0
@@ -965,36 +1007,71 @@ class LoopBatch:
                                                                      atol=1e-9):
                         counters[1] += 1
                     best_d[a, b], best_x[a, b] = dd, xx
-                residual[a, b] = min(residual[a, b], 0.0)
+                    end_x[a, b] = xx
+                residual[a, b] = 0.0
 
-        # (1) neighbours: earlier batches (cache) and this batch's coarse subset
+        # (1) neighbours (earlier batches, this batch's coarse subset): each slot from the same
+        # slot's root or least-squares point there (continuation)
+        tried = np.zeros((N, B), dtype=bool)
         for src in (self._cache if warm else None, extra):
             if src is None or not len(src[0]):
                 continue
             tree = cKDTree(src[0])
             dist, j = tree.query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale)
             near = np.isfinite(dist)
-            idx, slot = np.nonzero(near[:, None] & src[2][np.minimum(j, len(src[0]) - 1)] & ~np.isfinite(best_d))
+            has = np.isfinite(src[1][np.minimum(j, len(src[0]) - 1), :, 0])
+            idx, slot = np.nonzero(near[:, None] & has & ~np.isfinite(best_d))
             attempt(idx, slot, src[1][j[idx], slot], 20)
-        # (2) the atlas configuration of each missing label
-        idx, slot = np.nonzero(~np.isfinite(best_d))
+            tried[idx, slot] = True
+        # (2) the atlas configuration of each label not started from a neighbour
+        idx, slot = np.nonzero(~tried & ~np.isfinite(best_d))
         attempt(idx, slot, self.atlas[slot], 40)
-        # (3) random restarts where some but not all branches were found
+        # (3) block by block, where some but not all branches were found
         some = np.isfinite(best_d).any(axis=1) & ~np.isfinite(best_d).all(axis=1)
-        if self.restarts and some.any():
-            rng = np.random.default_rng(len(p))
-            pts = np.repeat(np.flatnonzero(some), self.restarts)
-            x0 = self.seed_configurations(len(pts), rng)
-            attempt(pts, np.zeros(len(pts), dtype=np.int64), x0, 60)
+        idx, slot = np.nonzero(some[:, None] & ~np.isfinite(best_d))
+        if self.restarts and len(idx):
+            attempt(idx, slot, self.blockwise(p[idx], slot, np.random.default_rng(len(p))), 20)
         found = np.isfinite(best_d)
-        # absent slots keep the residual of their own starts; the restarts' go to slot 0 only when
-        # slot 0 is absent too, so fill absent slots with the smallest residual seen at the point
-        point_res = np.where(found, np.inf, residual).min(axis=1, keepdims=True)
-        residual = np.where(found, 0.0, np.where(np.isfinite(residual), residual, point_res))
-        residual = np.where(np.isfinite(residual), residual, np.nan)
-        margin = np.where(found, self.limit_margin(np.nan_to_num(best_x)), -np.maximum(np.nan_to_num(residual, nan=1.0),
-                                                                                       1e-300))
-        return BranchSolutions(best_x, found, residual, margin, counters[0], counters[1])
+        residual = np.where(found, 0.0, np.where(np.isfinite(residual), residual, np.nan))
+        margin = np.where(found, self.limit_margin(np.nan_to_num(best_x)),
+                          -np.maximum(np.nan_to_num(residual, nan=1.0), 1e-300))
+        return BranchSolutions(best_x, found, residual, margin, counters[0], counters[1], end_x)
+
+    def blockwise(self, targets: np.ndarray, slot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Starts for branch `slot` at each target, built block by block in the triangular order:
+        each block's unknowns are solved from its own equations (the earlier blocks' unknowns
+        held), from the atlas values of that branch and, for a labelling block that lands on the
+        wrong sign, from `restarts` random values of its unknowns; the best candidate is kept."""
+        x = np.array(self.atlas[slot], dtype=float)
+        want = np.array(self.labels, dtype=np.int8)[slot]  # (R, L)
+        lab_index = {b: k for k, b in enumerate(self.label_blocks)}
+        R = len(x)
+        for blk in self.blocks:
+            if not blk.cols:
+                continue
+            rows = np.zeros(self._m, dtype=bool)
+            rows[list(blk.rows)] = True
+            free = np.zeros(self.n, dtype=bool)
+            free[list(blk.cols)] = True
+            k = lab_index.get(blk)
+            tries = 1 + (self.restarts if k is not None else 0)
+            starts = np.repeat(x[None], tries, axis=0)  # (tries, R, n)
+            if tries > 1:
+                rnd = self.seed_configurations(R * (tries - 1), rng).reshape(tries - 1, R, self.n)
+                starts[1:, :, list(blk.cols)] = rnd[:, :, list(blk.cols)]
+            flat = starts.reshape(-1, self.n)
+            tt = np.tile(targets, (tries, 1))
+            y, res, _ = self.newton(tt, flat, iters=30, free=free, rows=rows)
+            y = self.canonical(y)
+            score = res.copy()
+            if k is not None:
+                _, J, _ = self.evaluate(tt, y)
+                sign = self.label_of(J, y)[:, list(self.label_blocks).index(blk)]
+                score = np.where(sign == np.tile(want[:, k], tries), score, score + 10.0)
+            score = score.reshape(tries, R)
+            best = np.argmin(score, axis=0)
+            x = y.reshape(tries, R, self.n)[best, np.arange(R)]
+        return x
 
     # -- margins ---------------------------------------------------------------------------------
     def limit_margin(self, x: np.ndarray) -> np.ndarray:
@@ -1093,10 +1170,11 @@ def _merge(N: int, *parts: tuple[np.ndarray, BranchSolutions]) -> BranchSolution
     found = np.empty((N,) + first.found.shape[1:], dtype=bool)
     residual = np.empty(found.shape)
     margin = np.empty(found.shape)
+    end = np.empty_like(x)
     for idx, s in parts:
-        x[idx], found[idx], residual[idx], margin[idx] = s.x, s.found, s.residual, s.margin
+        x[idx], found[idx], residual[idx], margin[idx], end[idx] = s.x, s.found, s.residual, s.margin, s.end
     return BranchSolutions(x, found, residual, margin, sum(s.unlabelled for _, s in parts),
-                           sum(s.conflicts for _, s in parts))
+                           sum(s.conflicts for _, s in parts), end)
 
 
 def _length(robot: Robot, q: np.ndarray) -> float:
