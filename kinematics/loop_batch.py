@@ -79,6 +79,7 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -105,6 +106,9 @@ WARM_RADIUS_FACTOR = 0.1
 
 CACHE_POINTS = 100_000
 """Solved points kept for warm starts (the most recent first)."""
+
+LIMITS = ("all", "actuators")
+"""Which joint limits the margins apply."""
 
 REVOLUTE, PRISMATIC = 0, 1
 
@@ -1074,26 +1078,79 @@ class LoopBatch:
         return x
 
     # -- margins ---------------------------------------------------------------------------------
-    def limit_margin(self, x: np.ndarray) -> np.ndarray:
+    def limit_margin(self, x: np.ndarray, limits: str = "all") -> np.ndarray:
         """Smallest joint-limit slack [m] of joint values x (..., n): prismatic distance to the
-        limit, revolute angle x `scale`; joints without binding limits are ignored."""
+        limit, revolute angle x `scale`; joints without binding limits are ignored.
+
+        limits: "all" (every joint) or "actuators" (the actuated joints only)."""
+        if limits not in LIMITS:
+            from .errors import UnknownChoiceError
+
+            raise UnknownChoiceError(limits, LIMITS)
         lo, hi = self.robot.lower, self.robot.upper
-        k = self.limited
-        unit = np.where(self._g[1] == PRISMATIC, 1.0, self.scale)[k]
-        slack = np.minimum(x[..., k] - lo[k], hi[k] - x[..., k]) * unit
-        return slack.min(axis=-1) if slack.shape[-1] else np.full(x.shape[:-1], np.inf)
+        k = self.limited.copy()
+        if limits == "actuators":
+            k[self.passive] = False
+        unit = np.where(self._g[1] == PRISMATIC, 1.0, self.scale)
+        x = np.asarray(x, dtype=float)
+        slack = np.where(k, np.minimum(x - lo, hi - x) * unit, np.inf)
+        for j1, j2 in self.free_pairs:
+            # (a + pi, pi - b) is the same pose up to unlimited joints below: take the better one
+            revolute = self._g[1] == REVOLUTE
+            c = self._centre
+            a2 = (x[..., j1] + math.pi - c[j1] + math.pi) % (2 * math.pi) + c[j1] - math.pi
+            b2 = (math.pi - x[..., j2] - c[j2] + math.pi) % (2 * math.pi) + c[j2] - math.pi
+            del revolute
+            s1 = np.minimum(slack[..., j1], slack[..., j2])
+            s2 = np.minimum(np.where(k[j1], np.minimum(a2 - lo[j1], hi[j1] - a2) * unit[j1], np.inf),
+                            np.where(k[j2], np.minimum(b2 - lo[j2], hi[j2] - b2) * unit[j2], np.inf))
+            better = s2 > s1
+            slack[..., j1] = np.where(better, s2, slack[..., j1])
+            slack[..., j2] = np.where(better, s2, slack[..., j2])
+        out = slack.min(axis=-1)
+        return np.where(np.isfinite(out), out, np.inf)
 
-    def margin(self, points: np.ndarray) -> np.ndarray:
-        """(N, B + 1) margins [m]: every branch (order of `labels`), then their union (max)."""
-        m = self.ik(points).margin
-        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
+    @functools.cached_property
+    def free_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Concurrent pairs that are not flippable but whose other representation changes only
+        joints without binding limits below them (a universal joint carrying a platform through an
+        Euler spherical joint): the margin takes the better of the two representations."""
+        parent = self._g[0]
+        flippable = set(self.flippable_groups)
+        out = []
+        for grp in self.concurrent_groups:
+            if len(grp) != 2 or grp in flippable:
+                continue
+            below = [j for j in range(self.n) if self._descends(j, grp[1]) and j != grp[1]]
+            if not any(self.limited[j] for j in below):
+                out.append((grp[0], grp[1]))
+        del parent
+        return tuple(out)
 
-    def margin_function(self, branches: tuple[int, ...] | None = None):  # type: ignore[no-untyped-def]
-        """points (N, d) -> (N, len(branches) + 1): the chosen branches, then their union."""
+    def _descends(self, j: int, ancestor: int) -> bool:
+        parent = self._g[0]
+        while j >= 0:
+            if j == ancestor:
+                return True
+            j = int(parent[j])
+        return False
+
+    def margin(self, points: np.ndarray, limits: str = "all") -> np.ndarray:
+        """(N, B + 1) margins [m]: every branch (order of `labels`), then their union (max).
+
+        limits: "all" or "actuators" (`limit_margin`)."""
+        return self.margin_function(None, limits)(points)
+
+    def margin_function(self, branches: Sequence[int] | None = None, limits: str = "all"
+                        ) -> Callable[[np.ndarray], np.ndarray]:
+        """points (N, d) -> (N, len(branches) + 1): the chosen branches' margins [m], then their
+        union, for `kinematics.columns.column_volume`."""
         cols = list(range(len(self.labels))) if branches is None else list(branches)
+        self.limit_margin(np.zeros((1, self.n)), limits)  # validates `limits`
 
         def margin(points: np.ndarray) -> np.ndarray:
-            m = self.ik(points).margin[:, cols]
+            sol = self.ik(points)
+            m = np.where(sol.found, self.limit_margin(np.nan_to_num(sol.x), limits), sol.margin)[:, cols]
             return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
         return margin
