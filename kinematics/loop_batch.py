@@ -78,8 +78,8 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass, field
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -168,7 +168,7 @@ class Singularities(NamedTuple):
 
 
 # -- compiled kernels ------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fk(x, parent, kind, axis, jR, jt, oR, op):  # pragma: no cover - compiled
     """World rotation oR[j] and origin op[j] of every joint frame of the tree at values x."""
     nj = parent.shape[0]
@@ -202,7 +202,7 @@ def _fk(x, parent, kind, axis, jR, jt, oR, op):  # pragma: no cover - compiled
                 oR[j, a, 2] = a0 * e02 + a1 * e12 + a2 * e22
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _frames(fparent, fR, ft, oR, op, FR, Fp):  # pragma: no cover - compiled
     for f in range(fparent.shape[0]):
         j = fparent[f]
@@ -212,7 +212,7 @@ def _frames(fparent, fR, ft, oR, op, FR, Fp):  # pragma: no cover - compiled
                 FR[f, a, b] = oR[j, a, 0] * fR[f, 0, b] + oR[j, a, 1] * fR[f, 1, b] + oR[j, a, 2] * fR[f, 2, b]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _orient(A, B, scale, out, k, H_A, H_B, jac):  # pragma: no cover - compiled
     """Orientation error of A against B: out[k:k+3] = 2 l v / (1 + T), C = A B^T, v = vee(C - C^T),
     T = tr C: l tan(angle/2) axis x 2, ~ l angle axis near A = B, infinite at a half-turn (which
@@ -307,7 +307,7 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - co
             k += taxes.shape[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _orient_trace(g, FR):  # pragma: no cover - compiled
     """Smallest tr(R_1 R_2^T) over the orientation equations: vee(C - C^T) also vanishes at half-turns
     (C symmetric), which a root must not be: tr C = 1 + 2 cos(angle) >= 1 keeps the angle within 90 deg."""
@@ -354,7 +354,7 @@ def _maxabs(r):  # pragma: no cover - compiled
     return m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
     """Solve A out = b for symmetric positive definite A (overwritten); False if not PD."""
     n = A.shape[0]
@@ -654,8 +654,8 @@ class LoopBatch:
         self._centre = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
         # structural pattern: the columns each residual row can depend on
         cols = []
-        for c, t in enumerate(ctype):
-            mask = anc[cf1[c]] | anc[cf2[c]]
+        for k, t in enumerate(ctype):
+            mask = anc[cf1[k]] | anc[cf2[k]]
             cols += [np.flatnonzero(mask)] * (3 if t == 0 else 6)
         cols += [np.flatnonzero(anc[ee])] * ((3 if self.translational else 0) + len(self.task_axes))
         width = max(len(c) for c in cols)
@@ -854,7 +854,7 @@ class LoopBatch:
                 return None
             return frame
 
-        groups = []
+        groups: list[tuple[int, ...]] = []
         used: set[int] = set()
         for j1 in range(len(parent)):
             if kind[j1] != REVOLUTE or j1 in used or j1 in self.actuated:
@@ -882,10 +882,10 @@ class LoopBatch:
         them: triples (Euler), and pairs (a, b) -> (a + pi, pi - b), which spin the child link by
         pi about u1 x u2, when the child carries no joint and only point-closure frames on that
         axis (a rod between a universal and a spherical joint)."""
-        parent, kind, axis, jR, _, fparent, _, ft = (self._g[i] for i in range(8))
+        parent, _, axis, jR, _, fparent, _, ft = (self._g[i] for i in range(8))
         point_frames = set(int(f) for f, t in zip(self._g[10], self._g[9], strict=True) if t == 0)
         point_frames |= set(int(f) for f, t in zip(self._g[11], self._g[9], strict=True) if t == 0)
-        out = []
+        out: list[tuple[int, ...]] = []
         for grp in self.concurrent_groups:
             if len(grp) == 3:
                 out.append(grp)
@@ -984,7 +984,9 @@ class LoopBatch:
         residual = np.full((N, B), np.inf)
         end_x = np.full((N, B, n), np.nan)  # where each slot's best start ended (root or least-squares point)
         counters = [0, 0]
-        code = {lb: k for k, lb in enumerate(self.labels)}
+        codes = (np.array(self.labels, dtype=np.int64) + 1) @ (3 ** np.arange(len(self.labels[0]), dtype=np.int64))
+        code_slot = np.argsort(codes)
+        codes_sorted = codes[code_slot]
 
         def attempt(idx: np.ndarray, slot: np.ndarray, x0: np.ndarray, iters: int) -> None:
             if not len(idx):
@@ -1000,19 +1002,29 @@ class LoopBatch:
             i, x, slot = idx[ok], self.canonical(x[ok]), slot[ok]
             _, J, _ = self.evaluate(p[i], x)
             lab = self.label_of(J, x)
-            target = np.array([code.get(tuple(int(v) for v in row), -1) for row in lab])
+            # label -> slot through the labels' codes in base 3 (-1, 0, +1 -> 0, 1, 2)
+            key = (lab.astype(np.int64) + 1) @ (3 ** np.arange(lab.shape[1], dtype=np.int64))
+            target = np.full(len(key), -1)
+            pos = np.searchsorted(codes_sorted, key)
+            hit = (pos < len(codes_sorted)) & (codes_sorted[np.minimum(pos, len(codes_sorted) - 1)] == key)
+            target[hit] = code_slot[pos[hit]]
             counters[0] += int(np.sum(target < 0))
             good = target >= 0
             i, x, target = i[good], x[good], target[good]
             d = self._distance_to_reference(x)
-            for a, b, xx, dd in zip(i, target, x, d, strict=True):
-                if dd < best_d[a, b]:
-                    if np.isfinite(best_d[a, b]) and not np.allclose(best_x[a, b][self.actuated], xx[self.actuated],
-                                                                     atol=1e-9):
-                        counters[1] += 1
-                    best_d[a, b], best_x[a, b] = dd, xx
-                    end_x[a, b] = xx
-                residual[a, b] = 0.0
+            # per (target, slot): the candidate nearest the reference beats the one in place
+            order = np.lexsort((d, target, i))
+            i, x, target, d = i[order], x[order], target[order], d[order]
+            first = np.ones(len(i), dtype=bool)
+            first[1:] = (i[1:] != i[:-1]) | (target[1:] != target[:-1])
+            dup = ~first & ~np.all(np.abs(x[:, self.actuated] - np.repeat(x[first][:, self.actuated],
+                                   np.diff(np.r_[np.flatnonzero(first), len(i)]), axis=0)) <= 1e-9, axis=1)
+            counters[1] += int(np.sum(dup))
+            i, x, target, d = i[first], x[first], target[first], d[first]
+            better = d < best_d[i, target]
+            i, x, target, d = i[better], x[better], target[better], d[better]
+            best_d[i, target], best_x[i, target], end_x[i, target] = d, x, x
+            residual[i, target] = 0.0
 
         # (1) neighbours (earlier batches, this batch's coarse subset): each slot from the same
         # slot's root or least-squares point there (continuation)
@@ -1096,11 +1108,9 @@ class LoopBatch:
         slack = np.where(k, np.minimum(x - lo, hi - x) * unit, np.inf)
         for j1, j2 in self.free_pairs:
             # (a + pi, pi - b) is the same pose up to unlimited joints below: take the better one
-            revolute = self._g[1] == REVOLUTE
             c = self._centre
             a2 = (x[..., j1] + math.pi - c[j1] + math.pi) % (2 * math.pi) + c[j1] - math.pi
             b2 = (math.pi - x[..., j2] - c[j2] + math.pi) % (2 * math.pi) + c[j2] - math.pi
-            del revolute
             s1 = np.minimum(slack[..., j1], slack[..., j2])
             s2 = np.minimum(np.where(k[j1], np.minimum(a2 - lo[j1], hi[j1] - a2) * unit[j1], np.inf),
                             np.where(k[j2], np.minimum(b2 - lo[j2], hi[j2] - b2) * unit[j2], np.inf))
@@ -1115,7 +1125,6 @@ class LoopBatch:
         """Concurrent pairs that are not flippable but whose other representation changes only
         joints without binding limits below them (a universal joint carrying a platform through an
         Euler spherical joint): the margin takes the better of the two representations."""
-        parent = self._g[0]
         flippable = set(self.flippable_groups)
         out = []
         for grp in self.concurrent_groups:
@@ -1124,7 +1133,6 @@ class LoopBatch:
             below = [j for j in range(self.n) if self._descends(j, grp[1]) and j != grp[1]]
             if not any(self.limited[j] for j in below):
                 out.append((grp[0], grp[1]))
-        del parent
         return tuple(out)
 
     def _descends(self, j: int, ancestor: int) -> bool:
