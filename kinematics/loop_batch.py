@@ -493,16 +493,16 @@ def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_ou
             it_out[row] = it
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _eval_kernel(targets, x, g, r_out, J_out, pos_out):  # pragma: no cover - compiled
     """Residuals, Jacobians and joint-origin positions at rows of joint values."""
     n = g[0].shape[0]
     nf = g[5].shape[0]
-    for row in prange(x.shape[0]):
-        oR = np.empty((n, 3, 3))
-        op = np.empty((n, 3))
-        FR = np.empty((nf, 3, 3))
-        Fp = np.empty((nf, 3))
+    oR = np.empty((n, 3, 3))
+    op = np.empty((n, 3))
+    FR = np.empty((nf, 3, 3))
+    Fp = np.empty((nf, 3))
+    for row in range(x.shape[0]):  # serial: cheap next to the solves, and compiles faster
         _residual(x[row], targets[row], g, oR, op, FR, Fp, r_out[row], J_out[row], True)
         for j in range(n):
             for a in range(3):
@@ -543,6 +543,7 @@ class LoopBatch:
     atlas: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
     blocks: tuple[Block, ...] = ()
     restarts: int = 8
+    frames: tuple[str, ...] = ()
     _g: tuple[Any, ...] = ()
     _m: int = 0
     _nzc: np.ndarray = field(default_factory=lambda: np.empty((0, 0), dtype=np.int64))
@@ -630,6 +631,7 @@ class LoopBatch:
             frames += [c.frame1, c.frame2]
         frames.append(spec.end_effector)
         frames = list(dict.fromkeys(frames))
+        self.frames = tuple(frames)
         fids = [robot.frame_id(f) for f in frames]
         fparent = np.array([int(model.frames[f].parentJoint) - 1 for f in fids], dtype=np.int64)
         fR = np.array([model.frames[f].placement.rotation for f in fids], dtype=float).reshape(-1, 3, 3)
@@ -726,7 +728,8 @@ class LoopBatch:
         return x, res, its
 
     def evaluate(self, targets: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Residuals (R, m), Jacobians (R, m, n) and joint-origin + frame positions (R, n + F, 3)."""
+        """Residuals (R, m), Jacobians (R, m, n) and positions [m] (R, n + F, 3): every joint origin
+        (model order), then the frames of `frames` (closure frames, end effector)."""
         t = np.ascontiguousarray(targets, dtype=float)
         x = np.ascontiguousarray(x, dtype=float)
         R = len(t)
@@ -842,17 +845,12 @@ class LoopBatch:
             children.setdefault(int(p), []).append(j)
         framed = set(int(f) for f in fparent)
 
-        def follows(j1: int, j2: int, axes: list[np.ndarray]) -> np.ndarray | None:
+        def follows(j1: int, j2: int) -> bool:
+            """j2 is j1's only child, revolute, at j1's origin, its axis perpendicular to j1's."""
             if children.get(j1, []) != [j2] or kind[j2] != REVOLUTE or j1 in framed:
-                return None
-            if float(np.linalg.norm(jt[j2])) > 1e-12:
-                return None
+                return False
             a2 = jR[j2] @ axis[j2]  # in j1's frame
-            frame = jR[j2]
-            mats = [m for m in axes]
-            if any(abs(float(v @ a2)) > 1e-9 for v in mats):
-                return None
-            return frame
+            return float(np.linalg.norm(jt[j2])) <= 1e-12 and abs(float(axis[j1] @ a2)) <= 1e-9
 
         groups: list[tuple[int, ...]] = []
         used: set[int] = set()
@@ -860,7 +858,7 @@ class LoopBatch:
             if kind[j1] != REVOLUTE or j1 in used or j1 in self.actuated:
                 continue
             (j2,) = children.get(j1, [-1]) if len(children.get(j1, [])) == 1 else (-1,)
-            if j2 < 0 or j2 in self.actuated or follows(j1, j2, [axis[j1]]) is None:
+            if j2 < 0 or j2 in self.actuated or not follows(j1, j2):
                 continue
             group = [j1, j2]
             kids = children.get(j2, [])

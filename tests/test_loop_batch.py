@@ -210,6 +210,25 @@ def test_p2us_slice_areas_match_the_closed_form_engine(p2us):
     assert np.all(np.abs(gen.estimate - want) <= err), (gen.estimate, want, err)
 
 
+def test_tree_kinematics_match_the_per_frame_batched_kernel(p2us):
+    """The solver's whole-tree kernel against kinematics.batched (one chain per frame) and
+    Pinocchio's joint placements: both compose the same placements, to rounding (1e-15 m)."""
+    import pinocchio as pin
+
+    from kinematics.batched import batched_fk, configurations
+
+    robot, _, lb = p2us
+    x = lb.random_configurations(50, np.random.default_rng(6))
+    _, _, pos = lb.evaluate(np.zeros((50, 3)), x)
+    q = configurations(robot, x)
+    for k, name in enumerate(lb.frames):
+        np.testing.assert_allclose(pos[:, lb.n + k], batched_fk(robot, q, name).position, rtol=0, atol=1e-15)
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q[0])
+    want = np.array([data.oMi[j].translation for j in range(1, robot.model.njoints)])
+    np.testing.assert_allclose(pos[0, : lb.n], want, rtol=0, atol=1e-15)
+
+
 # -- Delta -----------------------------------------------------------------------------------------
 def test_delta_branches_are_its_closed_form_modes():
     robot = load_robot("delta")
