@@ -1,0 +1,132 @@
+"""3-[P2(US)] inverse kinematics in every working mode: the generic batched closed-loop solver
+(kinematics.loop_batch) vs the closed forms (kinematics.parallel, the fused scan kernel) vs
+today's per-point Pinocchio solver (kinematics.closedloop), measured side by side in one run.
+
+Run: python benchmarks/bench_loop_batch.py [--points 20000] [--loop 4] [--json]
+
+Scenarios for the generic path (all 8 branches of every point, margins included):
+* cold: uniform random points in the bounding box, no cache (only the batch's own coarse-subset
+  continuation);
+* columns: the same number of points as columns along z over an x-y grid (what the column volume
+  engine asks first), no cache;
+* warm: the columns again, moved by 1 mm, with the first pass cached (root refinement, re-scans).
+The per-point solver gets the closed-form actuator values of each mode and closes the loops from
+the sidecar's reference (cold), as `ClosedLoop.solve` does for a new pose.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+from _timing import best_of
+
+from kinematics import parallel as par
+from kinematics.closedloop import ClosedLoop
+from kinematics.errors import ConvergenceError
+from kinematics.loop_batch import LoopBatch
+from kinematics.model import load_robot
+from kinematics.p2us_scan import bounding_box, scan
+from kinematics.p2us_urdf import read_params
+
+
+def columns(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
+    per = 50
+    k = max(1, round(float(np.sqrt(n / per))))
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], k), np.linspace(lo[1], hi[1], k), indexing="ij")
+    z = np.linspace(lo[2], hi[2], per)
+    xy = np.c_[gx.ravel(), gy.ravel()]
+    return np.concatenate([np.c_[np.repeat(c[None], per, 0), z] for c in xy])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=20_000)
+    ap.add_argument("--loop", type=int, default=4, help="task points for the per-point Pinocchio solver")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    args = ap.parse_args()
+    robot = load_robot("p2us")
+    P = read_params(robot.urdf_path)
+    lo, hi = bounding_box(P)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(lo, hi, (args.points, 3))
+    cols = columns(lo, hi, args.points)
+
+    t = time.perf_counter()
+    lb = LoopBatch.from_robot(robot)
+    t_build = time.perf_counter() - t
+    lb.ik(pts[:100], warm=False)  # compile / load the kernels
+
+    def cold() -> None:
+        lb.ik(pts, warm=False)
+
+    def col() -> None:
+        lb.ik(cols, warm=False)
+
+    t_cold = best_of(2, cold)
+    t_col = best_of(2, col)
+    lb.forget()
+    first = lb.ik(cols)
+    shifted = cols + 1e-3
+    t_warm = best_of(1, lambda: lb.ik(shifted))
+    reach = par.ik(P, cols, limits=False).reachable[:, 0]
+    missed = int(np.sum(reach & ~first.found.all(axis=1)))
+
+    t_np = best_of(3, lambda: par.ik(P, pts))
+    scan(P, pts[:10])
+    t_scan = best_of(3, lambda: scan(P, pts))
+
+    loop = ClosedLoop(robot)
+    ik = par.ik(P, pts[: 50 * args.loop], limits=False)
+    sample = ik.q[ik.reachable[:, 0]][: args.loop]  # (k, 8, 3)
+    t = time.perf_counter()
+    solved = 0
+    for modes in sample:
+        for q in modes:
+            try:
+                loop.solve(q)
+            except ConvergenceError:  # a failed continuation still costs its time
+                continue
+            solved += 1
+    t_loop = (time.perf_counter() - t) / max(len(sample), 1)
+
+    load = os.getloadavg()
+    out = {
+        "points": args.points,
+        "cores": os.cpu_count(),
+        "load_average": [round(x, 2) for x in load],
+        "build_s": round(t_build, 3),
+        "generic_cold_points_per_s": args.points / t_cold,
+        "generic_columns_points_per_s": len(cols) / t_col,
+        "generic_warm_points_per_s": len(cols) / t_warm,
+        "generic_reachable_missed": missed,
+        "generic_reachable_points": int(reach.sum()),
+        "closed_form_numpy_points_per_s": args.points / t_np,
+        "closed_form_scan_kernel_points_per_s": args.points / t_scan,
+        "per_point_solver_points_per_s": 1 / t_loop,
+        "per_point_solver_modes_solved": solved,
+        "per_point_solver_modes_tried": int(sample.shape[0] * sample.shape[1]),
+    }
+    if args.json:
+        print(json.dumps(out))
+        return
+    print(f"3-[P2(US)], IK in all 8 working modes; {args.points:,} points; {out['cores']} cores; "
+          f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+    print(f"  generic batched solver, cold random   : {out['generic_cold_points_per_s']:14,.0f} points/s")
+    print(f"  generic batched solver, columns       : {out['generic_columns_points_per_s']:14,.0f} points/s")
+    print(f"  generic batched solver, warm (cached) : {out['generic_warm_points_per_s']:14,.0f} points/s")
+    print(f"    reachable column points missing a branch: {missed} of {int(reach.sum())}")
+    print(f"  closed form, NumPy (parallel.ik)      : {out['closed_form_numpy_points_per_s']:14,.0f} points/s")
+    print(f"  closed form, fused scan kernel        : {out['closed_form_scan_kernel_points_per_s']:14,.0f} points/s")
+    print(f"  per-point Pinocchio solver (cold)     : {out['per_point_solver_points_per_s']:14,.2f} points/s "
+          f"({solved}/{out['per_point_solver_modes_tried']} modes closed)")
+    print(f"  ratio generic (columns) / per-point   : {out['generic_columns_points_per_s'] * t_loop:14,.0f} x")
+    print(f"  ratio scan kernel / generic (columns) : {out['closed_form_scan_kernel_points_per_s'] / out['generic_columns_points_per_s']:14,.0f} x")
+    print(f"  LoopBatch.from_robot (atlas search)   : {t_build:.2f} s")
+
+
+if __name__ == "__main__":
+    main()

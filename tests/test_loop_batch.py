@@ -1,0 +1,284 @@
+"""The batched closed-loop solver (kinematics.loop_batch) against the closed forms of the
+3-[P2(US)] (kinematics.parallel), the Delta (kinematics.delta) and the planar five-bar
+(tests/fivebar.py).
+
+Tolerances. The solver stops at residual rows <= 1e-12 m (loop_batch.TOL). At the seeded points
+below the closed forms' singularity measures are >= ~0.02 (points closer to a singularity are left
+out), so joint errors are at most ~1e-12 / 0.02 = 5e-11 rad or m; the issue's 1e-9 keeps a factor
+20 above that. Volumes: both engines integrate the same zero sets; their difference must be within
+the sum of their own error estimates.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinematics import delta as dl
+from kinematics import parallel as par
+from kinematics.columns import column_volume
+from kinematics.delta_urdf import read_params as delta_params
+from kinematics.errors import InvalidInputError, UnknownChoiceError
+from kinematics.loop_batch import SINGULAR_TOL, LoopBatch
+from kinematics.model import load_robot
+from kinematics.p2us_scan import bounding_box, scan
+from kinematics.p2us_urdf import read_params as p2us_params
+from kinematics.workspace import p2us_margin
+
+from .fivebar import FiveBar
+
+FIVEBAR = Path(__file__).parent / "models" / "fivebar_gepetto" / "robot.urdf"
+JOINT_TOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def p2us():
+    robot = load_robot("p2us")
+    return robot, p2us_params(robot.urdf_path), LoopBatch.from_robot(robot, seeds=256)
+
+
+def mode_map(generic: np.ndarray, closed: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """generic (N, B, a), closed (N, M, a) actuator values -> (B,) closed mode of each generic
+    branch, the same at every point `ok`; fails unless it is a bijection."""
+    d = np.abs(generic[ok][:, :, None, :] - closed[ok][:, None, :, :]).max(axis=-1)  # (N, B, M)
+    per_point = np.argmin(d, axis=2)
+    assert np.all(per_point == per_point[:1]), "a branch label maps to different closed-form modes"
+    mapping = per_point[0]
+    assert sorted(mapping.tolist()) == list(range(closed.shape[1]))
+    return mapping
+
+
+def wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+# -- 3-[P2(US)] ------------------------------------------------------------------------------------
+def test_p2us_branches_are_the_eight_closed_form_modes(p2us):
+    robot, P, lb = p2us
+    assert len(lb.labels) == 8
+    lo, hi = bounding_box(P)
+    pts = np.random.default_rng(1).uniform(lo, hi, (400, 3))
+    ik = par.ik(P, pts, limits=False)
+    jac = par.jacobians(P, pts, np.nan_to_num(ik.q[:, 0]))
+    reach = ik.reachable[:, 0]
+    sol = lb.ik(pts, warm=False)
+    # no branch where the closed form has none; all eight where it has them
+    assert not sol.found[~reach].any()
+    clear = reach & (jac.iota_I > 0.02)
+    assert clear.sum() > 50 and sol.found[clear].all()
+    qa = sol.x[..., lb.actuated]
+    mapping = mode_map(qa, ik.q, clear)
+    np.testing.assert_allclose(qa[clear], ik.q[clear][:, mapping], rtol=0, atol=JOINT_TOL)
+    # universal-joint angles: both rods of limb i follow its rod direction n_i. The universal joint
+    # that carries the platform (limb 1, rod 1) may come as (theta + pi, pi - phi), the same rod
+    # (spun about its axis, the spherical joint compensating): either representation is accepted
+    theta, phi = par.passive_angles(P, ik.limbs.n)  # (N, 3, 2): limb, root
+    roots = par._MODE_ROOTS[mapping]  # (B, 3)
+    names = robot.joint_names
+    for i in range(3):
+        want_t = theta[clear][:, i, roots[:, i]]
+        want_p = phi[clear][:, i, roots[:, i]]
+        for rod in (1, 2):
+            got_t = sol.x[clear][:, :, names.index(f"u_theta_{i + 1}_{rod}")]
+            got_p = sol.x[clear][:, :, names.index(f"u_phi_{i + 1}_{rod}")]
+            same = np.maximum(np.abs(wrap(got_t - want_t)), np.abs(wrap(got_p - want_p)))
+            other = np.maximum(np.abs(wrap(got_t - want_t - np.pi)), np.abs(wrap(got_p - np.pi + want_p)))
+            assert np.minimum(same, other).max() <= JOINT_TOL
+            if (i, rod) != (0, 1):
+                assert same.max() <= JOINT_TOL
+
+
+def test_p2us_margin_sign_matches_the_closed_form(p2us):
+    _, P, lb = p2us
+    lo, hi = bounding_box(P)
+    pts = np.random.default_rng(2).uniform(lo, hi, (300, 3))
+    closed = scan(P, pts, "all").margin  # (N, 8) in parallel.MODES order
+    ik = par.ik(P, pts, limits=False)
+    reach = ik.reachable[:, 0]
+    sol = lb.ik(pts[reach][:5], warm=False)
+    mapping = mode_map(sol.x[..., lb.actuated], ik.q[reach][:5], np.ones(5, bool))
+    generic = lb.margin(pts)
+    assert generic.shape == (300, 9)
+    np.testing.assert_array_equal(generic[:, 8], generic[:, :8].max(axis=1))
+    # exact zeros and boundary points (|closed| < 1e-9 m) are left out: signs there are rounding
+    c = closed[:, mapping]
+    clear = np.abs(c) > 1e-9
+    assert np.any(c > 0) and np.any(c < 0)
+    np.testing.assert_array_equal(np.sign(generic[:, :8][clear]), np.sign(c[clear]))
+
+
+def test_p2us_singularity_types_match_classify(p2us):
+    _, P, lb = p2us
+    rng = np.random.default_rng(3)
+    lo, hi = bounding_box(P)
+    pts = rng.uniform(lo, hi, (400, 3))
+    ik = par.ik(P, pts, limits=False)
+    reach = ik.reachable[:, 0]
+    pts = pts[reach][:60]
+    sol = lb.ik(pts, warm=False)
+    mapping = mode_map(sol.x[..., lb.actuated], par.ik(P, pts, limits=False).q, np.ones(len(pts), bool))
+    closed = par.jacobians(P, pts[:, None, :], par.ik(P, pts, limits=False).q[:, mapping])
+    gen = lb.singularities(pts, sol.x)
+    regular = (closed.iota_I > 0.02) & (closed.iota_II > 0.02)
+    assert regular.sum() > 100
+    assert np.all(gen.types[regular] == 0)
+    # type II poses: det[n1; n2; n3] changes sign along a segment in one mode; bisect to it
+    b = 0
+    m = mapping[b]
+    found = 0
+    for _ in range(400):
+        a, c = rng.uniform(lo, hi, (2, 3))
+        f = lambda s, a=a, c=c: par.ik(P, a + s * (c - a), limits=False)
+        fa, fc = f(0.0), f(1.0)
+        if not (fa.reachable[0] and fc.reachable[0]):
+            continue
+        ja = np.linalg.det(par.jacobians(P, a, fa.q[m]).Jx)
+        jc = np.linalg.det(par.jacobians(P, c, fc.q[m]).Jx)
+        if np.sign(ja) == np.sign(jc) or not np.all(par.ik(P, a + np.linspace(0, 1, 50)[:, None] * (c - a),
+                                                               limits=False).reachable[:, 0]):
+            continue
+        s0, s1 = 0.0, 1.0
+        for _ in range(60):
+            sm = 0.5 * (s0 + s1)
+            jm = np.linalg.det(par.jacobians(P, a + sm * (c - a), f(sm).q[m]).Jx)
+            s0, s1 = (sm, s1) if np.sign(jm) == np.sign(ja) else (s0, sm)
+        p = (a + s0 * (c - a))[None]
+        cj = par.jacobians(P, p, f(s0).q[m][None])
+        if cj.iota_I[0] < 0.05:
+            continue
+        s = lb.ik(p, warm=False)
+        assert s.found[0, b]
+        g = lb.singularities(p, s.x[:, b])
+        assert par.classify(cj.iota_I, cj.iota_II)[0] == 2
+        assert g.types[0, 0] == 2, (g.iota_I, g.iota_II)
+        found += 1
+        if found == 3:
+            break
+    assert found == 3
+
+
+def test_p2us_type_one_at_a_reach_boundary(p2us):
+    _, P, lb = p2us
+    # walk from a reachable point outwards until limb 1 stops reaching; bisect on its discriminant
+    a = np.array([0.0, 0.0, -0.45])
+    c = np.array([0.45, 0.0, -0.45])
+    limb = lambda s: par.limb_ik(P, a + s * (c - a))
+    assert limb(0.0).reach.all() and not limb(1.0).reach.all()
+    s0, s1 = 0.0, 1.0
+    for _ in range(60):
+        sm = 0.5 * (s0 + s1)
+        s0, s1 = (sm, s1) if limb(sm).reach.all() else (s0, sm)
+    # approaching the fold, both type I measures vanish together (like the square root of the
+    # distance); their ratio stays bounded (the generic one is a different but equivalent norm)
+    ratios = []
+    for delta in (1e-2, 1e-4, 1e-6):
+        p = (a + (s0 - delta) * (c - a))[None]
+        sol = lb.ik(p, warm=False)
+        assert sol.found[0].all()
+        g = lb.singularities(p, sol.x)
+        closed = par.jacobians(P, np.repeat(p, 8, axis=0), sol.x[0][:, lb.actuated])
+        ratios.append(g.iota_I[0] / closed.iota_I)
+        assert np.all(g.iota_II[0] > SINGULAR_TOL)
+    ratios = np.array(ratios)
+    assert np.all((ratios > 0.1) & (ratios < 10)), ratios
+    assert np.all(np.abs(np.log10(ratios[-1] / ratios[0])) < 0.5)
+
+
+@pytest.mark.slow
+def test_p2us_slice_areas_match_the_closed_form_engine(p2us):
+    """Per-mode and union areas of the y = 0.03 m slice through both margins, every limit (a
+    slice, not the volume, and not the actuators-only limits: the generic path evaluates ~1e3-1e4
+    points/s; the volume needs millions of points, the actuators-only slice ~4e5)."""
+    limits = "all"
+    _, P, lb = p2us
+    lo, hi = bounding_box(P)
+    lo2, hi2 = lo[[0, 2]], hi[[0, 2]]
+    y0 = 0.03
+    closed = p2us_margin(P, limits=limits)
+    lift = lambda p: np.c_[p[:, 0], np.full(len(p), y0), p[:, 1]]
+    ref = column_volume(lambda p: closed(lift(p)), lo2, hi2, step=0.02, rtol=1e-3)
+    pts = np.array([[0.0, y0, -0.45], [0.05, y0, -0.5]])
+    ik = par.ik(P, pts, limits=False)
+    mapping = mode_map(lb.ik(pts, warm=False).x[..., lb.actuated], ik.q, ik.reachable[:, 0])
+    lb.forget()
+    gen = column_volume(lambda p: lb.margin(lift(p), limits), lo2, hi2, step=0.02, rtol=1e-3)
+    want = ref.estimate[list(mapping) + [8]]
+    err = ref.error[list(mapping) + [8]] + gen.error
+    assert want[-1] > 0.01
+    assert np.all(np.abs(gen.estimate - want) <= err), (gen.estimate, want, err)
+
+
+def test_tree_kinematics_match_the_per_frame_batched_kernel(p2us):
+    """The solver's whole-tree kernel against kinematics.batched (one chain per frame) and
+    Pinocchio's joint placements: both compose the same placements, to rounding (1e-15 m)."""
+    import pinocchio as pin
+
+    from kinematics.batched import batched_fk, configurations
+
+    robot, _, lb = p2us
+    x = lb.random_configurations(50, np.random.default_rng(6))
+    _, _, pos = lb.evaluate(np.zeros((50, 3)), x)
+    q = configurations(robot, x)
+    for k, name in enumerate(lb.frames):
+        np.testing.assert_allclose(pos[:, lb.n + k], batched_fk(robot, q, name).position, rtol=0, atol=1e-15)
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q[0])
+    want = np.array([data.oMi[j].translation for j in range(1, robot.model.njoints)])
+    np.testing.assert_allclose(pos[0, : lb.n], want, rtol=0, atol=1e-15)
+
+
+# -- Delta -----------------------------------------------------------------------------------------
+def test_delta_branches_are_its_closed_form_modes():
+    robot = load_robot("delta")
+    P = delta_params(robot.urdf_path)
+    lb = LoopBatch.from_robot(robot, seeds=256)
+    assert len(lb.labels) == 8
+    pts = np.random.default_rng(4).uniform([-0.5, -0.5, -1.1], [0.5, 0.5, -0.3], (150, 3))
+    ik = dl.ik(P, pts, limits=False)
+    reach = ik.reachable[:, 0]
+    jac = dl.jacobians(P, pts, np.nan_to_num(ik.q[:, 0]))
+    clear = reach & (jac.iota_I > 0.05)
+    sol = lb.ik(pts, warm=False)
+    assert not sol.found[~reach].any()
+    assert clear.sum() > 30 and sol.found[clear].all()
+    qa = sol.x[..., lb.actuated]
+    d = np.abs(wrap(qa[clear][:, :, None, :] - ik.q[clear][:, None, :, :])).max(axis=-1)
+    per_point = np.argmin(d, axis=2)
+    assert np.all(per_point == per_point[:1]) and sorted(per_point[0].tolist()) == list(range(8))
+    assert np.min(d, axis=2).max() <= JOINT_TOL
+
+
+# -- planar five-bar -------------------------------------------------------------------------------
+def test_fivebar_branches_and_joint_values():
+    robot = load_robot(FIVEBAR)
+    five = FiveBar.from_robot(robot)
+    lb = LoopBatch.from_robot(robot, seeds=256)
+    assert lb.task_dim == 2 and not lb.translational and len(lb.labels) == 4
+    pts = np.random.default_rng(5).uniform([-0.05, 0.22], [0.25, 0.45], (40, 2))
+    sol = lb.ik(pts, warm=False)
+    modes = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
+    hits = np.zeros((4, 4), dtype=int)
+    for i, P in enumerate(pts):
+        for k, m in enumerate(modes):
+            theta = five.ik(P, m)
+            if theta is None or min(five.singularity_indices(theta, P)) < 0.05:
+                continue
+            jv = five.joint_values(theta, P)
+            want = np.array([jv[n] for n in robot.joint_names])
+            d = np.abs(wrap(sol.x[i] - want)).max(axis=1)
+            assert np.nanmin(d) <= JOINT_TOL
+            hits[k, int(np.nanargmin(d))] += 1
+    # each closed-form mode always lands on the same generic branch, and they are all different
+    assert np.count_nonzero(hits) == 4 and np.all(hits.sum(axis=0) > 0)
+
+
+def test_bad_input(p2us):
+    _, _, lb = p2us
+    with pytest.raises(InvalidInputError):
+        lb.ik(np.zeros((3, 2)))
+    with pytest.raises(InvalidInputError):
+        lb.margin(np.array([[np.nan, 0.0, 0.0]]))
+    with pytest.raises(UnknownChoiceError):
+        lb.margin_function(limits="some")
