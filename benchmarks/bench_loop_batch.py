@@ -1,6 +1,6 @@
 """3-[P2(US)] inverse kinematics in every working mode: the generic batched closed-loop solver
-(kinematics.loop_batch) vs the closed forms (kinematics.parallel, the fused scan kernel) vs
-today's per-point Pinocchio solver (kinematics.closedloop), measured side by side in one run.
+(kinematics.generic.loop_batch) vs the closed forms (kinematics.mechanisms.p2us.closed_form, the fused scan kernel) vs
+today's per-point Pinocchio solver (kinematics.generic.closedloop), measured side by side in one run.
 
 Run: python benchmarks/bench_loop_batch.py [--points 20000] [--loop 4] [--json]
 
@@ -24,13 +24,13 @@ import time
 import numpy as np
 from _timing import best_of
 
-from kinematics import parallel as par
-from kinematics.closedloop import ClosedLoop
 from kinematics.errors import ConvergenceError
-from kinematics.loop_batch import LoopBatch
-from kinematics.model import load_robot
-from kinematics.p2us_scan import bounding_box, scan
-from kinematics.p2us_urdf import read_params
+from kinematics.generic.closedloop import ClosedLoop
+from kinematics.generic.loop_batch import LoopBatch
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.scan import bounding_box, scan
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
 
 
 def columns(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:

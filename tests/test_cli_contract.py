@@ -107,7 +107,7 @@ CASES: list[tuple[list[str], str]] = [
     (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], "unknown mode"),
     # workspace-volume
     (["workspace-volume", "nosuchbot"], "unknown robot"),
-    (["workspace-volume", str(MODELS / "rssr.urdf")], "needs its mechanism's margin"),
+    (["workspace-volume", str(MODELS / "rssr.urdf")], "1-dimensional"),
     (["workspace-volume", "delta", "--modes", "+0+"], "+0+"),
     (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
     (["workspace-volume", "ur5", "--max-points", "10"], "at least 1000"),

@@ -62,10 +62,12 @@ def test_workspace_volume_bad_input(capsys, argv, needle):
     assert code == 2 and out == "" and needle in err and len(err.strip().splitlines()) == 1
 
 
-def test_workspace_volume_says_what_a_generic_closed_loop_lacks(capsys):
+def test_workspace_volume_says_what_a_mechanism_lacks(capsys):
     rssr = str(Path(__file__).parent / "models" / "rssr.urdf")
-    code, _, err = run(capsys, "workspace-volume", rssr)
-    assert code == 2 and "margin" in err and "it provides: fk" in err
+    code, _, err = run(capsys, "workspace-volume", rssr)  # one degree of freedom: a 1D task space
+    assert code == 2 and "2- or 3-dimensional" in err
+    code, _, err = run(capsys, "singularities", rssr)
+    assert code == 2 and "singular_fields" in err and "it provides: fk, ik, margin, velocity" in err
 
 
 REVOLVED = str(Path(__file__).parent / "models" / "arm3r_revolved.urdf")

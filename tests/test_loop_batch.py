@@ -1,5 +1,5 @@
-"""The batched closed-loop solver (kinematics.loop_batch) against the closed forms of the
-3-[P2(US)] (kinematics.parallel), the Delta (kinematics.delta) and the planar five-bar
+"""The batched closed-loop solver (kinematics.generic.loop_batch) against the closed forms of the
+3-[P2(US)] (kinematics.mechanisms.p2us.closed_form), the Delta (kinematics.mechanisms.delta.closed_form) and the planar five-bar
 (tests/fivebar.py).
 
 Tolerances. The solver stops at residual rows <= 1e-12 m (loop_batch.TOL). At the seeded points
@@ -16,16 +16,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics import delta as dl
-from kinematics import parallel as par
-from kinematics.columns import column_volume
-from kinematics.delta_urdf import read_params as delta_params
+from kinematics.analyses.columns import column_volume
+from kinematics.analyses.workspace import p2us_margin
 from kinematics.errors import InvalidInputError, UnknownChoiceError
-from kinematics.loop_batch import SINGULAR_TOL, LoopBatch
-from kinematics.model import load_robot
-from kinematics.p2us_scan import bounding_box, scan
-from kinematics.p2us_urdf import read_params as p2us_params
-from kinematics.workspace import p2us_margin
+from kinematics.generic.loop_batch import SINGULAR_TOL, LoopBatch
+from kinematics.mechanisms.delta import closed_form as dl
+from kinematics.mechanisms.delta.urdf import read_params as delta_params
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.scan import bounding_box, scan
+from kinematics.mechanisms.p2us.urdf import read_params as p2us_params
+from kinematics.model.robot import load_robot
 
 from .fivebar import FiveBar
 
@@ -211,11 +211,11 @@ def test_p2us_slice_areas_match_the_closed_form_engine(p2us):
 
 
 def test_tree_kinematics_match_the_per_frame_batched_kernel(p2us):
-    """The solver's whole-tree kernel against kinematics.batched (one chain per frame) and
+    """The solver's whole-tree kernel against kinematics.generic.batched (one chain per frame) and
     Pinocchio's joint placements: both compose the same placements, to rounding (1e-15 m)."""
     import pinocchio as pin
 
-    from kinematics.batched import batched_fk, configurations
+    from kinematics.generic.batched import batched_fk, configurations
 
     robot, _, lb = p2us
     x = lb.random_configurations(50, np.random.default_rng(6))

@@ -156,7 +156,8 @@ class SerialWorkspace:
             out = np.full((len(pts), 3), self.plane_offset)
             out[:, list(self.axes)] = pts
             return out
-        assert self.axis_direction is not None and self.axis_origin is not None
+        if self.axis_direction is None or self.axis_origin is None:
+            raise UnsupportedRobotError(self.robot, f"a {self.mode!r} workspace has no revolution axis")
         a = self.axis_direction
         u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
         u /= np.linalg.norm(u)
@@ -553,7 +554,8 @@ def serial_workspace(
             if s.mode == "planar":
                 y[sl] = p[:, rows]
             elif s.mode == "revolved":
-                assert s.axis_origin is not None and s.axis_direction is not None
+                if s.axis_origin is None or s.axis_direction is None:
+                    raise UnsupportedRobotError("revolved workspace", "the revolution axis was not found")
                 rel = p - s.axis_origin
                 z = rel @ s.axis_direction
                 y[sl, 0] = np.linalg.norm(rel - z[:, None] * s.axis_direction, axis=1)

@@ -124,6 +124,11 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     `step`. check: rerun at half the step and compare (columns only).
     """
     mech.require("margin", "a workspace measurement")
+    if mech.task_dim not in (2, 3):
+        from kinematics.errors import UnsupportedRobotError
+
+        raise UnsupportedRobotError(mech.name, f"a workspace area or volume needs a 2- or 3-dimensional task space; "
+                                               f"this one is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
     chosen = mech.check_branches(branches)
     mech.check_limits(limits)
     lo, hi = mech.bounding_box(limits)

@@ -1,6 +1,6 @@
 """Kinematics of any Pinocchio model: serial frame poses and Jacobians, compiled batched kinematics, the closed-loop solver, manipulability ellipsoids.
 
-Modules: `batched`, `closedloop`, `manipulability`, `serial`. Public names are re-exported
+Modules: `batched`, `closedloop`, `loop_batch`, `manipulability`, `serial`, `singularity`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -29,6 +29,18 @@ if TYPE_CHECKING:
         ClosedLoop,
         LoopSolution,
     )
+    from kinematics.generic.loop_batch import (
+        CACHE_POINTS,
+        LIMITS,
+        STALL,
+        TOL,
+        WARM_RADIUS_FACTOR,
+        Block,
+        BranchSolutions,
+        LoopBatch,
+        Singularities,
+        loop_batch,
+    )
     from kinematics.generic.manipulability import (
         SINGULAR_RTOL,
         Ellipses,
@@ -46,26 +58,43 @@ if TYPE_CHECKING:
         task_jacobian,
         task_rows,
     )
+    from kinematics.generic.singularity import (
+        SINGULAR_TOL,
+        SINGULARITY_TYPES,
+        classify,
+    )
 
 _LAZY = {
     "BLOCK": "batched",
     "BatchedKinematics": "batched",
     "BatchedPoses": "batched",
+    "Block": "loop_batch",
+    "BranchSolutions": "loop_batch",
+    "CACHE_POINTS": "loop_batch",
     "ClosedLoop": "closedloop",
     "Ellipses": "manipulability",
     "Ellipsoid": "manipulability",
     "FREE_RTOL": "closedloop",
+    "LIMITS": "loop_batch",
+    "LoopBatch": "loop_batch",
     "LoopSolution": "closedloop",
     "MAX_DRIFT": "closedloop",
     "MAX_PASSIVE_STEP": "closedloop",
     "Pose": "serial",
     "RANK_RTOL": "closedloop",
+    "SINGULARITY_TYPES": "singularity",
     "SINGULAR_RTOL": "manipulability",
+    "SINGULAR_TOL": "singularity",
+    "STALL": "loop_batch",
     "SUPPORTED": "batched",
+    "Singularities": "loop_batch",
     "TASKS": "serial",
+    "TOL": "loop_batch",
     "TOLERANCE": "closedloop",
+    "WARM_RADIUS_FACTOR": "loop_batch",
     "batched_fk": "batched",
     "batched_jacobian": "batched",
+    "classify": "singularity",
     "common_axis": "serial",
     "compile_frame": "batched",
     "configurations": "batched",
@@ -73,6 +102,7 @@ _LAZY = {
     "ellipsoid": "manipulability",
     "forward_kinematics": "serial",
     "frame_jacobian": "serial",
+    "loop_batch": "loop_batch",
     "plane": "serial",
     "task_jacobian": "serial",
     "task_rows": "serial",
@@ -80,23 +110,35 @@ _LAZY = {
 
 __all__ = [
     "BLOCK",
+    "CACHE_POINTS",
     "FREE_RTOL",
+    "LIMITS",
     "MAX_DRIFT",
     "MAX_PASSIVE_STEP",
     "RANK_RTOL",
+    "SINGULARITY_TYPES",
     "SINGULAR_RTOL",
+    "SINGULAR_TOL",
+    "STALL",
     "SUPPORTED",
     "TASKS",
+    "TOL",
     "TOLERANCE",
+    "WARM_RADIUS_FACTOR",
     "BatchedKinematics",
     "BatchedPoses",
+    "Block",
+    "BranchSolutions",
     "ClosedLoop",
     "Ellipses",
     "Ellipsoid",
+    "LoopBatch",
     "LoopSolution",
     "Pose",
+    "Singularities",
     "batched_fk",
     "batched_jacobian",
+    "classify",
     "common_axis",
     "compile_frame",
     "configurations",
@@ -104,6 +146,7 @@ __all__ = [
     "ellipsoid",
     "forward_kinematics",
     "frame_jacobian",
+    "loop_batch",
     "plane",
     "task_jacobian",
     "task_rows",

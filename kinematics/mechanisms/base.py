@@ -32,6 +32,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinematics.errors import MissingCapabilityError, UnknownChoiceError, UnknownModeError
+from kinematics.generic.singularity import SINGULAR_TOL as SINGULAR_TOL
+from kinematics.generic.singularity import SINGULARITY_TYPES as SINGULARITY_TYPES
+from kinematics.generic.singularity import classify as classify
 
 MarginFn = Callable[[np.ndarray], np.ndarray]
 """points (N, d) [m] -> (N, T) margins [m] (>= 0 inside target t)."""
@@ -39,21 +42,8 @@ MarginFn = Callable[[np.ndarray], np.ndarray]
 UNION = "union"
 """The label of the union of every branch (the margin's last column)."""
 
-SINGULAR_TOL = 1e-6
-"""A pose is singular when iota_I or iota_II <= this. Both are cosines / unit-vector volumes;
-1e-6 is ~6e-5 degrees from exact singularity, above the ~1e-8 floor that rounding leaves in
-iota_I (which behaves like the square root of an IK discriminant)."""
-
-SINGULARITY_TYPES = ("none", "type I", "type II", "type III")
-"""Gosselin-Angeles labels, indexed by `classify`."""
-
 CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values")
 """The optional parts of the interface, by method name."""
-
-
-def classify(iota_I: np.ndarray, iota_II: np.ndarray, tol: float = SINGULAR_TOL) -> np.ndarray:
-    """Singularity type codes: 0 none, 1 type I, 2 type II, 3 type III (index SINGULARITY_TYPES)."""
-    return (np.asarray(iota_I) <= tol).astype(np.int8) + 2 * (np.asarray(iota_II) <= tol).astype(np.int8)
 
 
 def parallel_forward(Jx: np.ndarray, Jq: np.ndarray, iota_II: np.ndarray) -> np.ndarray:

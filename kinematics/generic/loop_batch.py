@@ -86,16 +86,14 @@ import numpy as np
 import pinocchio as pin
 from numba import njit, prange
 
-from .errors import InvalidInputError, UnsupportedRobotError
-from .model import Robot
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.generic.singularity import SINGULAR_TOL as SINGULAR_TOL
+from kinematics.generic.singularity import SINGULARITY_TYPES as SINGULARITY_TYPES
+from kinematics.model.robot import Robot
 
 TOL = 1e-12
 """A start has converged when every residual row is <= TOL [m]."""
 
-SINGULAR_TOL = 1e-6
-"""A pose is type I (II) singular when iota_I (iota_II) <= this (as `parallel.SINGULAR_TOL`)."""
-
-SINGULARITY_TYPES = ("none", "type I", "type II", "type III")
 
 STALL = 1e-2
 """After 3 iterations a start stops when an accepted step lowers ||r||^2 by less than this fraction
@@ -570,7 +568,7 @@ class LoopBatch:
             UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, or a task
                 that needs orientation coordinates.
         """
-        from .closedloop import ClosedLoop
+        from kinematics.generic.closedloop import ClosedLoop
 
         if robot.loops is None:
             raise UnsupportedRobotError(robot.name, "no loop-closure sidecar (<name>.loops.yaml) next to its URDF")
@@ -612,7 +610,8 @@ class LoopBatch:
 
     def _compile(self, q: np.ndarray) -> None:
         robot, model, spec = self.robot, self.robot.model, self.robot.loops
-        assert spec is not None
+        if spec is None:
+            raise UnsupportedRobotError(robot.name, "the batched closed-loop solver needs a loop sidecar")
         n = model.njoints - 1
         parent = np.array([int(model.parents[j]) - 1 for j in range(1, n + 1)], dtype=np.int64)
         kind, axes = [], []
@@ -678,8 +677,10 @@ class LoopBatch:
     @functools.cached_property
     def actuated(self) -> np.ndarray:
         """Degree-of-freedom indices of the actuated joints (sidecar order)."""
-        assert self.robot.loops is not None
-        return np.array([self.robot.joint_names.index(a) for a in self.robot.loops.actuated])
+        loops = self.robot.loops
+        if loops is None:
+            raise UnsupportedRobotError(self.robot.name, "the batched closed-loop solver needs a loop sidecar")
+        return np.array([self.robot.joint_names.index(a) for a in loops.actuated])
 
     @functools.cached_property
     def passive(self) -> np.ndarray:
@@ -1094,7 +1095,7 @@ class LoopBatch:
 
         limits: "all" (every joint) or "actuators" (the actuated joints only)."""
         if limits not in LIMITS:
-            from .errors import UnknownChoiceError
+            from kinematics.errors import UnknownChoiceError
 
             raise UnknownChoiceError(limits, LIMITS)
         lo, hi = self.robot.lower, self.robot.upper
