@@ -111,13 +111,26 @@ def p2us_margin(params: P2USParams, modes: Sequence[str] = MODES, limits: str = 
     """points (N, 3) -> (N, len(modes) + 1) margins [m]: each mode, then their union (max)."""
     modes = _check_modes(modes, MODES)
     check_limits(limits)
-    cols = [MODES.index(m) for m in modes]
+    return P2USMargin(params, [MODES.index(m) for m in modes], limits)
 
-    def margin(points: np.ndarray) -> np.ndarray:
-        m = scan(params, points, limits).margin[:, cols]
+
+class P2USMargin:
+    """The 3-[P2(US)] margin as `p2us_margin` returns it: callable on points, and with
+    `exact_columns` (`p2us_exact.ExactColumns`), which `column_volume` uses instead of sampling."""
+
+    def __init__(self, params: P2USParams, cols: list[int], limits: str) -> None:
+        from .p2us_exact import ExactColumns
+
+        self.params, self.cols, self.limits = params, cols, limits
+        self.exact_columns = ExactColumns(params, np.array(cols), limits)
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        m = scan(self.params, points, self.limits).margin[:, self.cols]
         return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
-    return margin
+    def sampled(self) -> Callable[[np.ndarray], np.ndarray]:
+        """The same margin without exact columns (the engine then samples every column)."""
+        return lambda points: self(points)
 
 
 def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float,
