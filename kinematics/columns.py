@@ -55,6 +55,10 @@ from .sizes import MAX_POINTS
 ROOT_TOL = 1e-12
 """Width [m] to which every column root is bracketed."""
 
+MIN_NODES = 16
+"""Exact columns: fewest starting nodes per quadrature direction (32 in the check run), whatever the
+step: a step wider than the box would otherwise start both runs from the same few nodes."""
+
 RTOL_FLOOR = 1e-9
 """Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
 neither the brackets nor double-precision sums of ~1e6 columns (~1e-10) dominate the estimate."""
@@ -496,7 +500,11 @@ def column_volume(
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress)
     if not check:
         return first
-    second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress)
+    if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
+        second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
+                            min_nodes=2 * MIN_NODES)
+    else:
+        second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress)
     diff = np.abs(first.estimate - second.estimate)
     agree = bool(np.all(diff <= first.error + second.error))
     return ColumnVolume(
@@ -515,8 +523,9 @@ def _exact_of(margin: Callable[[np.ndarray], np.ndarray], d: int) -> ExactColumn
 
 
 def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
-               order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool) -> ColumnVolume:
-    """Exact columns (no sampling), breaks located in both quadrature directions."""
+               order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
+               min_nodes: int = MIN_NODES) -> ColumnVolume:
+    """Exact columns (no sampling): slices by `piecewise_1d`, the volume by `adaptive_1d`."""
     d = 3
     exact = _exact_of(margin, d)
     assert exact is not None
@@ -530,7 +539,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
         bar = tqdm(desc="volume", unit="col", unit_scale=True, delay=1.0, leave=False)
 
     def n_nodes(k: int) -> int:
-        return pieces or max(2, math.ceil((hi[k] - lo[k]) / step))
+        return pieces or max(min_nodes, math.ceil((hi[k] - lo[k]) / step))
 
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ell, err, ends, sig, zb = exact(base, ax, lo[ax], hi[ax])
@@ -573,7 +582,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
     # except at faces normal to x, and locating its breaks (where the slices' sequence of
     # signatures changes) measured 5-20x dearer than refining around them
     q, e, conv, _ = adaptive_1d(slice_area, lo[[k_out]], hi[[k_out]], rtol, 0.0, order=order,
-                                pieces=max(1, n_nodes(k_out) // 4), max_evals=max_points)
+                                pieces=n_nodes(k_out) // 4, max_evals=max_points)
     if bar is not None:
         bar.close()
     box = np.stack([counter.lo, counter.hi])
