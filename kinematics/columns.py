@@ -420,9 +420,11 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
             (bp, bp), (xa, xm), (xm, xb), (sa, sm), (sm, sb), (va, vm), (vm, vb)))
     if len(bp):  # out of budget: charge what is left as it stands
         done.append((bp, xa, xb, va, vb))
-    bp, xa, xb, va, vb = (np.concatenate([d[j] for d in done]) if done else np.zeros((0,) + vv.shape[2:][:j > 2])
-                          for j in range(5))
-    bp = bp.astype(np.int64)
+    if done:
+        bq, xa, xb, va, vb = (np.concatenate([d[j] for d in done]) for j in range(5))
+    else:
+        bq, xa, xb, va, vb = np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, vv.shape[2])), np.zeros((0, vv.shape[2]))
+    bp = bq.astype(np.int64)
     # pieces between consecutive breaks (bracket midpoints)
     starts = np.concatenate([a, 0.5 * (xa + xb)])
     sprob = np.concatenate([np.arange(P), bp])

@@ -130,7 +130,10 @@ class P2USMargin:
 
     def sampled(self) -> Callable[[np.ndarray], np.ndarray]:
         """The same margin without exact columns (the engine then samples every column)."""
-        return lambda points: self(points)
+        def margin(points: np.ndarray) -> np.ndarray:
+            return self(points)
+
+        return margin
 
 
 def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float,

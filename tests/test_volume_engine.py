@@ -152,13 +152,14 @@ def test_scara_area(scara):
 # throughout; rtol 1e-7, step 5 mm:
 #   Table 2, every limit:    0.0295860834 (x) and 0.0295860811 (z), estimates 2.7e-9 each;
 #   b = 0.35, L = 0.38:      0.0409384332 (x) and 0.0409384337 (z), estimates 3.6e-9 and 2.7e-9;
-#   Table 2, strokes only:   see P2US_ACTUATORS_REFERENCE.
 # Each reference is the mean, its uncertainty the half-difference plus the larger estimate. The
 # column lengths themselves are held to an independent sampler below (test_exact_columns_...).
 # (The earlier reference 0.0295811 of the sampled engine was 1.6e-4 low: columns sampled every
 # 5 mm lose the thin ends where a column grazes the surface.)
 P2US_REFERENCE = {"all": (0.02958608225, 4e-9), "design": (0.04093843345, 4e-9)}
-P2US_ACTUATORS_REFERENCE = None
+# Strokes only (union of the 8 modes): along x at rtol 1e-6, 0.1553508697 +/- 5.9e-8; along y
+# (the default axis) at rtol 1e-5 with the check, 0.1553508645 +/- 5.6e-7: 5e-9 apart.
+P2US_ACTUATORS_REFERENCE = (0.1553508697, 7e-8)
 # p2us-results working mode "---", strokes only, by an independent method: exact z-extents from
 # polynomial roots and nested scipy quad (p2us_columns.mode_volume, docs/paper-b-reproduction.md):
 # 0.13454878 +/- 1.4e-6 m^3; the engine along x at rtol 1e-7 gives 0.1345487881 +/- 4.6e-9.
