@@ -1,44 +1,41 @@
 """Volume (or area) of {x : f(x) >= 0} by column integration: exact columns, adaptive quadrature.
 
 The region is given by a continuous *margin* f (positive inside, in metres) over a box that
-contains it. One axis (the last by default) is the *column axis*:
+contains it. One axis (the shortest side by default) is the *column axis*; a column's inside
+length l is integrated over the other axes. Two paths:
 
-1. **Columns.** Along a column (the other coordinates fixed) the inside set is a union of
-   intervals. The margin is sampled every `step` along the column; every sign change between two
-   samples is bracketed and its root refined (Illinois false position with a bisection safeguard
-   and Brent's tolerance nudge) to a bracket narrower than `ROOT_TOL` = 1e-12 m. The column's
-   length l is the sum of its intervals, exact up to the root brackets (accounted for) and up to
-   components the sampling can miss (below).
-2. **Quadrature.** V = the integral of l over the other axes, nested in 3D: slice areas
-   A(x) = integral of l(x, y) dy for many x at once, then V = integral of A(x) dx, each by
-   `adaptive_1d`: a Gauss-Legendre rule on every interval and on its two halves, the halves' sum
-   as its value and |whole - halves| as its error estimate, plus the variation bound
-   width x (max - min of the values) wherever the column topology (number of interval ends)
-   changes among its nodes -- there l has kinks, jumps or square-root edges (a column touching
-   the surface), where the two rules can agree by accident. On smooth pieces the difference is
-   dominated by the whole interval's error (~2^(2 order) times the halves'), so the sum over the
-   accepted intervals is a conservative estimate; it is not a rigorous bound. Intervals are
-   halved largest estimate first until the sum meets rtol; the slices' own estimates
-   (<= rtol / 4) are carried into the outer integral.
+**Exact columns** (3D margins with an `exact_columns` attribute, such as the 3-[P2(US)]'s, see
+`kinematics.p2us_exact`): every column's intervals come exactly from roots of quadratics, with a
+*signature* that changes wherever l is not smooth (another constraint takes over an end, an
+interval appears or vanishes, a face parallel to the axis). Slice areas A(x) = integral of
+l(x, y) dy by `piecewise_1d`: nodes every `step` (at least MIN_NODES), breaks located by
+bisection on the signature, each smooth piece integrated by adaptive Gauss-Legendre rules after
+the grading y = u + (v - u)(3t^2 - 2t^3), which makes square-root edges analytic. The volume
+V = integral of A(x) dx by `adaptive_1d`. Nothing along a column can be missed; a feature
+narrower than the node spacing in both quadrature directions can.
 
-The cost grows with the boundary, not the volume: smooth stretches are accepted whole and each
-singular point of l (isolated in every 1D integral) costs ~log(1/rtol) halvings; each column
-costs (extent / step) samples plus ~10 evaluations per root.
+**Sampled columns** (any other margin): the margin every `step` along the column, every sign
+change bracketed and refined (Illinois false position with a bisection safeguard and Brent's
+tolerance nudge) to a bracket narrower than `ROOT_TOL` = 1e-12 m; nested `adaptive_1d`.
+
+`adaptive_1d`: a Gauss-Legendre rule on every interval and on its two halves, the halves' sum
+as its value and |whole - halves| as its error estimate, plus the variation bound
+width x (max - min of the values) wherever the signature changes among its nodes (there l has
+kinks, jumps or square-root edges, where the two rules can agree by accident). On smooth pieces
+the difference is dominated by the whole interval's error, so the sum over the accepted
+intervals is a conservative estimate; it is not a rigorous bound. Intervals are halved largest
+estimate first until the sum meets rtol; the slices' own estimates (<= rtol / 4) are carried
+into the outer integral.
 
 **What the method can miss** (stated, not estimated):
 
-* along a column, an inside interval or an outside gap shorter than `step` can fall between two
-  samples; every component longer than `step` contains a sample and is found, with both ends to
-  1e-12 m. (A Lipschitz bound would let the sampling skip ahead safely, but the 3-[P2(US)] margin
-  has none: its stroke and joint-angle terms go through sqrt(discriminant), whose slope grows
-  without bound where a limb's two roots merge; measured slopes reach ~500.) Where a missed
-  sliver matters, neighbouring columns disagree and the quadrature refines there, which finds
-  it from the side;
+* sampled columns only: along a column, an inside interval or an outside gap shorter than
+  `step` can fall between two samples (the 3-[P2(US)] margin has no Lipschitz bound to skip
+  ahead safely: its stroke and joint-angle terms go through sqrt(discriminant)). Near a surface
+  grazing the columns this biases the volume low: 1.6e-4 relative on the 3-[P2(US)] at 5 mm;
 * across columns, a feature between the nodes of every interval at every level is not seen.
-  `check` reruns the whole computation at half the step (hence half the starting intervals) and
-  reports not converged if the two disagree beyond their error estimates. Without it, a coarse
-  step can give a confident wrong answer: from a 10 cm step the 3-[P2(US)] union lost the thin
-  ends of every column consistently and came out 7 % low with a 6e-4 relative estimate.
+  `check` reruns the whole computation at half the step (twice the nodes) and reports not
+  converged if the two disagree beyond their error estimates.
 """
 
 from __future__ import annotations
@@ -472,8 +469,9 @@ def column_volume(
     Args:
         margin: (N, d) points [m] -> (N, T) (or (N,)) margins [m], continuous, >= 0 inside.
         lo, hi: a box [m] containing the region (d = 2 or 3).
-        step: sampling step along the columns [m]: components shorter than it can be missed;
-            also the starting interval of the quadratures is 8 x step.
+        step: [m] exact columns: the quadratures' starting node spacing (at least MIN_NODES
+            nodes per direction); sampled columns: the sampling step along the columns
+            (components shorter than it can be missed), and 8 x step starts the quadratures.
         rtol: relative tolerance on the error estimate of every target, at least RTOL_FLOOR.
         order: Gauss-Legendre nodes per interval.
         axis: the column axis (default: the box's shortest side).

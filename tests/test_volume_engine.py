@@ -157,8 +157,8 @@ def test_scara_area(scara):
 # (The earlier reference 0.0295811 of the sampled engine was 1.6e-4 low: columns sampled every
 # 5 mm lose the thin ends where a column grazes the surface.)
 P2US_REFERENCE = {"all": (0.02958608225, 4e-9), "design": (0.04093843345, 4e-9)}
-# Strokes only (union of the 8 modes): along x at rtol 1e-6, 0.1553508697 +/- 5.9e-8; along y
-# (the default axis) at rtol 1e-5 with the check, 0.1553508645 +/- 5.6e-7: 5e-9 apart.
+# Strokes only (union of the 8 modes), rtol 1e-6: along x 0.1553508697 +/- 5.9e-8, along z
+# 0.1553508679 +/- 3.6e-8: 1.8e-9 apart.
 P2US_ACTUATORS_REFERENCE = (0.1553508697, 7e-8)
 # p2us-results working mode "---", strokes only, by an independent method: exact z-extents from
 # polynomial roots and nested scipy quad (p2us_columns.mode_volume, docs/paper-b-reproduction.md):
