@@ -33,7 +33,7 @@ CHUNK = 1 << 18
 def full_scan(P, lo, hi, n: int) -> tuple[float, int]:
     """Scan n grid points in chunks (buffers reused), reducing to per-mode inside counts and the
     smallest measures, as a workspace/singularity scan does. Returns (seconds, points inside)."""
-    g = S._geometry(P)
+    g = S.kernel_geometry(P)
     side = round(n ** (1 / 3))
     axes = [np.linspace(lo[k], hi[k], side) for k in range(3)]
     total = side**3
@@ -52,7 +52,7 @@ def full_scan(P, lo, hi, n: int) -> tuple[float, int]:
 
 def kernel_only(P, pts, threads: int) -> float:
     numba.set_num_threads(threads)
-    g = S._geometry(P)
+    g = S.kernel_geometry(P)
     n = len(pts)
     out = (np.empty((n, 8)), np.empty((n, 8)), np.empty((n, 3)))
     x, y, z = (np.ascontiguousarray(pts[:, k]) for k in range(3))

@@ -16,6 +16,13 @@ from kinematics.mechanisms.p2us.scan import bounding_box
 from kinematics.mechanisms.scara.closed_form import ScaraParams
 
 
+@pytest.fixture(scope="module")
+def p2us_results():
+    from kinematics.model.robot import load_robot
+
+    return load_robot("p2us-results")
+
+
 def _spheres(p: np.ndarray) -> np.ndarray:
     """Unit ball, and a capsule (segment (0,0,+-0.2), radius 0.3) minus a ball of radius 0.25 at
     (0.3, 0, 0) (its lens cut out), both in metres and distance-like."""
@@ -140,35 +147,107 @@ def test_scara_area(scara):
     assert abs(r.total - ring) <= r.error
 
 
-# Independently converged references: the engine run twice, columns along y (the default) and
-# along z (every root sampled differently, a different quadrature split), step 5 mm, rtol 1e-4:
-# every limit: 0.02958224 +/- 2.9e-6 (y) and 0.02957996 +/- 2.5e-6 (z), which agree within their
-# estimates; the reference is their mean with the half-difference plus the larger estimate as its
-# uncertainty. The tests below run at rtol 1e-2 (errors ~1e-4 m^3), far above it; Monte Carlo
-# through the NumPy closed forms (test_workspace.py) agrees within its standard error.
-P2US_REFERENCE = {"all": (0.0295811, 4.1e-6), "actuators": None, "design": None}
+# References. Every limit (union; a sweep design): the exact-column engine with its columns along
+# x and along z (the tests below run along y, the default): different columns, slices and breaks
+# throughout; rtol 1e-7, step 5 mm:
+#   Table 2, every limit:    0.0295860834 (x) and 0.0295860811 (z), estimates 2.7e-9 each;
+#   b = 0.35, L = 0.38:      0.0409384332 (x) and 0.0409384337 (z), estimates 3.6e-9 and 2.7e-9;
+# Each reference is the mean, its uncertainty the half-difference plus the larger estimate. The
+# column lengths themselves are held to an independent sampler below (test_exact_columns_...).
+# (The earlier reference 0.0295811 of the sampled engine was 1.6e-4 low: columns sampled every
+# 5 mm lose the thin ends where a column grazes the surface.)
+P2US_REFERENCE = {"all": (0.02958608225, 4e-9), "design": (0.04093843345, 4e-9)}
+# Strokes only (union of the 8 modes), rtol 1e-6: along x 0.1553508697 +/- 5.9e-8, along z
+# 0.1553508679 +/- 3.6e-8: 1.8e-9 apart.
+P2US_ACTUATORS_REFERENCE = (0.1553508697, 7e-8)
+# p2us-results working mode "---", strokes only, by an independent method: exact z-extents from
+# polynomial roots and nested scipy quad (p2us_columns.mode_volume, docs/paper-b-reproduction.md):
+# 0.13454878 +/- 1.4e-6 m^3; the engine along x at rtol 1e-7 gives 0.1345487881 +/- 4.6e-9.
+RESULTS_MODE_REFERENCE = (0.13454878, 1.4e-6)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("which", ["all", "actuators", "design"])
 def test_p2us_unions_against_references(p2us_params, which):
-    if P2US_REFERENCE[which] is None:
+    """At the issue's goal tolerance (1e-5) the true error stays below the reported one."""
+    ref = P2US_ACTUATORS_REFERENCE if which == "actuators" else P2US_REFERENCE[which]
+    if ref is None:
         pytest.skip("reference not pinned")
-    ref, ref_err = P2US_REFERENCE[which]
-    params = p2us_params.replace(b=0.35, L=0.36) if which == "design" else p2us_params
+    V, V_err = ref
+    params = p2us_params.replace(b=0.35, L=0.38) if which == "design" else p2us_params
     limits = "actuators" if which == "actuators" else "all"
-    ws = p2us_workspace(params, step=0.02, rtol=1e-2, limits=limits, progress=False)
+    ws = p2us_workspace(params, step=0.01, rtol=1e-5, limits=limits, progress=False)
     assert ws.result.converged
-    assert abs(ws.total - ref) <= ws.error + ref_err, (abs(ws.total - ref) / ref, ws.error / ref)
+    assert abs(ws.total - V) + V_err <= ws.error, (abs(ws.total - V) / V, ws.error / V)
+    assert ws.error <= 1e-5 * V * 1.0001
+
+
+@pytest.mark.slow
+def test_p2us_results_working_mode_against_scipy_reference(p2us_results):
+    """The issue-18 job: `workspace-volume p2us-results --limits actuators` gives the working mode
+    to 1e-5 with an estimate that holds, against exact extents + scipy quad (independent)."""
+    from kinematics.mechanisms.p2us.urdf import read_params
+
+    V, V_err = RESULTS_MODE_REFERENCE
+    ws = p2us_workspace(read_params(p2us_results.urdf_path), step=0.01, rtol=1e-5, modes=["---"],
+                        limits="actuators", progress=False)
+    assert ws.result.converged
+    got, err = float(ws.result.estimate[0]), float(ws.result.error[0])
+    # the reference's own 1.4e-6 is within 1e-5 x V = 1.3e-6 of the goal: hold the sum
+    assert abs(got - V) <= err + V_err, (abs(got - V) / V, err / V)
+    assert err <= 1e-5 * got * 1.0001
+
+
+def test_exact_columns_agree_with_a_sampler(p2us_params, p2us_results):
+    """Exact columns (roots of quadratics) against the margin sampled every 0.5 mm and refined
+    to 1e-12 m (`column_lengths`, another code path: no quadratic, only the scan kernel's margin):
+    sampling can only miss components shorter than its step, so the exact length is never below
+    the sampled one, and equals it (to the brackets) wherever both see the same topology."""
+    from kinematics.mechanisms.p2us.urdf import read_params
+
+    rng = np.random.default_rng(7)
+    for params, limits in ((p2us_params, "all"), (p2us_params, "actuators"),
+                           (read_params(p2us_results.urdf_path), "all")):
+        lo, hi = bounding_box(params)
+        margin = p2us_margin(params, limits=limits)
+        for ax in range(3):
+            oth = [k for k in range(3) if k != ax]
+            base = lo[oth] + (hi[oth] - lo[oth]) * rng.random((150, 2))
+            sampled, _, s_ends = column_lengths(margin.sampled(), base, lo[ax], hi[ax], 5e-4, ax)
+            exact, err, ends, _sig, _box = margin.exact_columns(base, ax, lo[ax], hi[ax])
+            same = s_ends == ends
+            # brackets: 1e-12 m per end (sampler) + 1e-13 m per end (exact), ~12 ends at most
+            assert np.all(np.abs(exact - sampled)[same] <= 2e-11)
+            assert np.all(exact >= sampled - 2e-11)
+            assert same.mean() > 0.97  # what differs are slivers under 0.5 mm
+
+
+def test_piecewise_1d_locates_square_root_edges():
+    """A disc's chord length 2 sqrt(r^2 - y^2) (square-root edges at +-r, zero outside) over
+    [-1, 1]: pi r^2 to near machine precision from a few hundred nodes, the estimate holding."""
+    from kinematics.analyses.columns import piecewise_1d
+
+    r = 0.5
+
+    def f(p, y):
+        inside = r * r - y * y > 0
+        return (2 * np.sqrt(np.where(inside, r * r - y * y, 0.0)))[:, None], np.zeros((len(y), 1)), \
+            inside.astype(np.int64)
+
+    q, e, ok, evals = piecewise_1d(f, np.array([-1.0]), np.array([1.0]), 10, 1e-8, 0.0)
+    true = abs(q[0, 0] - math.pi * r * r)
+    assert ok[0] and true <= e[0, 0] <= 1e-8 * math.pi * r * r and evals < 500
 
 
 # -- an under-resolved start is not a confident answer ----------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.parametrize("step", [2.0])
+@pytest.mark.parametrize("step", [2.0, 0.2])
 def test_coarse_starts_are_right_or_not_converged(p2us_params, step):
     """The issue's cases: coarse --step values once gave confident wrong answers (even 0)."""
     ref, ref_err = P2US_REFERENCE["all"]
     ws = p2us_workspace(p2us_params, step=step, rtol=1e-3, progress=False, check=True)
+    assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
+    ws = p2us_workspace(p2us_params, step=step, rtol=1e-5, progress=False, check=True)
     assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
 
 

@@ -27,12 +27,14 @@ if TYPE_CHECKING:
     )
     from kinematics.analyses.columns import (
         CHUNK_POINTS,
+        MIN_NODES,
         ROOT_TOL,
         RTOL_FLOOR,
         ColumnVolume,
         adaptive_1d,
         column_lengths,
         column_volume,
+        piecewise_1d,
     )
     from kinematics.analyses.dexterity import (
         CHUNK,
@@ -164,6 +166,7 @@ _LAZY = {
     "MAP_CELLS": "dexterity",
     "MAX_SAMPLES": "dexterity",
     "MESH_SUFFIXES": "boundary_mesh",
+    "MIN_NODES": "columns",
     "MobilityReport": "mobility",
     "NumericMobility": "mobility",
     "OBJECTIVES": "synthesis",
@@ -226,6 +229,7 @@ _LAZY = {
     "p2us_volume_monte_carlo": "workspace",
     "p2us_workspace": "workspace",
     "paper_scan": "singularities",
+    "piecewise_1d": "columns",
     "radii": "serial_workspace",
     "regular_configuration": "mobility",
     "run": "sweep",
@@ -261,6 +265,7 @@ __all__ = [
     "MAP_CELLS",
     "MAX_SAMPLES",
     "MESH_SUFFIXES",
+    "MIN_NODES",
     "OBJECTIVES",
     "RANK_RTOL",
     "REGULAR_RTOL",
@@ -335,6 +340,7 @@ __all__ = [
     "p2us_volume_monte_carlo",
     "p2us_workspace",
     "paper_scan",
+    "piecewise_1d",
     "radii",
     "regular_configuration",
     "run",

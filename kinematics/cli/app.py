@@ -557,7 +557,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def scan_args(p: argparse.ArgumentParser, step: float) -> None:
         p.add_argument("--step", type=_positive, default=step, metavar="M",
-                       help=f"grid step [m] (default {step:g}; the volume: sampling step along each column)")
+                       help=f"grid step [m] (default {step:g}; the volume: the column spacing to start from, and the sampling step along columns where no exact columns exist)")
         p.add_argument("--modes", nargs="+", metavar="MODE",
                        help="p2us working modes such as --- +-+ (default all 8); planar arm: elbows up/down")
         p.add_argument("--limits", default="all", choices=["all", "actuators"],

@@ -266,9 +266,11 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
     lines.append(key_values([
         (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
-        ("method", "exact columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
-                   f"shorter than the column step {fmt(r.step)} m can be missed" if payload.get("method") == "columns"
-         else "cell refinement"),
+        ("method", ("cell refinement" if payload.get("method") != "columns" else
+                    "sampled columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
+                    f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar else
+                    "exact columns (roots of quadratics) + Gauss rules between located breaks; a feature narrower "
+                    f"than the node spacing {fmt(r.step)} m across columns can be missed")),
         ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
         ("points evaluated", f"{r.points_evaluated:,}"),
         ("singular points inside", len(payload["singular_points"])),

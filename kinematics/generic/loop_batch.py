@@ -524,7 +524,7 @@ class LoopBatch:
     * `task_dim`, `task_axes`, `translational`, `bounding_box()`: the task space;
     * `ik(points)`: joint values of every branch (`BranchSolutions`), `labels` names the branches;
     * `margin(points)`: (N, B + 1) joint-limit margins per branch and their union (the last
-      column), the callable `kinematics.columns.column_volume` takes; `margin_function(branches)`
+      column), the callable `kinematics.analyses.columns.column_volume` takes; `margin_function(branches)`
       selects branches;
     * `jacobians(points, x)`: forward (task rate per actuator rate) and inverse (actuator rate per
       task rate) Jacobians; `singularities(points, x)`: Gosselin-Angeles measures and types.
@@ -1151,7 +1151,7 @@ class LoopBatch:
     def margin_function(self, branches: Sequence[int] | None = None, limits: str = "all"
                         ) -> Callable[[np.ndarray], np.ndarray]:
         """points (N, d) -> (N, len(branches) + 1): the chosen branches' margins [m], then their
-        union, for `kinematics.columns.column_volume`."""
+        union, for `kinematics.analyses.columns.column_volume`."""
         cols = list(range(len(self.labels))) if branches is None else list(branches)
         self.limit_margin(np.zeros((1, self.n)), limits)  # validates `limits`
 

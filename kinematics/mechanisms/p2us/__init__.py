@@ -1,6 +1,6 @@
 """The 3-[P2(US)] translational parallel robot (paper B): closed forms, the compiled scan kernel, the URDF generator, paper B's numbers.
 
-Modules: `closed_form`, `columns_reference`, `mechanism`, `paper_b`, `scan`, `urdf`. Public names are re-exported
+Modules: `closed_form`, `columns_reference`, `exact`, `mechanism`, `paper_b`, `scan`, `urdf`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -37,9 +37,14 @@ if TYPE_CHECKING:
         column_length,
         mode_volume,
     )
+    from kinematics.mechanisms.p2us.exact import (
+        ROOT_ERROR,
+        ExactColumns,
+    )
     from kinematics.mechanisms.p2us.mechanism import (
         MODE_LEGEND,
         P2US,
+        P2USMargin,
         p2us_margin,
     )
     from kinematics.mechanisms.p2us.paper_b import (
@@ -69,8 +74,10 @@ if TYPE_CHECKING:
         ScanResult,
         bounding_box,
         check_limits,
+        kernel_geometry,
         kernels_cached,
         kernels_compiled,
+        limb_kernel,
         scan,
     )
     from kinematics.mechanisms.p2us.urdf import (
@@ -97,6 +104,7 @@ _LAZY = {
     "BUILTIN_DESIGNS": "urdf",
     "ColumnVolume": "columns_reference",
     "DESIGNS": "urdf",
+    "ExactColumns": "exact",
     "FIG6_POSITION_M": "paper_b",
     "FIG7_LEVELS_M": "paper_b",
     "FIG8_POSITION_M": "paper_b",
@@ -108,11 +116,13 @@ _LAZY = {
     "MECHANISM": "urdf",
     "MODE_LEGEND": "mechanism",
     "P2US": "mechanism",
+    "P2USMargin": "mechanism",
     "P2USParams": "closed_form",
     "PAPER_VOLUME_M3": "scan",
     "PHI_CONVENTIONS": "closed_form",
     "REPRODUCTION_PAGE": "paper_b",
     "RODS": "urdf",
+    "ROOT_ERROR": "exact",
     "SOURCES": "paper_b",
     "SPHERICAL": "urdf",
     "ScanResult": "scan",
@@ -137,9 +147,11 @@ _LAZY = {
     "jacobian_inverse": "closed_form",
     "jacobians": "closed_form",
     "joint_values_at": "urdf",
+    "kernel_geometry": "scan",
     "kernels_cached": "scan",
     "kernels_compiled": "scan",
     "limb_ik": "closed_form",
+    "limb_kernel": "scan",
     "limb_limits": "closed_form",
     "limit_angles": "closed_form",
     "mode_volume": "columns_reference",
@@ -181,6 +193,7 @@ __all__ = [
     "PHI_CONVENTIONS",
     "REPRODUCTION_PAGE",
     "RODS",
+    "ROOT_ERROR",
     "SOURCES",
     "SPHERICAL",
     "TABLE3_POSITION_M",
@@ -189,9 +202,11 @@ __all__ = [
     "THETA_CONVENTIONS",
     "WORKING_MODE",
     "ColumnVolume",
+    "ExactColumns",
     "IKResult",
     "Jacobians",
     "LimbSolutions",
+    "P2USMargin",
     "P2USParams",
     "ScanResult",
     "angle_bounds",
@@ -210,9 +225,11 @@ __all__ = [
     "jacobian_inverse",
     "jacobians",
     "joint_values_at",
+    "kernel_geometry",
     "kernels_cached",
     "kernels_compiled",
     "limb_ik",
+    "limb_kernel",
     "limb_limits",
     "limit_angles",
     "mode_volume",

@@ -59,7 +59,7 @@ def check_limits(limits: str) -> bool:
     return limits == "all"
 
 
-def _geometry(params: P2USParams) -> np.ndarray:
+def kernel_geometry(params: P2USParams) -> np.ndarray:
     """Everything the kernel needs, packed in one float array (see `_kernel`)."""
     d_lo, d_hi, narrow, s_lo, s_hi = angle_bounds(params)
     limbs = np.concatenate([params.e[:, :2], params.w], axis=1).ravel()  # ex ey wx wy wz per limb
@@ -70,7 +70,7 @@ def _geometry(params: P2USParams) -> np.ndarray:
 
 
 @njit(cache=True)
-def _limb(px, py, pz, g, i, passive):  # pragma: no cover - compiled
+def limb_kernel(px, py, pz, g, i, passive):  # pragma: no cover - compiled
     """(slack, nx, ny, nz) of roots "+" and "-" of limb i, and the discriminant."""
     ex, ey, wx, wy, wz = g[5 * i], g[5 * i + 1], g[5 * i + 2], g[5 * i + 3], g[5 * i + 4]
     L, off, q_lo, q_hi = g[15], g[16], g[17], g[18]
@@ -115,9 +115,9 @@ def _mode(a, b, c, margin, det, k, m):  # pragma: no cover - compiled
 @njit(cache=True, parallel=True)
 def _kernel(x, y, z, g, passive, margin, det, disc):  # pragma: no cover - compiled
     for k in prange(x.shape[0]):
-        p0, m0, disc[k, 0] = _limb(x[k], y[k], z[k], g, 0, passive)
-        p1, m1, disc[k, 1] = _limb(x[k], y[k], z[k], g, 1, passive)
-        p2, m2, disc[k, 2] = _limb(x[k], y[k], z[k], g, 2, passive)
+        p0, m0, disc[k, 0] = limb_kernel(x[k], y[k], z[k], g, 0, passive)
+        p1, m1, disc[k, 1] = limb_kernel(x[k], y[k], z[k], g, 1, passive)
+        p2, m2, disc[k, 2] = limb_kernel(x[k], y[k], z[k], g, 2, passive)
         # the order of parallel.MODES: "+++", "++-", "+-+", "+--", "-++", ...
         _mode(p0, p1, p2, margin, det, k, 0)
         _mode(p0, p1, m2, margin, det, k, 1)
@@ -142,7 +142,7 @@ def scan(params: P2USParams, points: np.ndarray, limits: str = "all") -> ScanRes
     det = np.empty((n, len(MODES)))
     disc = np.empty((n, 3))
     x, y, z = (np.ascontiguousarray(p[:, k]) for k in range(3))
-    _kernel(x, y, z, _geometry(params), passive, margin, det, disc)
+    _kernel(x, y, z, kernel_geometry(params), passive, margin, det, disc)
     return ScanResult(margin, det, disc)
 
 
