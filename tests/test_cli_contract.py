@@ -517,5 +517,7 @@ def test_ctrl_c_is_one_line():
 
 @pytest.mark.slow
 def test_ctrl_c_during_a_sweep_is_one_line():
-    proc = _interrupt(_kinematics("sweep", "p2us", "--param", "b=0.3:0.35:6", "--workers", "2"), 10.0, group=True)
+    # enough designs (~200) that the sweep is still running when the interrupt arrives
+    proc = _interrupt(_kinematics("sweep", "p2us", "--param", "b=0.3:0.35:20", "--param", "L=0.3:0.4:10", "--workers", "2"),
+                      10.0, group=True)
     assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr

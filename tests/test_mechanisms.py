@@ -17,7 +17,7 @@ MODELS = Path(__file__).parent / "models"
 
 @pytest.mark.parametrize(("name", "family", "task_dim"), [
     ("scara", "scara", 2), ("p2us", "p2us", 3), ("p2us-results", "p2us", 3), ("delta", "delta", 3),
-    ("ur5", "serial", 3), (str(MODELS / "rssr.urdf"), "closed-loop", 3),
+    ("ur5", "serial", 3), (str(MODELS / "rssr.urdf"), "closed-loop", 1),  # RSSR: one degree of freedom
 ])
 def test_the_dispatcher_decides_the_family(name, family, task_dim):
     mech = mechanism_of(load_robot(name))
