@@ -557,9 +557,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     def scan_args(p: argparse.ArgumentParser, step: float) -> None:
         p.add_argument("--step", type=_positive, default=step, metavar="M",
-                       help=f"grid step [m] (default {step:g}; the volume: the column spacing to start from, and the sampling step along columns where no exact columns exist)")
+                       help=f"grid step [m] (default {step:g}; the volume: the column spacing to start "
+                            "from, and the sampling step along columns where no exact columns exist)")
         p.add_argument("--modes", nargs="+", metavar="MODE",
-                       help="p2us working modes such as --- +-+ (default all 8); planar arm: elbows up/down")
+                       help="working modes such as --- +-+ (p2us, delta; default all 8); planar arm: "
+                            "elbows up/down; other robots: their branch labels (a wrong one lists them)")
         p.add_argument("--limits", default="all", choices=["all", "actuators"],
                        help="all limits (default), or the actuator strokes only")
         p.add_argument("--plot", metavar="FILE.png", help="write a figure")
