@@ -176,12 +176,11 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     singular_points: list[dict[str, Any]] = []
     sing: Any = None
     paper: dict[str, Any] = {}
-    compiled = None
-    if mech.family == "p2us":
-        from kinematics.mechanisms.p2us.scan import kernels_cached, kernels_compiled
+    kernels = mech.kernels()
+    if kernels and show_progress(args):  # a terminal's notice, like the progress bars
+        from kinematics import jit
 
-        compiled = kernels_compiled
-        if show_progress(args) and not kernels_cached():  # a terminal's notice, like the progress bars
+        if not jit.cached(kernels):
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
@@ -218,8 +217,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = ws.as_dict()
     payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
                    seconds=time.perf_counter() - t0, volume_seconds=ws.seconds, **paper)
-    if compiled is not None:
-        payload["compiled_kernels"] = compiled()
+    if kernels:
+        from kinematics import jit
+
+        payload["compiled_kernels"] = jit.compiled(kernels)
     if not ws.result.converged:
         import sys
 

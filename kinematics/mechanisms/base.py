@@ -172,6 +172,11 @@ class Mechanism(ABC):
         if capability not in self.capabilities:
             raise MissingCapabilityError(self.name, capability, purpose, self.capabilities)
 
+    def kernels(self) -> tuple[Any, ...]:
+        """The compiled (Numba) kernels the margin and singular fields run on, for
+        `kinematics.jit.cached` / `compiled` (a "compiling kernels" notice); none by default."""
+        return ()
+
     def parameters(self) -> dict[str, Any]:
         """The design's parameters, JSON-ready (SI units)."""
         return {}

@@ -1,6 +1,6 @@
-"""Clavel's 3-RUU Delta robot: closed forms and the URDF generator.
+"""Clavel's 3-RUU Delta robot: closed forms, the compiled scan kernel and the URDF generator.
 
-Modules: `closed_form`, `mechanism`, `urdf`. Public names are re-exported
+Modules: `closed_form`, `mechanism`, `scan`, `urdf`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -38,6 +38,7 @@ if TYPE_CHECKING:
         Delta,
         limb_margins,
     )
+    from kinematics.mechanisms.delta.scan import DeltaScan
     from kinematics.mechanisms.delta.urdf import (
         LIMBS,
         RODS,
@@ -55,6 +56,7 @@ if TYPE_CHECKING:
 _LAZY = {
     "Delta": "mechanism",
     "DeltaParams": "closed_form",
+    "DeltaScan": "scan",
     "IKResult": "closed_form",
     "Jacobians": "closed_form",
     "LIMBS": "urdf",
@@ -99,6 +101,7 @@ __all__ = [
     "SPHERICAL",
     "Delta",
     "DeltaParams",
+    "DeltaScan",
     "IKResult",
     "Jacobians",
     "LimbSolutions",

@@ -16,6 +16,7 @@ p (the two IK roots merge where the reach slack is 0), so the margin is too.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -31,6 +32,7 @@ from kinematics.mechanisms.base import (
     parallel_forward,
 )
 from kinematics.mechanisms.delta import closed_form as cf
+from kinematics.mechanisms.delta.scan import scan
 
 LIMITS = ("all", "actuators")
 """Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
@@ -87,21 +89,50 @@ class Delta(Mechanism):
         return self.params.as_dict()
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
-        """Limb i reaches p only if |p + (r - R) e_i| <= l_a + l_b: intersect the three balls' boxes."""
-        self.check_limits(limits)
+        """A box [m] that contains the workspace under `limits` (proved, not sampled).
+
+        Limb i puts the platform centre at p = (R - r) e_i + l_a d_i(theta) + l_b n, with theta in
+        the actuator range and n the unit forearm direction; with every limit, n also lies in the
+        platform ball joint's cone (angle(n, -s_P,i) <= cone). For each world direction +/-u the
+        support max u.p of that superset is the arc's max of u.d_i(theta) over the range (its ends
+        and its stationary angle) plus l_b cos(max(0, angle(u, -s_P,i) - cone)) (l_b for the
+        actuators only: any n). The box is the intersection of the three limbs' boxes; the elbow
+        cones, which couple n to theta, are left out, so it is a superset.
+        """
+        passive = _check_limits(limits)
         P = self.params
-        centres = (P.R - P.r) * P.e
-        rad = P.la + P.lb
-        return (centres - rad).max(axis=0), (centres + rad).min(axis=0)
+        lo_t, hi_t = P.theta_limits
+        lo = np.full(3, -np.inf)
+        hi = np.full(3, np.inf)
+        for i in range(3):
+            axis = -P.platform_sockets[i]
+            for k in range(3):
+                for sign in (1.0, -1.0):
+                    u = np.zeros(3)
+                    u[k] = sign
+                    a, b = float(u @ P.e[i]), float(u[2])  # u.d(theta) = a cos(theta) - b sin(theta)
+                    beta = math.atan2(b, a)
+                    thetas = [lo_t, hi_t, *(t for t in (-beta + 2 * math.pi * j for j in range(-2, 3))
+                                            if lo_t <= t <= hi_t)]
+                    arc = max(a * math.cos(t) - b * math.sin(t) for t in thetas)
+                    rod = math.cos(max(0.0, math.acos(max(-1.0, min(1.0, float(u @ axis)))) - P.cone)) \
+                        if passive else 1.0
+                    support = (P.R - P.r) * float(u @ P.e[i]) + P.la * arc + P.lb * rod
+                    if sign > 0:
+                        hi[k] = min(hi[k], support)
+                    else:
+                        lo[k] = max(lo[k], -support)
+        return lo, hi
 
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
         cols = [cf.MODES.index(b) for b in self.check_branches(branches)]
         self.check_limits(limits)
         params = self.params
 
+        passive = limits == "all"
+
         def margin(points: np.ndarray) -> np.ndarray:
-            lm = limb_margins(params, points, limits)
-            m = lm[:, np.arange(3), _MODE_ROOTS].min(axis=-1)[:, cols]  # (N, B)
+            m = scan(params, points, passive).margin[:, cols]  # (N, B)
             return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
         return margin
@@ -131,11 +162,10 @@ class Delta(Mechanism):
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
         mode m where det[n_1; n_2; n_3] of that mode's forearm directions does."""
-        points = np.asarray(points, dtype=float)
-        lm = limb_margins(self.params, points, limits)
-        margin = lm[:, np.arange(3), _MODE_ROOTS].min(axis=-1)
-        limbs = cf.limb_ik(self.params, points)
-        disc = (self.params.lb - limbs.near) * (limbs.far - self.params.lb)  # same sign as rho^2 - K^2
-        n = limbs.n[:, np.arange(3), _MODE_ROOTS]  # (N, 8, 3, 3)
-        det = np.linalg.det(np.where(np.isfinite(n), n, 0.0))
-        return SingularFields(margin, disc, det)
+        s = scan(self.params, np.asarray(points, dtype=float), _check_limits(limits))
+        return SingularFields(s.margin, s.disc, s.det)
+
+    def kernels(self) -> tuple[Any, ...]:
+        from kinematics.mechanisms.delta.scan import kernels
+
+        return kernels()

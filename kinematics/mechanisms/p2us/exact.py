@@ -28,6 +28,7 @@ where it changes the length has a kink (another constraint takes over an end), a
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
@@ -289,3 +290,8 @@ class ExactColumns:
                         zbox)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, ends * ROOT_ERROR, ends, sig, zbox
+
+
+def kernels() -> tuple[Any, ...]:
+    """The compiled kernels of this module (for `kinematics.jit`)."""
+    return (_columns_kernel,)

@@ -81,6 +81,12 @@ class P2US(Mechanism):
     def parameters(self) -> dict[str, Any]:
         return self.params.as_dict()
 
+    def kernels(self) -> tuple[Any, ...]:
+        import kinematics.mechanisms.p2us.scan as scan_module
+        from kinematics.mechanisms.p2us import exact
+
+        return (*scan_module.kernels(), *exact.kernels())
+
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         self.check_limits(limits)
         return bounding_box(self.params)

@@ -22,7 +22,7 @@ be interpolated linearly between samples (`kinematics.analyses.cells`).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -161,16 +161,6 @@ def bounding_box(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def kernels_compiled() -> bool:
-    """True when this process compiled the scan kernel rather than loading it from Numba's cache
-    (the first run after installing)."""
-    return bool(sum(_kernel.stats.cache_misses.values()))
-
-
-def kernels_cached() -> bool:
-    """True when Numba's cache holds a compiled scan kernel (so the next call will not compile)."""
-    import glob
-    import os
-
-    cache = _kernel.stats.cache_path
-    return cache is not None and bool(glob.glob(os.path.join(cache, "p2us_scan._kernel-*.nbi")))
+def kernels() -> tuple[Any, ...]:
+    """The compiled kernels of this module (for `kinematics.jit`)."""
+    return (_kernel,)
