@@ -248,3 +248,41 @@ def test_show_draws_a_mesh_file_and_the_delta(capsys, tmp_path):
     empty.write_text("solid empty\nendsolid empty\n")
     code, _, err = run(capsys, "show", "scara", "--mesh", str(empty), "--export", str(out))
     assert code == 2 and ("no triangles" in err or "not a readable" in err), err
+
+
+def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
+    """`show MODEL.urdf --workspace` for a closed loop without closed forms: the five-bar's drawn
+    grid points are exactly those inside both limbs' annuli |P - A_i| in [|a_i - b_i|, a_i + b_i]
+    (its joints are continuous, so reach is the only limit), away from the annuli's edges."""
+    from kinematics.model.robot import load_robot
+
+    from .fivebar import FiveBar
+
+    robot = load_robot(str(Path(__file__).parent / "models" / "fivebar_gepetto" / "robot.urdf"))
+    fb = FiveBar.from_robot(robot)
+    drawn = {}
+    original = viz.Scene.add_points
+
+    def record(self, points, values=None, name="overlays/points", **kw):
+        drawn[name] = (np.asarray(points, dtype=float), values)
+        return original(self, points, values, name, **kw)
+
+    monkeypatch.setattr(viz.Scene, "add_points", record)
+    step = 0.08
+    viz.closed_loop_view(robot, workspace=True, step=step)
+    pts, cond = drawn["overlays/workspace"]
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    lo, hi = mech.bounding_box()
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(2)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    r = np.linalg.norm(grid[:, None, :] - fb.A[None], axis=-1)  # (N, 2)
+    lo_r, hi_r = np.abs(fb.a - fb.b), fb.a + fb.b
+    inside = np.all((r >= lo_r) & (r <= hi_r), axis=1)
+    clear = np.all((np.abs(r - lo_r) > 1e-6) & (np.abs(r - hi_r) > 1e-6), axis=1)
+    got = {tuple(np.round(p[:2], 9)) for p in pts}
+    want = {tuple(np.round(p, 9)) for p in grid[inside & clear]}
+    assert want and want <= got
+    assert not ({tuple(np.round(p, 9)) for p in grid[~inside & clear]} & got)
+    assert np.all(cond <= 1.0) and np.any(cond > 0)  # conditioning of some branch at every drawn point

@@ -694,18 +694,22 @@ def build_parser() -> argparse.ArgumentParser:
                                    "interrupted, or writes a static HTML scene with --export")
     robot_arg(p)
     p.add_argument("--q", nargs="+", type=_number, metavar="Q",
-                   help="joint values [rad or m]; p2us: the 3 actuator values (closed-loop solved)")
+                   help="joint values [rad or m]; closed loops: the actuator values (closed-loop solved)")
     p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
     p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"),
-                   help="p2us: platform position [m] (default: the sidecar's reference pose)")
-    p.add_argument("--mode", help="p2us: working mode for --position (default ---)")
+                   help="p2us, delta: platform position [m] (default: the sidecar's reference pose)")
+    p.add_argument("--mode", help="p2us, delta: working mode for --position (default ---)")
     p.add_argument("--ellipsoid", action="store_true", help="the manipulability ellipse/ellipsoid at the tool")
     p.add_argument("--workspace", action="store_true",
-                   help="the workspace as points coloured by smallest radius (arm) or min(iota_I, iota_II) (p2us)")
+                   help="the workspace as points coloured by smallest radius (arms) or min(iota_I, iota_II) "
+                        "(closed loops: p2us, delta, any URDF + sidecar)")
     p.add_argument("--singularities", action="store_true", help="the singular points")
     p.add_argument("--guide", type=int, choices=[1, 2, 3], help="planar arm: animate guidance experiment N")
-    p.add_argument("--limits", default="all", choices=["all", "actuators"], help="p2us: limits for --workspace")
-    p.add_argument("--step", type=_positive, default=0.02, metavar="M", help="p2us: grid step [m] (default 0.02)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="closed loops: limits for --workspace")
+    p.add_argument("--step", type=_positive, default=None, metavar="M",
+                   help="closed loops: grid step [m] (default 0.02; 0.05 for a generic closed loop, whose solver is "
+                        "slower)")
     serial_args(p)
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")

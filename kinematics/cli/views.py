@@ -44,7 +44,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 actuators = np.array(args.q, dtype=float)
             viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
-                          singularities=args.singularities, limits=args.limits, step=args.step, scene=scene)
+                          singularities=args.singularities, limits=args.limits,
+                          step=0.02 if args.step is None else args.step, scene=scene)
         elif kind in ("scara", "serial"):
             if args.position is not None:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
@@ -64,7 +65,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
                                 scene=scene)
         else:
-            viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float), scene=scene)
+            viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float),
+                                 workspace=args.workspace, singularities=args.singularities, limits=args.limits,
+                                 step=0.05 if args.step is None else args.step, scene=scene)
         if mesh is not None:
             scene.add_mesh(mesh.vertices, mesh.faces, label=f"mesh {args.mesh}")
             scene.fit_camera()
@@ -122,8 +125,8 @@ def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[st
     params = mech.params
     if args.workspace or args.singularities:
         lo, hi = mech.bounding_box(args.limits)
-        check_points("--step", grid_points(lo, hi, args.step), limit=MAX_VIEW_POINTS,
-                     hint=f"{args.step:g} m is too fine a step for a view")
+        check_points("--step", grid_points(lo, hi, 0.02 if args.step is None else args.step), limit=MAX_VIEW_POINTS,
+                     hint=f"{args.step or 0.02:g} m is too fine a step for a view")
     if args.q is not None and args.position is None and len(args.q) == 3:
         res = fam.fk(params, np.array(args.q, dtype=float))
         if res.exists:

@@ -679,17 +679,85 @@ def _serial_workspace_points(scene: Scene, w: Any, singularities: bool) -> None:
                          label=f"possibly singular boxes' images ({k:,} boxes, sample of {len(idx):,})")
 
 
-def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, scene: Scene | None = None) -> Scene:
+def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspace: bool = False,
+                     singularities: bool = False, limits: str = "all", step: float = 0.05,
+                     scene: Scene | None = None) -> Scene:
     """Any URDF + loop sidecar through the generic Pinocchio closed-loop solver: at the sidecar's
-    reference configuration, or assembled from actuator values [rad or m]; camera framed on it."""
+    reference configuration, or assembled from actuator values [rad or m]; optionally its workspace
+    (grid step `step` [m], through the mechanism's margin: `kinematics.mechanisms.closed_loop`'s
+    batched solver, every branch) coloured by conditioning, and its singular points where the
+    mechanism gives singular fields; camera framed on all of it. A planar task space is drawn in
+    the plane of the end effector's reference position."""
     from kinematics.generic.closedloop import ClosedLoop
+    from kinematics.mechanisms import mechanism_of
 
     scene = scene or Scene()
     loop = ClosedLoop(robot)
     q = loop.reference if actuators is None else loop.solve(np.asarray(actuators, dtype=float)).q
     scene.add_robot(robot, q)
+    if workspace or singularities:
+        import pinocchio as pin
+
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, loop.reference)
+        at = np.asarray(data.oMf[robot.frame_id()].translation, dtype=float)
+        mech = mechanism_of(robot)
+        _mechanism_overlays(scene, mech, at, workspace=workspace, singularities=singularities, limits=limits, step=step)
+        if mech.task_dim == 2:  # look down on a planar workspace
+            scene.fit_camera(direction=(0.4, -0.6, 1.0))
+            return scene
     scene.fit_camera()
     return scene
+
+
+def _embed(mech: Any, points: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Task points (N, d) as world points (N, 3): the axes the task lacks stay at `at` [m]."""
+    axes = ["xyz".index(a) for a in mech.task_axes]
+    out = np.tile(np.asarray(at, dtype=float), (len(points), 1))
+    out[:, axes] = points
+    return out
+
+
+def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: bool, singularities: bool,
+                        limits: str, step: float) -> None:
+    """The workspace (grid points inside some branch, coloured by min(iota_I, iota_II) of the
+    best-conditioned branch) and the singular points by type, of any mechanism with a margin
+    (and velocity; singular fields for the loci)."""
+    from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
+    from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
+
+    if workspace:
+        mech.require("margin", "a workspace view")
+        lo, hi = mech.bounding_box(limits)
+        check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS,
+                     hint=f"{step:g} m is too fine a step for a view")
+        axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
+        pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+        margin = mech.margin(None, limits)(pts)[:, :-1]
+        pts = pts[(margin >= 0).any(axis=1)]
+        cond = np.full(len(pts), -1.0)
+        if "velocity" in mech.capabilities and len(pts):
+            for b in mech.branches:
+                v, ok = mech.branch_velocity(pts, b, limits)
+                cond = np.where(ok, np.fmax(cond, np.minimum(v.iota_I, v.iota_II)), cond)
+        # small, half-transparent points: the robot stays visible inside its workspace
+        scene.add_points(_embed(mech, pts, at), cond, "overlays/workspace", size=step * 0.35,
+                         cmap=CONDITIONING_CMAP, vrange=(0.0, 1.0), opacity=0.5,
+                         label=f"workspace ({LIMITS_TEXT.get(limits, limits)}), coloured by min(\u03b9_I, \u03b9_II), "
+                               "0 = singular")
+    if singularities:
+        from kinematics.analyses.singularities import singular_loci
+
+        mech.require("singular_fields", "a view of singular loci")
+        loc = singular_loci(mech, step=step, limits=limits, progress=False).locus
+        for k, (rgb, label) in _singular_colours().items():
+            sel = loc.inside & (loc.kind == k)
+            if sel.any():
+                # type I outlines the whole boundary: small and faint, so II / III and the robot show
+                scene.add_points(_embed(mech, loc.points[sel][:, :mech.task_dim], at), name=f"overlays/singular_{k}",
+                                 colour=rgb, size=0.006 if k == 1 else 0.009, opacity=0.35 if k == 1 else 1.0,
+                                 label=f"{label} singular points {'on' if k == 1 else 'in'} the workspace: "
+                                       f"{int(sel.sum())}")
 
 
 def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
@@ -705,7 +773,6 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
     from kinematics.generic.closedloop import ClosedLoop
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
     from kinematics.mechanisms import SINGULARITY_TYPES, mechanism_of
-    from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
 
     scene = scene or Scene()
     mech = mechanism_of(robot)
@@ -742,33 +809,9 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
         e = ellipsoid_of(vel.J[0])
         scene.add_ellipsoid(p, 0.1 * e.radii / e.radii.max(), e.directions, "overlays/ellipsoid",
                             label="velocity ellipsoid of the platform (largest radius drawn 0.1 m)")
-    if workspace:
-        lo, hi = mech.bounding_box(limits)
-        axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]
-        pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        margin = mech.margin(None, limits)(pts)[:, :-1]
-        keep = (margin >= 0).any(axis=1)
-        pts = pts[keep]
-        cond = np.full(len(pts), -1.0)
-        for b in branches:
-            v, ok = mech.branch_velocity(pts, b, limits)
-            cond = np.where(ok, np.fmax(cond, np.minimum(v.iota_I, v.iota_II)), cond)
-        # small, half-transparent points: the robot stays visible inside its workspace
-        scene.add_points(pts, cond, "overlays/workspace", size=step * 0.35, cmap=CONDITIONING_CMAP,
-                         vrange=(0.0, 1.0), opacity=0.5,
-                         label=f"workspace ({LIMITS_TEXT[limits]}), coloured by min(\u03b9_I, \u03b9_II), 0 = singular")
-    if singularities:
-        from kinematics.analyses.singularities import singular_loci
-
-        loc = singular_loci(mech, step=step, limits=limits, progress=False).locus
-        for k, (rgb, label) in _singular_colours().items():
-            sel = loc.inside & (loc.kind == k)
-            if sel.any():
-                # type I outlines the whole boundary: small and faint, so II / III and the robot show
-                scene.add_points(loc.points[sel], name=f"overlays/singular_{k}", colour=rgb,
-                                 size=0.006 if k == 1 else 0.009, opacity=0.35 if k == 1 else 1.0,
-                                 label=f"{label} singular points {'on' if k == 1 else 'in'} the workspace: "
-                                       f"{int(sel.sum())}")
+    if workspace or singularities:
+        _mechanism_overlays(scene, mech, p, workspace=workspace, singularities=singularities, limits=limits,
+                            step=step)
     # a low camera: the base disk hangs above the mechanism and hides it from the usual 30 deg
     scene.fit_camera(direction=(1.0, -1.4, 0.2))
     return scene
