@@ -76,3 +76,26 @@ def test_every_limit_box_is_much_smaller_than_the_reach_balls():
     top_all = mech.bounding_box("all")[1][2]
     top_act = mech.bounding_box("actuators")[1][2]
     assert top_act - top_all >= params.lb * np.cos(params.platform_socket + params.cone) - 1e-12
+
+
+@pytest.mark.parametrize("name", ["delta", "p2us"])
+def test_kernels_report_their_compile_state(name):
+    """After a run the kernels are in Numba's cache, under the names `kinematics.jit` looks for
+    (a stale name made the "compiling kernels" notice print on every run)."""
+    from kinematics import jit
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.model.robot import load_robot
+
+    mech = mechanism_of(load_robot(name))
+    kernels = mech.kernels()
+    assert kernels
+    lo, hi = mech.bounding_box()
+    mech.margin()(np.array([(lo + hi) / 2]))
+    if name == "p2us":  # its exact-columns kernel runs in the volume engine
+        from kinematics.analyses.columns import column_volume
+
+        column_volume(mech.margin(["---"]), lo, hi, step=0.05, rtol=1e-2)
+    if any(k.stats.cache_path is None for k in kernels):
+        pytest.skip("Numba has no writable cache directory here")
+    assert jit.cached(kernels)
+    assert isinstance(jit.compiled(kernels), bool)

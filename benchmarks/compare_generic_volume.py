@@ -1,0 +1,87 @@
+"""The 3-[P2(US)]'s workspace volume through the generic closed-loop path (the batched solver's
+margin, `kinematics.generic.loop_batch`, no closed forms) against the closed-form engine, with the
+same column engine and settings, per working mode and for the union, in one run.
+
+The generic branches are matched to the closed-form modes by their actuator values at two
+reachable points (a fixed bijection, as tests/test_loop_batch.py checks). Sampled columns are used
+for both (the closed form's exact columns are switched off), so the two integrate the same kind
+of estimate; the difference must lie within the sum of the two error estimates.
+
+Run: python benchmarks/compare_generic_volume.py [--step 0.02] [--rtol 1e-2] [--limits all] [--json]
+(hours at the generic path's ~10^3 points/s: the volume asks for millions of margin evaluations)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+from kinematics.analyses.columns import column_volume
+from kinematics.generic.loop_batch import LoopBatch
+from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.mechanism import P2USMargin
+from kinematics.mechanisms.p2us.scan import bounding_box
+from kinematics.mechanisms.p2us.urdf import read_params
+from kinematics.model.robot import load_robot
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--step", type=float, default=0.02)
+    ap.add_argument("--rtol", type=float, default=1e-2)
+    ap.add_argument("--limits", default="all", choices=["all", "actuators"])
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args()
+    robot = load_robot("p2us")
+    P = read_params(robot.urdf_path)
+    lo, hi = bounding_box(P)
+    load0 = os.getloadavg()
+
+    t = time.perf_counter()
+    closed = P2USMargin(P, list(range(len(par.MODES))), a.limits).sampled()
+    ref = column_volume(closed, lo, hi, step=a.step, rtol=a.rtol)
+    t_closed = time.perf_counter() - t
+
+    t = time.perf_counter()
+    lb = LoopBatch.from_robot(robot, seeds=256)
+    pts = np.array([[0.0, 0.0, -0.45], [0.05, 0.03, -0.5]])
+    ik = par.ik(P, pts, limits=False)
+    gq = lb.ik(pts, warm=False).x[..., lb.actuated]  # (2, B, 3)
+    d = np.abs(gq[:, :, None, :] - ik.q[:, None, :, :]).max(axis=-1)  # (2, B, 8)
+    mapping = np.argmin(d, axis=2)
+    if not np.array_equal(mapping[0], mapping[1]) or len(set(mapping[0])) != len(mapping[0]):
+        raise SystemExit(f"generic branches do not map one-to-one onto the closed-form modes: {mapping}")
+    lb.forget()
+    gen = column_volume(lambda p: lb.margin(p, a.limits), lo, hi, step=a.step, rtol=a.rtol)
+    t_generic = time.perf_counter() - t
+
+    rows = []
+    for b, m in enumerate(mapping[0]):
+        rows.append({"mode": par.MODES[m], "closed_form_m3": float(ref.estimate[m]), "closed_error": float(ref.error[m]),
+                     "generic_m3": float(gen.estimate[b]), "generic_error": float(gen.error[b])})
+    rows.append({"mode": "union", "closed_form_m3": float(ref.estimate[-1]), "closed_error": float(ref.error[-1]),
+                 "generic_m3": float(gen.estimate[-1]), "generic_error": float(gen.error[-1])})
+    for r in rows:
+        r["difference"] = r["generic_m3"] - r["closed_form_m3"]
+        r["within_estimates"] = abs(r["difference"]) <= r["closed_error"] + r["generic_error"]
+    out = {"step_m": a.step, "rtol": a.rtol, "limits": a.limits, "rows": rows,
+           "closed_form": {"seconds": t_closed, "points": ref.points_evaluated, "converged": ref.converged},
+           "generic": {"seconds": t_generic, "points": gen.points_evaluated, "converged": gen.converged,
+                       "points_per_s": gen.points_evaluated / t_generic},
+           "cores": os.cpu_count(), "load_average_start": list(load0), "load_average_end": list(os.getloadavg())}
+    if a.json:
+        print(json.dumps(out, indent=2))
+        return
+    print(f"{'mode':6s} {'closed form [m^3]':>20s} {'generic [m^3]':>20s} {'difference':>12s}  within")
+    for r in rows:
+        print(f"{r['mode']:6s} {r['closed_form_m3']:.6f} ± {r['closed_error']:.1e} {r['generic_m3']:.6f} ± "
+              f"{r['generic_error']:.1e} {r['difference']:+.2e}  {r['within_estimates']}")
+    print(json.dumps({k: v for k, v in out.items() if k != "rows"}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
