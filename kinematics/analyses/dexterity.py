@@ -162,7 +162,7 @@ def _values(mech: Mechanism, points: np.ndarray, branches: Sequence[str], limits
     if "singular_fields" in mech.capabilities:
         det_all = mech.singular_fields(points, limits).det
         cols = [mech.branches.index(b) for b in branches]
-        sign = np.sign(det_all[:, cols]).astype(np.int8)
+        sign = np.sign(np.nan_to_num(det_all[:, cols])).astype(np.int8)  # NaN: not evaluable there, unknown
     return inside, inv, w, sign
 
 

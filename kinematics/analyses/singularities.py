@@ -126,14 +126,15 @@ def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, p
     in_b = b["margin"] >= 0
     for limb in range(a["disc"].shape[1]):
         da, db = a["disc"][:, limb], b["disc"][:, limb]
-        hit = np.flatnonzero((da >= 0) != (db >= 0))
+        # a NaN end (a field the mechanism cannot evaluate there) is no evidence of a crossing
+        hit = np.flatnonzero(((da >= 0) != (db >= 0)) & np.isfinite(da) & np.isfinite(db))
         if len(hit):
             t = da[hit] / (da[hit] - db[hit])
             inner = np.where((da[hit] >= 0)[:, None], in_a[hit], in_b[hit])[:, mode_cols].any(axis=1)
             out.append((1, limb, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
     for m in mode_cols:
         da, db = a["det"][:, m], b["det"][:, m]
-        hit = np.flatnonzero(((da > 0) != (db > 0)) & reach_a & reach_b)
+        hit = np.flatnonzero(((da > 0) != (db > 0)) & reach_a & reach_b & np.isfinite(da) & np.isfinite(db))
         if len(hit):
             t = da[hit] / (da[hit] - db[hit])
             t = np.where(np.isfinite(t), t, 0.5)
@@ -147,6 +148,11 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     [m] on its bounding box (see the module docstring; for the 3-[P2(US)] the fields come from
     the fused scan kernel)."""
     mech.require("singular_fields", "a singular-locus scan")
+    if mech.task_dim != 3:
+        from kinematics.errors import UnsupportedRobotError
+
+        raise UnsupportedRobotError(mech.name, f"singular loci are scanned over a 3D grid; this task space is "
+                                               f"{mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
     mech.check_limits(limits)
     check_step(step)
     chosen = mech.check_branches(branches)

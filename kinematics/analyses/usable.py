@@ -321,6 +321,8 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
     from kinematics.errors import UnsupportedRobotError
 
     _check_shape(shape)
+    for need in ("margin", "ik", "velocity"):
+        mech.require(need, "a usable workspace")
     if mech.task_dim != 3:
         raise UnsupportedRobotError(mech.name, "usable shapes (cube, cylinder, sphere) need a spatial task "
                                     f"space; this mechanism's is {mech.task_dim}-dimensional")
@@ -331,7 +333,10 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
 
 def default_branch(mech: Mechanism) -> str:
     """ "---" (the usual working mode of the 3-[P2(US)] and the Delta) where it exists, else the first
-    branch."""
+    branch; "union" for a mechanism without branches (which then lacks the margin the usable
+    workspace needs: `usable` says so)."""
+    if not mech.branches:
+        return "union"
     return "---" if "---" in mech.branches else mech.branches[0]
 
 

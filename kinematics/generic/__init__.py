@@ -1,6 +1,6 @@
 """Kinematics of any Pinocchio model: serial frame poses and Jacobians, compiled batched kinematics, the closed-loop solver, manipulability ellipsoids.
 
-Modules: `batched`, `closedloop`, `loop_batch`, `manipulability`, `serial`, `singularity`. Public names are re-exported
+Modules: `batched`, `closedloop`, `loop_batch`, `loop_singular`, `manipulability`, `serial`, `singularity`. Public names are re-exported
 here and imported on first use, so importing the package stays light.
 """
 
@@ -41,6 +41,7 @@ if TYPE_CHECKING:
         Singularities,
         loop_batch,
     )
+    from kinematics.generic.loop_singular import LoopFields, loop_fields
     from kinematics.generic.manipulability import (
         SINGULAR_RTOL,
         Ellipses,
@@ -69,6 +70,8 @@ _LAZY = {
     "BatchedKinematics": "batched",
     "BatchedPoses": "batched",
     "Block": "loop_batch",
+    "LoopFields": "loop_singular",
+    "loop_fields": "loop_singular",
     "BranchSolutions": "loop_batch",
     "CACHE_POINTS": "loop_batch",
     "ClosedLoop": "closedloop",
@@ -133,6 +136,7 @@ __all__ = [
     "Ellipses",
     "Ellipsoid",
     "LoopBatch",
+    "LoopFields",
     "LoopSolution",
     "Pose",
     "Singularities",
@@ -147,6 +151,7 @@ __all__ = [
     "forward_kinematics",
     "frame_jacobian",
     "loop_batch",
+    "loop_fields",
     "plane",
     "task_jacobian",
     "task_rows",

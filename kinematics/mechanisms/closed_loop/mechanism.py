@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, Velocity
+from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, SingularFields, Velocity
 from kinematics.model.robot import Robot
 
 _AXES = "xyz"
@@ -117,6 +117,14 @@ class GenericClosedLoop(Mechanism):
         forward, inverse = self.batch.jacobians(p, x)
         s = self.batch.singularities(p, x)
         return Velocity(forward[:, 0], inverse[:, 0], s.iota_I[:, 0], s.iota_II[:, 0])
+
+    def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
+        """Type I per labelling block and type II per branch, signed (`kinematics.generic.loop_singular`)."""
+        from kinematics.generic.loop_singular import loop_fields
+
+        self.check_limits(limits)
+        f = loop_fields(self.batch, points, limits)
+        return SingularFields(f.margin, f.limb, f.det)
 
     def fk(self, q: np.ndarray) -> Assemblies:
         from kinematics.errors import KinematicsError

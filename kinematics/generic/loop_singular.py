@@ -1,0 +1,130 @@
+"""Signed singularity fields of any closed loop from the batched solver, for singular-locus scans
+(`kinematics.analyses.singularities.singular_loci`): a sign change between grid neighbours marks
+a type I locus of one labelling block (limb) or a type II locus of one branch.
+
+**Type I, per labelling block k** (the square block of the loop equations that holds actuator k's
+working-mode sign, `LoopBatch.label_blocks`). With the end effector at the target:
+
+* where some branch assembles: s_k = the largest, over the branches found, of
+  |det(B_k D_k^-1)| (B_k the block's Jacobian at that branch's solution, D_k its column norms: a
+  scale-free number in [0, 1] that vanishes where the block's two roots merge, its type I locus);
+* elsewhere, the blocks are solved one at a time in their triangular order (each block's unknowns
+  from its own equations, the earlier blocks' held, by the same Levenberg-Marquardt kernel, from
+  the branch search's last start): s_k = |det| as above where block k closes (its residual within
+  the solver's TOL), else minus its least-squares residual [m] (< 0: the limb cannot reach).
+  Where an earlier block that block k depends on does not close, s_k is NaN (undefined: in a URDF
+  tree the platform hangs on one limb, and the other limbs' closures are measured from it); a
+  scan skips edges with a NaN end, so loci of the other limbs are found only where that limb reaches.
+
+A representation singularity of a universal or spherical joint (its middle angle at +-90 deg)
+also zeroes det(B_k) (by a factor cos b), but |det| does not change sign there, so no locus is
+reported: only a block with no roots at all makes s_k negative.
+
+**Type II, per branch b**: det of J^-1 D^-1 (J^-1 the inverse Jacobian, actuator rates per task
+velocity, `LoopBatch.jacobians`; D its row norms): vanishes where a task velocity needs no actuator
+rate (locked actuators do not hold the end effector) and changes sign there; NaN where the branch
+is absent. It also changes sign through infinity at type I, but there the branch ends, so a scan
+never sees both ends of that edge in the branch. Mechanisms whose actuator count differs from the
+task dimension have no square J^-1: the field is NaN (no type II locus is reported).
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["LoopFields", "loop_fields"]
+
+
+class LoopFields(NamedTuple):
+    """Per task point (see the module docstring).
+
+    Attributes:
+        margin: (N, B) each branch's joint-limit margin [m] (minus its residual where absent).
+        limb: (N, L) type I field per labelling block (>= 0 where the block closes; NaN undefined).
+        det: (N, B) type II field per branch, in [-1, 1] (NaN where the branch is absent).
+    """
+
+    margin: np.ndarray
+    limb: np.ndarray
+    det: np.ndarray
+
+
+def _normalised_det(M: np.ndarray, axis: int) -> np.ndarray:
+    """det of M with its columns (axis -2) or rows (axis -1) scaled to unit norm."""
+    norms = np.linalg.norm(M, axis=axis, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.det(M / np.where(norms > 0, norms, 1.0))
+
+
+def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFields:
+    """The signed fields of `batch` (a `kinematics.generic.loop_batch.LoopBatch`) at task points
+    (N, d) [m], joint limits `limits` for the margins."""
+    from kinematics.generic.loop_batch import TOL
+
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    sol = batch.ik(p)
+    N, B = sol.found.shape
+    x = np.nan_to_num(sol.x)
+    margin = np.where(sol.found, batch.limit_margin(x.reshape(-1, batch.n), limits).reshape(N, B), sol.margin)
+    blocks = batch.label_blocks
+    L = len(blocks)
+    limb = np.full((N, L), np.nan)
+    # inside: the best |det| of each labelling block over the branches found
+    k_i, b_i = np.nonzero(sol.found)
+    if len(k_i):
+        _, J, _ = batch.evaluate(p[k_i], sol.x[k_i, b_i])
+        for k, blk in enumerate(blocks):
+            s = np.abs(_normalised_det(J[:, list(blk.rows)][:, :, list(blk.cols)], axis=-2))
+            best = np.full(N, -np.inf)
+            np.maximum.at(best, k_i, s)
+            limb[:, k] = np.where(np.isfinite(best), best, limb[:, k])
+    # outside every branch: block by block from where the search ended
+    out = np.flatnonzero(~sol.found.any(axis=1))
+    if len(out):
+        ends = sol.end[out]
+        start = ends[np.arange(len(out)), np.argmin(np.where(np.isfinite(ends[..., 0]), sol.residual[out], np.inf),
+                                                            axis=1)]
+        xs = np.where(np.isfinite(start), start, batch.atlas[0])
+        closed: dict[int, np.ndarray] = {}  # block index -> (R,) closes
+        m = _rows(batch)
+        label_index = {blk: k for k, blk in enumerate(blocks)}
+        for j, blk in enumerate(batch.blocks):
+            if not blk.cols:
+                continue
+            rows = np.zeros(m, dtype=bool)
+            rows[list(blk.rows)] = True
+            free = np.zeros(batch.n, dtype=bool)
+            free[list(blk.cols)] = True
+            y, res, _ = batch.newton(p[out], xs, iters=30, free=free, rows=rows)
+            xs = batch.canonical(y)
+            ok = res <= TOL
+            upstream = np.ones(len(out), dtype=bool)
+            for i in _depends_on(batch, j):
+                upstream &= closed[i]
+            closed[j] = ok & upstream
+            lk = label_index.get(blk)
+            if lk is None:
+                continue
+            _, J, _ = batch.evaluate(p[out], xs)
+            s = np.abs(_normalised_det(J[:, list(blk.rows)][:, :, list(blk.cols)], axis=-2))
+            limb[out, lk] = np.where(upstream, np.where(ok, s, -res), np.nan)
+    det = np.full((N, B), np.nan)
+    if batch.actuated.size == batch.task_dim and len(k_i):
+        _, inverse = batch.jacobians(p[k_i], sol.x[k_i, b_i][:, None, :])
+        det[k_i, b_i] = _normalised_det(inverse[:, 0], axis=-1)
+    return LoopFields(margin, limb, det)
+
+
+def _rows(batch: Any) -> int:
+    """Number of residual rows of `batch`."""
+    return int(batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])[0].shape[1])
+
+
+def _depends_on(batch: Any, j: int) -> list[int]:
+    """Earlier blocks whose unknowns enter block j's equations (structurally, at the atlas)."""
+    _, J, _ = batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])
+    rows = list(batch.blocks[j].rows)
+    used = np.flatnonzero(np.any(np.abs(J[0, rows]) > 0.0, axis=0))
+    return [i for i in range(j) if batch.blocks[i].cols and set(batch.blocks[i].cols) & set(used.tolist())]
