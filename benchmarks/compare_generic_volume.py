@@ -8,7 +8,7 @@ for both (the closed form's exact columns are switched off), so the two integrat
 of estimate; the difference must lie within the sum of the two error estimates.
 
 Run: python benchmarks/compare_generic_volume.py [--step 0.02] [--rtol 1e-2] [--limits all] [--json]
-(hours at the generic path's ~10^3 points/s: the volume asks for millions of margin evaluations)
+(tens of minutes at the generic path's ~10^3 points/s: the volume asks for millions of margin evaluations)
 """
 
 from __future__ import annotations

@@ -81,3 +81,24 @@ def test_singular_loci_by_type_match_the_closed_forms(both):
     sel_g = g.locus.kind >= 2
     d, _ = cKDTree(c.locus.points[sel_c]).query(g.locus.points[sel_g])
     assert np.all(d <= kw["step"])
+
+
+def test_cli_singularities_of_a_generic_spatial_loop(capsys, tmp_path):
+    """`kinematics singularities MODEL.urdf` for a closed loop without closed forms: the 3-[P2(US)]
+    written by the generator with its sidecar's `mechanism:` line removed (so nothing dispatches to
+    the closed forms). With the strokes only, type III loci cross its workspace (as the closed
+    forms find on any grid: the passive-joint limits are what keep them out)."""
+    from kinematics.cli.app import main
+
+    from .test_cli import run_json
+
+    urdf = tmp_path / "p2g.urdf"
+    assert main(["urdf", "p2us", "-o", str(urdf)]) == 0
+    capsys.readouterr()
+    sidecar = tmp_path / "p2g.loops.yaml"
+    sidecar.write_text("".join(line for line in sidecar.read_text().splitlines(keepends=True)
+                               if not line.startswith("mechanism:")))
+    code, d, _ = run_json(capsys, "singularities", str(urdf), "--step", "0.05", "--limits", "actuators")
+    assert code == 0
+    assert d["singularities"]["type_III"]["inside_workspace"] > 0
+    assert d["singularities"]["type_II"]["locus_points"] > 0

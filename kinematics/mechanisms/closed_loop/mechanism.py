@@ -12,8 +12,9 @@ margin jumps at the reach boundary instead of falling to 0 there (its sign stays
 
 Two honest limits, stated where they are used: the bounding box is sampled (the end effector's
 own chain within its joint limits, padded by 5 %), not proved; and the solver evaluates ~10^3
-task points per second on 2 cores, so a 3D workspace volume takes hours (planar ones minutes).
-Singular loci need signed fields the solver does not give: `singular_fields` is not provided.
+task points per second on 2 cores, so a 3D workspace volume takes tens of minutes (planar ones
+about a minute). Singular fields come from `kinematics.generic.loop_singular` (type I per
+labelling block, type II per branch; what they cannot see is stated there).
 Forward kinematics goes through the Pinocchio closed-loop solver (one assembly, reached from the
 reference configuration).
 """
