@@ -255,8 +255,8 @@ integer signature (N, T) that changes where the integrand may be non-smooth (a t
 
 
 def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float | np.ndarray, *, order: int = 4,
-                pieces: int = 8, max_evals: int = 10**8, max_depth: int = 50, group: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                pieces: int = 8, max_evals: int = 10**8, max_depth: int = 50, group: np.ndarray | None = None,
+                floor: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Integrals over [a_p, b_p] of f(p, .) for many problems p at once, adaptively.
 
     Every interval carries the Gauss-Legendre rule of `order` nodes on itself and on its two
@@ -269,7 +269,9 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     the sum is <= max(rtol |integral|, atol) for every target.
 
     With `group` (P,) (integers 0..G-1) the problems of a group share one tolerance, on the sum
-    of their integrals, and the results are per group.
+    of their integrals, and the results are per group. With `floor` > 0 every target's tolerance
+    is at least rtol x floor x |the last target's integral| (the union's, in a workspace
+    measurement): a target far smaller than the last is not chased to a relative tolerance of its own.
 
     Returns: integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without
     groups).
@@ -325,7 +327,12 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
         np.add.at(tot_e, gp, diff)
         np.add.at(tot_in, gp, r_in)
         tol = np.maximum(rtol * np.abs(tot_q), atol_pt)  # (P, T)
+        if floor > 0.0:
+            tol = np.maximum(tol, rtol * floor * np.abs(tot_q[:, -1:]))
         good = np.all(tot_e + tot_in <= tol, axis=1)
+        # the nodes' own (inner) errors alone exceed a target's tolerance: refining here cannot
+        # help (they do not shrink with the intervals), so such a problem stops, not converged
+        futile = np.any(tot_in > tol, axis=1)
         room = np.maximum(tol - tot_in, 0.0)  # what refinement can still win
         bad = (diff / np.where(room > 0, room, 1.0)[gp]).max(axis=1)
         idx = np.lexsort((bad, gp))
@@ -334,7 +341,7 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
         starts = np.searchsorted(seg_prob, np.arange(P))
         before = np.concatenate([np.zeros((1, T)), cum])[starts][seg_prob]
         cum = cum - before + done_e[seg_prob]
-        ok = np.all(cum <= 0.5 * room[seg_prob], axis=1) | good[seg_prob]
+        ok = np.all(cum <= 0.5 * room[seg_prob], axis=1) | good[seg_prob] | futile[seg_prob]
         accept, refine = idx[ok], idx[~ok]
         stuck = refine[depth[refine] >= max_depth]
         refine = refine[depth[refine] < max_depth]
@@ -367,7 +374,7 @@ def _smoothstep(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]],
                  a: np.ndarray, b: np.ndarray, n0: int, rtol: float, atol: float | np.ndarray, *,
                  order: int = 4, xtol: float = 1e-10, brk_tol: float | np.ndarray = 0.0,
-                 max_evals: int = 10**8) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                 max_evals: int = 10**8, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Integrals over [a_p, b_p] of piecewise smooth f(p, .): breaks located, pieces by Gauss rules.
 
     f returns values (N, T), their own errors (N, T) and a signature (N,) int64 that is constant
@@ -443,7 +450,7 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
     # relative tolerance of its own)
     out_q, out_e, ok, ev = adaptive_1d(g, np.zeros(len(u)), np.ones(len(u)), rtol,
                                        np.broadcast_to(np.asarray(atol, dtype=float), (P,)), order=order, pieces=1,
-                                       max_evals=max(1, max_evals - evals), group=sprob)
+                                       max_evals=max(1, max_evals - evals), group=sprob, floor=floor)
     evals += ev
     if len(bp):
         np.add.at(out_e, bp, (xb - xa)[:, None] * np.abs(va - vb))
@@ -463,6 +470,7 @@ def column_volume(
     check: bool = False,
     max_points: int = MAX_POINTS,
     progress: bool = False,
+    floor: float = 0.0,
 ) -> ColumnVolume:
     """Measure {x in [lo, hi] : margin(x)[:, t] >= 0} for every target t by column integration.
 
@@ -477,6 +485,8 @@ def column_volume(
         axis: the column axis (default: the box's shortest side).
         check: also run with half the step and compare (about 2x the cost).
         max_points: budget of margin evaluations; when it runs out, converged is False.
+        floor: every target's tolerance is at least rtol x floor x the last target's measure (for
+            a workspace: the union's), so a sliver of a branch is not measured to rtol of its own.
     """
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
@@ -497,14 +507,14 @@ def column_volume(
         raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
                                         "use a larger step")
     run = _run_exact if _exact_of(margin, d) is not None else _run_sampled
-    first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress)
+    first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check:
         return first
     if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
         second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
-                            min_nodes=2 * MIN_NODES)
+                            min_nodes=2 * MIN_NODES, floor=floor)
     else:
-        second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress)
+        second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress, floor=floor)
     diff = np.abs(first.estimate - second.estimate)
     agree = bool(np.all(diff <= first.error + second.error))
     return ColumnVolume(
@@ -524,7 +534,7 @@ def _exact_of(margin: Callable[[np.ndarray], np.ndarray], d: int) -> ExactColumn
 
 def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
                order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
-               min_nodes: int = MIN_NODES) -> ColumnVolume:
+               min_nodes: int = MIN_NODES, floor: float = 0.0) -> ColumnVolume:
     """Exact columns (no sampling): slices by `piecewise_1d`, the volume by `adaptive_1d`."""
     d = 3
     exact = _exact_of(margin, d)
@@ -573,8 +583,10 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
 
     def slice_area(_: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         P = len(x)
+        # the budget is shared by every slice: what is left of it
         a, ea, c, _ev = piecewise_1d(inner(x), np.full(P, lo[k_in]), np.full(P, hi[k_in]), n_nodes(k_in),
-                                     inner_rtol, atol_in, order=order, brk_tol=brk_in, max_evals=max_points)
+                                     inner_rtol, atol_in, order=order, brk_tol=brk_in,
+                                     max_evals=max(1, max_points - counter.columns), floor=floor)
         all_conv[0] &= bool(c.all())
         return a, ea, np.zeros(a.shape, np.int64)
 
@@ -582,7 +594,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
     # except at faces normal to x, and locating its breaks (where the slices' sequence of
     # signatures changes) measured 5-20x dearer than refining around them
     q, e, conv, _ = adaptive_1d(slice_area, lo[[k_out]], hi[[k_out]], rtol, 0.0, order=order,
-                                pieces=n_nodes(k_out) // 4, max_evals=max_points)
+                                pieces=n_nodes(k_out) // 4, max_evals=max_points, floor=floor)
     if bar is not None:
         bar.close()
     box = np.stack([counter.lo, counter.hi])
@@ -595,7 +607,8 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
 
 
 def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
-         order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool) -> ColumnVolume:
+         order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
+         floor: float = 0.0) -> ColumnVolume:
     d = lo.shape[0]
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     others = [k for k in range(d) if k != ax]
@@ -619,7 +632,7 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
     inner_rtol = 0.25 * rtol  # the slices' errors add up to <= rtol / 4 of the volume
     if d == 2:
         q, e, conv, _ = adaptive_1d(lambda p, x: columns(x[:, None]), lo[others[:1]], hi[others[:1]], rtol, 0.0,
-                                    order=order, pieces=n_pieces(others[0]), max_evals=budget)
+                                    order=order, pieces=n_pieces(others[0]), max_evals=budget, floor=floor)
     else:
         k_out, k_in = others
         all_conv = [True]
@@ -633,12 +646,12 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
                 return columns(np.stack([x[p], y], axis=1))
 
             a, ea, c, _evals = adaptive_1d(inner, np.full(P, lo[k_in]), np.full(P, hi[k_in]), inner_rtol, atol_in,
-                                      order=order, pieces=n_pieces(k_in), max_evals=budget)
+                                      order=order, pieces=n_pieces(k_in), max_evals=budget, floor=floor)
             all_conv[0] &= bool(c.all())
             return a, ea, (a > 0).astype(np.int64)
 
         q, e, conv, _ = adaptive_1d(slice_area, lo[[k_out]], hi[[k_out]], rtol, 0.0, order=order,
-                                    pieces=n_pieces(k_out), max_evals=budget)
+                                    pieces=n_pieces(k_out), max_evals=budget, floor=floor)
         conv = conv & all_conv[0]
     if bar is not None:
         bar.close()
