@@ -73,7 +73,8 @@ class ColumnVolume:
         error: (T,) estimated absolute error: the quadrature's sum of |parent - children| over
             the accepted cells plus the root brackets' widths integrated (not a bound: components
             thinner than `step` along a column are not in it; see the module docstring).
-        converged: every target's error estimate is <= rtol x its measure, the last target is
+        converged: every target's error estimate is <= its tolerance (rtol x its measure, or
+            x floor x the last target's), the last target is
             not empty (an empty result cannot be told from sampling past everything), and, with
             check, the two runs agree within their estimates.
         step: sampling step along the columns [m]; cell: starting quadrature interval [m].
