@@ -51,6 +51,11 @@ class LoopFields(NamedTuple):
     det: np.ndarray
 
 
+def _block_measure(J: np.ndarray, blk: Any) -> np.ndarray:
+    """|det(B_k D_k^-1)| of labelling block `blk` in Jacobians J (R, m, n): scale-free, in [0, 1]."""
+    return np.abs(_normalised_det(J[:, list(blk.rows)][:, :, list(blk.cols)], axis=-2))
+
+
 def _normalised_det(M: np.ndarray, axis: int) -> np.ndarray:
     """det of M with its columns (axis -2) or rows (axis -1) scaled to unit norm."""
     norms = np.linalg.norm(M, axis=axis, keepdims=True)
@@ -76,7 +81,7 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
     if len(k_i):
         _, J, _ = batch.evaluate(p[k_i], sol.x[k_i, b_i])
         for k, blk in enumerate(blocks):
-            s = np.abs(_normalised_det(J[:, list(blk.rows)][:, :, list(blk.cols)], axis=-2))
+            s = _block_measure(J, blk)
             best = np.full(N, -np.inf)
             np.maximum.at(best, k_i, s)
             limb[:, k] = np.where(np.isfinite(best), best, limb[:, k])
@@ -88,7 +93,9 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
                                                             axis=1)]
         xs = np.where(np.isfinite(start), start, batch.atlas[0])
         closed: dict[int, np.ndarray] = {}  # block index -> (R,) closes
-        m = _rows(batch)
+        # the Jacobian's pattern at the atlas: the row count and which blocks feed which
+        _, J0, _ = batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])
+        m = J0.shape[1]
         label_index = {blk: k for k, blk in enumerate(blocks)}
         for j, blk in enumerate(batch.blocks):
             if not blk.cols:
@@ -101,15 +108,14 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
             xs = batch.canonical(y)
             ok = res <= TOL
             upstream = np.ones(len(out), dtype=bool)
-            for i in _depends_on(batch, j):
+            for i in _depends_on(batch.blocks, j, J0[0]):
                 upstream &= closed[i]
             closed[j] = ok & upstream
             lk = label_index.get(blk)
             if lk is None:
                 continue
             _, J, _ = batch.evaluate(p[out], xs)
-            s = np.abs(_normalised_det(J[:, list(blk.rows)][:, :, list(blk.cols)], axis=-2))
-            limb[out, lk] = np.where(upstream, np.where(ok, s, -res), np.nan)
+            limb[out, lk] = np.where(upstream, np.where(ok, _block_measure(J, blk), -res), np.nan)
     det = np.full((N, B), np.nan)
     if batch.actuated.size == batch.task_dim and len(k_i):
         _, inverse = batch.jacobians(p[k_i], sol.x[k_i, b_i][:, None, :])
@@ -117,14 +123,8 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
     return LoopFields(margin, limb, det)
 
 
-def _rows(batch: Any) -> int:
-    """Number of residual rows of `batch`."""
-    return int(batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])[0].shape[1])
-
-
-def _depends_on(batch: Any, j: int) -> list[int]:
-    """Earlier blocks whose unknowns enter block j's equations (structurally, at the atlas)."""
-    _, J, _ = batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])
-    rows = list(batch.blocks[j].rows)
-    used = np.flatnonzero(np.any(np.abs(J[0, rows]) > 0.0, axis=0))
-    return [i for i in range(j) if batch.blocks[i].cols and set(batch.blocks[i].cols) & set(used.tolist())]
+def _depends_on(blocks: Any, j: int, J: np.ndarray) -> list[int]:
+    """Earlier blocks whose unknowns enter block j's equations (structurally: non-zero entries of
+    the Jacobian J (m, n) at one configuration)."""
+    used = set(np.flatnonzero(np.any(np.abs(J[list(blocks[j].rows)]) > 0.0, axis=0)).tolist())
+    return [i for i in range(j) if blocks[i].cols and set(blocks[i].cols) & used]
