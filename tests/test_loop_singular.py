@@ -1,5 +1,5 @@
 """Singular fields and loci of a closed loop through the generic path (no closed forms) against the
-3-[P2(US)]'s closed forms: the same type I limbs, the same type II / III loci."""
+closed forms of the 3-[P2(US)] and of the Delta: the same type I limbs, the same type II / III loci."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
 from kinematics.model.robot import load_robot
 
 
-@pytest.fixture(scope="module")
-def both():
-    robot = load_robot("p2us")
+@pytest.fixture(scope="module", params=["p2us", "delta"])
+def both(request):
+    robot = load_robot(request.param)
     closed = mechanism_of(robot)
     generic = GenericClosedLoop(robot)
     # the same grid for both scans: the closed form's proved box (the generic one is sampled)
@@ -29,13 +29,16 @@ def test_fields_agree_with_the_closed_forms(both):
     g = generic.singular_fields(p, "actuators")
     c = closed.singular_fields(p, "actuators")
     assert g.limb.shape == (600, 3) and g.det.shape == (600, 8)
-    # labelling block k holds slider k: its field has the sign of limb k's IK discriminant wherever
-    # it is defined, away from the locus itself (|disc| > 1e-6 m^2, far above both paths' rounding)
-    assert np.isfinite(g.limb[:, 0]).all()  # block 0 carries the platform: always evaluable
+    # every labelling block is evaluable everywhere: block 0 carries the platform, the others are
+    # solved against the platform placed at the target (translational: pinned)
+    assert np.isfinite(g.limb).all()
+    # labelling block k holds actuator k: its field has the sign of limb k's IK discriminant,
+    # away from the locus itself (|disc| > 1e-6 m^2, far above both paths' rounding)
     for k in range(3):
-        ok = np.isfinite(g.limb[:, k]) & (np.abs(c.limb[:, k]) > 1e-6)
-        assert ok.sum() > 300
+        ok = np.abs(c.limb[:, k]) > 1e-6
+        assert ok.sum() > 550
         assert np.array_equal(g.limb[ok, k] >= 0, c.limb[ok, k] >= 0), k
+        assert 50 < (c.limb[:, k] < 0).sum() < 550, "the sample must see limb k reach and not reach"
     both_in = (g.limb >= 0).all(axis=1) & (c.limb >= 0).all(axis=1)
     assert 50 < both_in.sum() < 550, "the sample must see points inside and outside the limbs' reach"
     # type II: each generic branch's det has the sign of one closed-form mode's, up to a constant
@@ -56,31 +59,39 @@ def test_fields_agree_with_the_closed_forms(both):
 
 
 def test_singular_loci_by_type_match_the_closed_forms(both):
-    """On one grid the sign changes happen on the same edges wherever both fields are defined, so
-    the counts are equal, not just close: type II and III everywhere, type I of limb 1 everywhere.
-    Limbs 2 and 3 are measured from the platform, which hangs on limb 1 in the URDF tree: the
-    generic path finds their loci only where limb 1 reaches (a subset)."""
+    """On one grid the sign changes happen on the same edges wherever both fields are defined.
+    Type I: the same count per limb, and on the workspace boundary, for every limb (limbs 2 and 3
+    close to a platform that hangs on limb 1 in the URDF tree; it is placed at the target, so
+    their loci are found where limb 1 does not reach too). Type II / III: every generic point is a
+    closed-form one; the 3-[P2(US)]'s counts are equal, the Delta's generic scan misses a few
+    edges (measured: 14 of 2,780 points at 0.1 m), at grid points where a branch's basin is missed
+    (the search limit of `kinematics.generic.loop_batch`) or beside a limb's reach boundary."""
+    from scipy.spatial import cKDTree
+
     closed, generic = both
-    kw = {"step": 0.05, "limits": "actuators"}
+    kw = {"step": 0.05 if closed.name.startswith("p2us") else 0.1, "limits": "actuators"}
     c = singular_loci(closed, **kw)
     g = singular_loci(generic, **kw)
     cs, gs = c.summary(), g.summary()
-    assert gs["type_II"] == cs["type_II"] and gs["type_III"] == cs["type_III"]
-    assert cs["type_III"]["inside_workspace"] > 0  # the strokes-only workspace meets type III loci
+    assert gs["type_I"] == cs["type_I"]
     for limb in range(3):
         cl = (c.locus.kind == 1) & (c.locus.which == limb)
         gl = (g.locus.kind == 1) & (g.locus.which == limb)
-        if limb == 0:
-            assert gl.sum() == cl.sum() and (gl & g.locus.inside).sum() == (cl & c.locus.inside).sum()
-        else:
-            assert 0 < gl.sum() <= cl.sum()
-    # the type II points lie on the same edges: each generic point within one step of a closed one
-    from scipy.spatial import cKDTree
-
+        assert gl.sum() == cl.sum() > 0 and (gl & g.locus.inside).sum() == (cl & c.locus.inside).sum() > 0
     sel_c = c.locus.kind >= 2
     sel_g = g.locus.kind >= 2
+    assert cs["type_II"]["locus_points"] > 0 and cs["type_III"]["locus_points"] > 0
+    if closed.name.startswith("p2us"):
+        assert gs["type_II"] == cs["type_II"] and gs["type_III"] == cs["type_III"]
+        assert cs["type_III"]["inside_workspace"] > 0  # the strokes-only workspace meets type III loci
+    else:
+        assert 0.99 * sel_c.sum() <= sel_g.sum() <= sel_c.sum()
+        assert gs["type_II"]["inside_workspace"] == cs["type_II"]["inside_workspace"]
+    # the same edges, the same points: both fields are the normalised determinant of the rows n_i
+    # (the inverse Jacobian's) from joint values solved to 1e-12 m, so the interpolated crossings
+    # agree to ~1e-12 m x step / |field difference|; 1e-6 m leaves room for nearly flat edges
     d, _ = cKDTree(c.locus.points[sel_c]).query(g.locus.points[sel_g])
-    assert np.all(d <= kw["step"])
+    assert np.all(d <= 1e-6), d.max()
 
 
 def test_cli_singularities_of_a_generic_spatial_loop(capsys, tmp_path):

@@ -167,11 +167,18 @@ class Singularities(NamedTuple):
 
 # -- compiled kernels ------------------------------------------------------------------------------
 @njit(cache=True)
-def _fk(x, parent, kind, axis, jR, jt, oR, op):  # pragma: no cover - compiled
-    """World rotation oR[j] and origin op[j] of every joint frame of the tree at values x."""
+def _fk(x, parent, kind, axis, jR, jt, oR, op, pin_j, pin_R, pin_p):  # pragma: no cover - compiled
+    """World rotation oR[j] and origin op[j] of every joint frame of the tree at values x; joint
+    pin_j (if >= 0) is placed at (pin_R, pin_p) instead, its descendants following it."""
     nj = parent.shape[0]
     for j in range(nj):
         p = parent[j]
+        if j == pin_j:
+            for a in range(3):
+                op[j, a] = pin_p[a]
+                for b in range(3):
+                    oR[j, a, b] = pin_R[a, b]
+            continue
         if p < 0:
             for a in range(3):
                 op[j, a] = jt[j, a]
@@ -236,10 +243,30 @@ def _orient(A, B, scale, out, k, H_A, H_B, jac):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _residual(x, target, g, oR, op, FR, Fp, r, J, jac):  # pragma: no cover - compiled
-    """Residual r (m,) and, if jac, its Jacobian J (m, n) at joint values x for one target."""
+def _pin_pose(g, target, pin_R, pin_p):  # pragma: no cover - compiled
+    """The placement (pin_R, pin_p) of the end effector's parent joint that puts the end effector
+    at `target` (every position axis) with orientation R0: R = R0 fR[ee]^T, p = target - R ft[ee].
+    Returns that joint's index."""
+    fparent, fR, ft, ee, taxes, R0 = g[5], g[6], g[7], g[12], g[13], g[14]
+    for a in range(3):
+        for b in range(3):
+            pin_R[a, b] = R0[a, 0] * fR[ee, b, 0] + R0[a, 1] * fR[ee, b, 1] + R0[a, 2] * fR[ee, b, 2]
+    for a in range(3):
+        pin_p[taxes[a]] = target[a]
+    for a in range(3):
+        pin_p[a] -= pin_R[a, 0] * ft[ee, 0] + pin_R[a, 1] * ft[ee, 1] + pin_R[a, 2] * ft[ee, 2]
+    return fparent[ee]
+
+
+@njit(cache=True)
+def _residual(x, target, g, oR, op, FR, Fp, r, J, jac, pin_j, pin_R, pin_p):  # pragma: no cover - compiled
+    """Residual r (m,) and, if jac, its Jacobian J (m, n) at joint values x for one target.
+
+    pin_j >= 0 (`_pin_pose`): the end effector's body is placed at the target with orientation R0
+    whatever x says, so its frames are constants (task and orientation rows vanish; the Jacobian
+    is then only meaningful for joints that are not its ancestors)."""
     (parent, kind, axis, jR, jt, fparent, fR, ft, anc, ctype, cf1, cf2, ee, taxes, R0, orient, scale) = g
-    _fk(x, parent, kind, axis, jR, jt, oR, op)
+    _fk(x, parent, kind, axis, jR, jt, oR, op, pin_j, pin_R, pin_p)
     _frames(fparent, fR, ft, oR, op, FR, Fp)
     n = parent.shape[0]
     k = 0
@@ -383,7 +410,7 @@ def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, parallel=True)
-def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out):  # pragma: no cover - compiled
+def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out, pinned):  # pragma: no cover - compiled
     """Levenberg-Marquardt from every row's start x0 towards its target (see the module docstring)."""
     kind = g[1]
     nrows = targets.shape[0]
@@ -404,12 +431,15 @@ def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_ou
         dx = np.empty(n)
         x = np.empty(n)
         xt = np.empty(n)
+        pin_R = np.empty((3, 3))
+        pin_p = np.empty(3)
         for row in range(blk * BLK, min(nrows, (blk + 1) * BLK)):
             t = targets[row]
+            pin_j = _pin_pose(g, t, pin_R, pin_p) if pinned else -1
             for j in range(n):
                 x[j] = x0[row, j]
             _wrap(x, kind, centre)
-            _residual(x, t, g, oR, op, FR, Fp, r, J, True)
+            _residual(x, t, g, oR, op, FR, Fp, r, J, True, pin_j, pin_R, pin_p)
             _weigh(roww, r, J, True)
             cost = 0.0
             for i in range(m):
@@ -458,7 +488,7 @@ def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_ou
                     for j in range(n):
                         xt[j] = x[j] + dx[j]
                     _wrap(xt, kind, centre)
-                    _residual(xt, t, g, oR, op, FR, Fp, rt, J, False)
+                    _residual(xt, t, g, oR, op, FR, Fp, rt, J, False, pin_j, pin_R, pin_p)
                     _weigh(roww, rt, J, False)
                     c2 = 0.0
                     for i in range(m):
@@ -476,7 +506,7 @@ def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_ou
                     x[j] = xt[j]
                 drop = cost - c2
                 cost = c2
-                _residual(x, t, g, oR, op, FR, Fp, r, J, True)
+                _residual(x, t, g, oR, op, FR, Fp, r, J, True, pin_j, pin_R, pin_p)
                 _weigh(roww, r, J, True)
                 # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
                 # convergence drops it by far more than this each step)
@@ -485,7 +515,7 @@ def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_ou
             for j in range(n):
                 x_out[row, j] = x[j]
             res_out[row] = _maxabs(r)
-            _residual(x, t, g, oR, op, FR, Fp, rt, J, False)
+            _residual(x, t, g, oR, op, FR, Fp, rt, J, False, pin_j, pin_R, pin_p)
             if _orient_trace(g, FR) < 1.0:  # a half-turn, not a root
                 res_out[row] = max(res_out[row], 1.0) if res_out[row] <= tol else res_out[row]
             it_out[row] = it
@@ -500,8 +530,10 @@ def _eval_kernel(targets, x, g, r_out, J_out, pos_out):  # pragma: no cover - co
     op = np.empty((n, 3))
     FR = np.empty((nf, 3, 3))
     Fp = np.empty((nf, 3))
+    pin_R = np.empty((3, 3))
+    pin_p = np.empty(3)
     for row in range(x.shape[0]):  # serial: cheap next to the solves, and compiles faster
-        _residual(x[row], targets[row], g, oR, op, FR, Fp, r_out[row], J_out[row], True)
+        _residual(x[row], targets[row], g, oR, op, FR, Fp, r_out[row], J_out[row], True, -1, pin_R, pin_p)
         for j in range(n):
             for a in range(3):
                 pos_out[row, j, a] = op[j, a]
@@ -711,12 +743,22 @@ class LoopBatch:
 
     # -- kernels ---------------------------------------------------------------------------------
     def newton(self, targets: np.ndarray, x0: np.ndarray, iters: int = 40, tol: float = TOL,
-               free: np.ndarray | None = None, rows: np.ndarray | None = None
+               free: np.ndarray | None = None, rows: np.ndarray | None = None, pinned: bool = False
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Levenberg-Marquardt rows: (R, d) targets, (R, n) starts -> (x, max |residual| [m], iterations).
 
         free: (n,) bool, the unknowns that may move (default: all); rows: (m,) bool, the equations
-        solved (default: all)."""
+        solved (default: all); pinned: place the end effector's body at each target (orientation
+        R_0) whatever its ancestors' values (translational mechanisms with a 3D task only): the
+        other closures are then solved against the platform where it must be, even where the
+        chain that carries it in the tree cannot put it there.
+
+        Raises:
+            UnsupportedRobotError: pinned on a mechanism that is not translational with a 3D task.
+        """
+        if pinned and not (self.translational and self.task_dim == 3):
+            raise UnsupportedRobotError(self.robot.name, "pinning the end effector needs a translational "
+                                                         "mechanism with a 3D position task")
         free = np.ones(self.n, dtype=np.bool_) if free is None else np.asarray(free, dtype=np.bool_)
         roww = np.ones(self._m) if rows is None else np.asarray(rows, dtype=float)
         t = np.ascontiguousarray(targets, dtype=float)
@@ -725,7 +767,8 @@ class LoopBatch:
         res = np.empty(len(t))
         its = np.empty(len(t), dtype=np.int64)
         if len(t):
-            _lm_kernel(t, x0, self._g, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its)
+            _lm_kernel(t, x0, self._g, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its,
+                       bool(pinned))
         return x, res, its
 
     def evaluate(self, targets: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -742,6 +785,38 @@ class LoopBatch:
         return r, J, pos
 
     # -- structure -------------------------------------------------------------------------------
+    @property
+    def can_pin(self) -> bool:
+        """`newton(pinned=True)` applies: translational, with every position axis as the task."""
+        return self.translational and self.task_dim == 3
+
+    @functools.cached_property
+    def task_rows(self) -> tuple[int, ...]:
+        """Residual rows of the task: the end effector's orientation (if held) and position."""
+        k = len(self.task_axes) + (3 if self.translational else 0)
+        return tuple(range(self._m - k, self._m))
+
+    def row_dependencies(self, pinned: bool = False) -> np.ndarray:
+        """(m, n) bool: the unknowns each residual row can depend on (its frames' ancestors).
+
+        With pinned (`newton(pinned=True)`) the end effector's body is placed by the target, so
+        frames on it or below it no longer depend on its ancestors, and the task rows on nothing."""
+        parent, fparent, anc, ctype, cf1, cf2, ee = (self._g[i] for i in (0, 5, 8, 9, 10, 11, 12))
+        anc = anc.copy()
+        if pinned:
+            above = np.zeros(self.n, dtype=bool)  # the end effector's joint and its ancestors
+            j = int(fparent[ee])
+            while j >= 0:
+                above[j] = True
+                j = int(parent[j])
+            below = anc[:, int(fparent[ee])]  # frames carried by the end effector's joint
+            anc[below] &= ~above
+        out = []
+        for k, t in enumerate(ctype):
+            out += [anc[cf1[k]] | anc[cf2[k]]] * (3 if t == 0 else 6)
+        out += [anc[ee]] * len(self.task_rows)
+        return np.array(out, dtype=bool).reshape(self._m, self.n)
+
     def _row_groups(self) -> list[tuple[int, ...]]:
         groups, k = [], 0
         for t in self._g[9]:

@@ -12,9 +12,12 @@ working-mode sign, `LoopBatch.label_blocks`). With the end effector at the targe
   from its own equations, the earlier blocks' held, by the same Levenberg-Marquardt kernel, from
   the branch search's last start): s_k = |det| as above where block k closes (its residual within
   the solver's TOL), else minus its least-squares residual [m] (< 0: the limb cannot reach).
-  Where an earlier block that block k depends on does not close, s_k is NaN (undefined: in a URDF
-  tree the platform hangs on one limb, and the other limbs' closures are measured from it); a
-  scan skips edges with a NaN end, so loci of the other limbs are found only where that limb reaches.
+  In a URDF tree the platform hangs on one limb and the other limbs' closures are measured from
+  it; for a translational mechanism with a 3D task the platform's pose is the target's, so those
+  closure blocks are solved with the platform placed there (`LoopBatch.newton(pinned=True)`),
+  whether or not the carrying limb reaches. Where an earlier block that block k still depends on
+  does not close (a mechanism whose end-effector orientation is not held, or a closure to an
+  intermediate link), s_k is NaN (undefined); a scan skips edges with a NaN end.
 
 A representation singularity of a universal or spherical joint (its middle angle at +-90 deg)
 also zeroes det(B_k) (by a factor cos b), but |det| does not change sign there, so no locus is
@@ -96,7 +99,10 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
         # the Jacobian's pattern at the atlas: the row count and which blocks feed which
         _, J0, _ = batch.evaluate(np.zeros((1, batch.task_dim)), batch.atlas[:1])
         m = J0.shape[1]
+        used = {pinned: (np.abs(J0[0]) > 0.0) & batch.row_dependencies(pinned) for pinned in (False, True)
+                if batch.can_pin or not pinned}
         label_index = {blk: k for k, blk in enumerate(blocks)}
+        task = set(batch.task_rows)
         for j, blk in enumerate(batch.blocks):
             if not blk.cols:
                 continue
@@ -104,11 +110,14 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
             rows[list(blk.rows)] = True
             free = np.zeros(batch.n, dtype=bool)
             free[list(blk.cols)] = True
-            y, res, _ = batch.newton(p[out], xs, iters=30, free=free, rows=rows)
+            # a closure block of a translational mechanism meets the platform where the target
+            # puts it, even where the chain that carries it in the tree cannot reach that far
+            pinned = batch.can_pin and not task & set(blk.rows)
+            y, res, _ = batch.newton(p[out], xs, iters=30, free=free, rows=rows, pinned=pinned)
             xs = batch.canonical(y)
             ok = res <= TOL
             upstream = np.ones(len(out), dtype=bool)
-            for i in _depends_on(batch.blocks, j, J0[0]):
+            for i in _depends_on(batch.blocks, j, used[pinned]):
                 upstream &= closed[i]
             closed[j] = ok & upstream
             lk = label_index.get(blk)
@@ -123,8 +132,8 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
     return LoopFields(margin, limb, det)
 
 
-def _depends_on(blocks: Any, j: int, J: np.ndarray) -> list[int]:
-    """Earlier blocks whose unknowns enter block j's equations (structurally: non-zero entries of
-    the Jacobian J (m, n) at one configuration)."""
-    used = set(np.flatnonzero(np.any(np.abs(J[list(blocks[j].rows)]) > 0.0, axis=0)).tolist())
+def _depends_on(blocks: Any, j: int, pattern: np.ndarray) -> list[int]:
+    """Earlier blocks whose unknowns enter block j's equations (pattern (m, n): the Jacobian's
+    non-zero entries at one configuration that the rows' frames can depend on)."""
+    used = set(np.flatnonzero(np.any(pattern[list(blocks[j].rows)], axis=0)).tolist())
     return [i for i in range(j) if blocks[i].cols and set(blocks[i].cols) & used]
