@@ -198,3 +198,26 @@ def test_sweep_on_a_real_cluster_equals_in_process(capsys, tmp_path, dask_cluste
     assert vols[2] > vols[0]  # a larger base gives a larger workspace here
     assert all(0 <= r["singularity_free_fraction"] <= 1 and 0 < r["conditioning_index"] <= 1 for r in rows)
     assert "seconds" not in expected
+
+
+def test_workspace_volume_names_the_branches_that_did_not_converge(capsys, monkeypatch):
+    """When the half-step check disagrees on some branches only (the Delta's slivers with `--limits
+    actuators` do, in ~90 s), the warning and the report name them and the JSON marks them. The
+    measurement is substituted by a real one of the same shape: a slab the 2 cm columns step over
+    (tests/test_volume_engine.py) as branch '+++', a ball as the union."""
+    import kinematics.analyses.workspace as wsmod
+    from kinematics.analyses.columns import column_volume
+
+    def margin(p):
+        ball = 0.5 - np.linalg.norm(p, axis=1)
+        return np.stack([np.minimum(0.005 - np.abs(p[:, 2] - 0.02), ball), ball], axis=1)
+
+    r = column_volume(margin, -np.full(3, 0.55), np.full(3, 0.55), step=0.02, rtol=1e-3, axis=2, check=True)
+    monkeypatch.setattr(wsmod, "measure_workspace",
+                        lambda mech, **kw: wsmod.Workspace("delta", False, ("+++", "union"), kw["limits"], r, 0.1))
+    code, d, err = run_json(capsys, "workspace-volume", "delta", "--modes=+++", "--limits", "actuators",
+                            "--step", "0.1")
+    assert code == 0 and not d["converged"] and d["modes"]["+++"]["converged"] is False
+    assert "not converged on 1 of 2 targets (+++: the run at half the step disagreed" in err
+    code, out, err = run(capsys, "workspace-volume", "delta", "--modes=+++", "--limits", "actuators", "--step", "0.1")
+    assert code == 0 and "NOT converged" in out and "not converged on 1 of 2 targets (+++:" in out

@@ -251,6 +251,35 @@ def test_coarse_starts_are_right_or_not_converged(p2us_params, step):
     assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
 
 
+def test_the_target_the_check_disagrees_on_is_named():
+    """Per-target verdicts. A slab 1 cm thick, z in [0.015, 0.025], normal to the columns: sampled
+    every 2 cm along them (nodes at z = 0.01 and 0.03) no sample lands in it, at 1 cm (z = 0.02)
+    every column finds it. The two runs disagree on the slab by its whole volume, far beyond their
+    estimates, and agree on the ball (the last target): only the slab is reported."""
+    from kinematics.analyses.workspace import Workspace
+
+    def margin(p: np.ndarray) -> np.ndarray:
+        ball = 0.5 - np.linalg.norm(p, axis=1)
+        slab = np.minimum(0.005 - np.abs(p[:, 2] - 0.02), ball)
+        return np.stack([slab, ball], axis=1)
+
+    lo, hi = -np.full(3, 0.55), np.full(3, 0.55)
+    r = column_volume(margin, lo, hi, step=0.02, rtol=1e-3, axis=2, check=True)
+    # the slab inside the ball: pi (0.25 - z^2) integrated over [0.015, 0.025]
+    slab = math.pi * (0.25 * 0.01 - (0.025**3 - 0.015**3) / 3)
+    assert abs(r.check_difference[0] - slab) <= 1e-3 * slab
+    assert not r.converged
+    assert r.target_converged.tolist() == [False, True] and r.check_agrees.tolist() == [False, True]
+    assert abs(r.estimate[1] - 4 / 3 * math.pi * 0.125) <= r.error[1]
+    ws = Workspace("slab", False, ("slab", "union"), "all", r, 0.0)
+    assert ws.unconverged() == {"slab": "the run at half the step disagreed beyond the error estimates"}
+    assert ws.as_dict()["modes"] == {"slab": {"volume": r.estimate[0], "error_estimate": r.error[0],
+                                              "converged": False}}
+    # without the check the first run cannot know: the slab is a confident 0 (the stated blind spot)
+    one = column_volume(margin, lo, hi, step=0.02, rtol=1e-3, axis=2)
+    assert one.estimate[0] == 0.0 and one.target_converged.all()
+
+
 def test_column_volume_validates():
     with pytest.raises(InvalidInputError, match="step"):
         column_volume(_spheres, -np.ones(3), np.ones(3), step=0.0)

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -81,6 +81,10 @@ class ColumnVolume:
         columns: columns measured; points_evaluated: margin evaluations.
         check_difference: (T,) |this run - the check run| (NaN without check).
         box: (2, d) [min, max] of the inside points found for the last target (NaN if none).
+        target_converged: (T,) per target: its error estimate is within its tolerance and, with
+            check, the two runs agree on it within their estimates (`converged` also needs the
+            budget to last and the last target to be non-empty).
+        check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
     """
 
     estimate: np.ndarray
@@ -93,6 +97,14 @@ class ColumnVolume:
     points_evaluated: int
     check_difference: np.ndarray
     box: np.ndarray
+    target_converged: np.ndarray
+    check_agrees: np.ndarray
+
+
+def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:
+    """(T,) each target's error within its tolerance: rtol x its measure, or x floor x the last's."""
+    tol = np.maximum(rtol * np.abs(estimate), rtol * floor * abs(float(estimate[-1])))
+    return np.asarray(error <= tol * (1.0 + 1e-12))
 
 
 class _Counter:
@@ -510,20 +522,24 @@ def column_volume(
     run = _run_exact if _exact_of(margin, d) is not None else _run_sampled
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check:
-        return first
+        return replace(first, target_converged=_within(first.estimate, first.error, rtol, floor))
     if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
         second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
                             min_nodes=2 * MIN_NODES, floor=floor)
     else:
         second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress, floor=floor)
     diff = np.abs(first.estimate - second.estimate)
-    agree = bool(np.all(diff <= first.error + second.error))
+    agrees = diff <= first.error + second.error
+    error = np.maximum(second.error, diff)
     return ColumnVolume(
-        estimate=second.estimate, error=np.maximum(second.error, diff),
-        converged=first.converged and second.converged and agree, rtol=rtol, step=second.step,
+        estimate=second.estimate, error=error,
+        converged=first.converged and second.converged and bool(agrees.all()), rtol=rtol, step=second.step,
         cell=second.cell, columns=first.columns + second.columns, points_evaluated=first.points_evaluated + second.points_evaluated,
         check_difference=diff,
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
+        target_converged=agrees & _within(first.estimate, first.error, rtol, floor)
+        & _within(second.estimate, error, rtol, floor),
+        check_agrees=agrees,
     )
 
 
@@ -604,6 +620,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
         converged=bool(conv[0]) and all_conv[0] and counter.columns <= max_points and bool(q[0, -1] > 0),
         rtol=rtol, step=step, cell=step, columns=counter.columns, points_evaluated=counter.points,
         check_difference=np.full(q.shape[1], np.nan), box=np.where(np.isfinite(box), box, np.nan),
+        target_converged=np.ones(q.shape[1], bool), check_agrees=np.ones(q.shape[1], bool),
     )
 
 
@@ -664,4 +681,5 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         step=step, cell=8 * step, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
+        target_converged=np.ones(q.shape[1], bool), check_agrees=np.ones(q.shape[1], bool),
     )

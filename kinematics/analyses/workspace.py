@@ -57,6 +57,16 @@ class Workspace:
     seconds: float
     parameters: dict[str, Any] = field(default_factory=dict)
 
+    def unconverged(self) -> dict[str, str]:
+        """Targets (branches, union) whose own estimate failed, each with the reason (empty for the
+        cell engine, which has no per-target verdict)."""
+        r = self.result
+        if not isinstance(r, ColumnVolume):
+            return {}
+        return {name: ("the run at half the step disagreed beyond the error estimates" if not r.check_agrees[k]
+                       else "error estimate above the tolerance")
+                for k, name in enumerate(self.targets) if not r.target_converged[k]}
+
     @property
     def total(self) -> float:
         """The union's measure [m^3 or m^2]."""
@@ -75,6 +85,9 @@ class Workspace:
         key = "area" if self.planar else "volume"
         per = {name: {key: float(r.estimate[k]), "error_estimate": float(r.error[k])}
                for k, name in enumerate(self.targets[:-1])}
+        if isinstance(r, ColumnVolume):
+            for k, name in enumerate(self.targets[:-1]):
+                per[name]["converged"] = bool(r.target_converged[k])
         box = r.box
         out: dict[str, Any] = {
             "robot": self.robot,

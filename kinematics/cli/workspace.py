@@ -224,8 +224,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if not ws.result.converged:
         import sys
 
-        print("warning: the volume did not converge (budget exhausted, or the run at half the step disagreed "
-              "beyond the error estimates); try a smaller --step", file=sys.stderr)
+        print(f"warning: {_not_converged(ws)}", file=sys.stderr)
 
     def human() -> str:
         return _report(ws, payload, paper, mech)
@@ -250,6 +249,21 @@ def _parameter_rows(parameters: dict[str, Any]) -> list[tuple[str, str]]:
     return rows
 
 
+def _not_converged(ws: Any) -> str:
+    """Why a measurement did not converge, naming the targets whose own estimate failed."""
+    failed = ws.unconverged()
+    if not failed:
+        return ("the volume did not converge (the evaluation budget ran out, or nothing was found inside); "
+                "try a larger --step or check the limits")
+    by_reason: dict[str, list[str]] = {}
+    for name, why in failed.items():
+        by_reason.setdefault(why, []).append(name)
+    detail = "; ".join(f"{', '.join(names)}: {why}" for why, names in by_reason.items())
+    advice = ("try a smaller --step" if ws.targets[-1] in failed
+              else "the union converged; try a smaller --step, or leave those branches out with --modes")
+    return f"not converged on {len(failed)} of {len(ws.targets)} targets ({detail}); {advice}"
+
+
 def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mechanism) -> str:
     unit = "m^2" if ws.planar else "m^3"
     key = "area" if ws.planar else "volume"
@@ -272,6 +286,7 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
                     f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar else
                     "exact columns (roots of quadratics) + Gauss rules between located breaks; a feature narrower "
                     f"than the node spacing {fmt(r.step)} m across columns can be missed")),
+        *([("not converged", _not_converged(ws))] if not r.converged else []),
         ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
         ("points evaluated", f"{r.points_evaluated:,}"),
         ("singular points inside", len(payload["singular_points"])),
