@@ -13,6 +13,7 @@ import pytest
 from kinematics.cli.app import main
 from kinematics.model.robot import URDF_DIR
 
+from .same_text import assert_same_text
 from .test_cli import run, run_json
 
 MODELS = Path(__file__).parent / "models"
@@ -109,7 +110,7 @@ def test_urdf_generator(capsys, tmp_path):
     assert code in (0, 1) and len(ik["limbs"]) == 3
     # default design = the shipped file
     code, _, _ = run_json(capsys, "urdf", "p2us", "-o", str(tmp_path / "p2us.urdf"))
-    assert (tmp_path / "p2us.urdf").read_text() == (URDF_DIR / "p2us.urdf").read_text()
+    assert_same_text((tmp_path / "p2us.urdf").read_text(), (URDF_DIR / "p2us.urdf").read_text())
 
 
 def test_generic_loop_robot_through_pinocchio(capsys):

@@ -15,6 +15,7 @@ from kinematics.mechanisms.delta import closed_form as dl
 from kinematics.mechanisms.delta.urdf import joint_values_at, read_params, sidecar_text, urdf_text, write
 from kinematics.model.robot import URDF_DIR, load_robot, parser_agreement
 
+from .same_text import assert_same_text
 from .test_delta import sample_actuators, type_two_pose
 
 
@@ -35,11 +36,11 @@ def params(delta):
 
 def test_builtin_files_are_the_generated_default(tmp_path, params):
     # The committed files are exactly what the generator writes for the default design.
-    assert (URDF_DIR / "delta.urdf").read_text() == urdf_text(dl.DeltaParams(), "delta")
-    assert (URDF_DIR / "delta.loops.yaml").read_text() == sidecar_text(dl.DeltaParams(), "delta.urdf")
+    assert_same_text(urdf_text(dl.DeltaParams(), "delta"), (URDF_DIR / "delta.urdf").read_text())
+    assert_same_text(sidecar_text(dl.DeltaParams(), "delta.urdf"), (URDF_DIR / "delta.loops.yaml").read_text())
     urdf, side = write(params, tmp_path / "delta.urdf")
-    assert urdf.read_text() == (URDF_DIR / "delta.urdf").read_text()
-    assert side.read_text() == (URDF_DIR / "delta.loops.yaml").read_text()
+    assert_same_text(urdf.read_text(), (URDF_DIR / "delta.urdf").read_text())
+    assert_same_text(side.read_text(), (URDF_DIR / "delta.loops.yaml").read_text())
 
 
 def test_default_design_read_from_urdf(params):

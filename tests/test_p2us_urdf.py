@@ -13,11 +13,13 @@ from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.urdf import read_params, sidecar_text, urdf_text, write
 from kinematics.model.robot import URDF_DIR, load_robot, parser_agreement
 
+from .same_text import assert_same_text
+
 
 def test_builtin_urdf_is_the_generated_default(p2us_params):
     # The committed files are exactly what the generator writes for paper B's Table 2 design.
-    assert (URDF_DIR / "p2us.urdf").read_text() == urdf_text(P2USParams(), "p2us")
-    assert (URDF_DIR / "p2us.loops.yaml").read_text() == sidecar_text(P2USParams(), "p2us.urdf")
+    assert_same_text(urdf_text(P2USParams(), "p2us"), (URDF_DIR / "p2us.urdf").read_text())
+    assert_same_text(sidecar_text(P2USParams(), "p2us.urdf"), (URDF_DIR / "p2us.loops.yaml").read_text())
     assert p2us_params == P2USParams()
 
 
@@ -147,3 +149,12 @@ def test_degenerate_design_cli(tmp_path, capsys):
         code, stdout, err = run(capsys, "urdf", "p2us", *flags, "-o", str(out))
         assert code == 2 and stdout == "" and len(err.strip().splitlines()) == 1
         assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_the_file_comparison_sees_numbers_and_words():
+    base = '<origin xyz="0.1 0.2e-3" name="s_1"/>'
+    assert_same_text('<origin xyz="0.10000000000000002 0.2e-3" name="s_1"/>', base)  # 1 ulp
+    for changed in ('<origin xyz="0.1000001 0.2e-3" name="s_1"/>', '<origin xyz="0.1 0.2e-3" name="s_2"/>',
+                    '<origin xyz="0.1 0.2e-3" name="t_1"/>', '<origin xyz="0.1 0.2e-3 0" name="s_1"/>'):
+        with pytest.raises(AssertionError):
+            assert_same_text(changed, base)

@@ -18,6 +18,8 @@ from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.urdf import DESIGNS, read_params, sidecar_text, urdf_text, write
 from kinematics.model.robot import URDF_DIR, load_robot
 
+from .same_text import assert_same_text
+
 COLUMN_REFERENCE_M3 = 0.13454878
 """Working mode '---' of p2us-results, strokes only, by exact vertical extents + nested adaptive
 Gauss-Kronrod (`kinematics.mechanisms.p2us.columns_reference.mode_volume`, epsrel 1e-6; its error estimate 1.4e-6 m^3):
@@ -41,8 +43,9 @@ def table2():
 
 # -- the design --------------------------------------------------------------------------------------
 def test_builtin_results_urdf_is_the_generated_preset(results):
-    assert (URDF_DIR / "p2us-results.urdf").read_text() == urdf_text(DESIGNS["results"], "p2us-results")
-    assert (URDF_DIR / "p2us-results.loops.yaml").read_text() == sidecar_text(DESIGNS["results"], "p2us-results.urdf")
+    assert_same_text(urdf_text(DESIGNS["results"], "p2us-results"), (URDF_DIR / "p2us-results.urdf").read_text())
+    assert_same_text(sidecar_text(DESIGNS["results"], "p2us-results.urdf"),
+                     (URDF_DIR / "p2us-results.loops.yaml").read_text())
     assert results == DESIGNS["results"]
     # b - d = 450 mm, L = 400 mm (Table 1's rods), limbs at -90, 30, 150 deg; the rest as published
     assert (results.b - results.d, results.L) == pytest.approx((0.450, 0.400), abs=1e-15)
