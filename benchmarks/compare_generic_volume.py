@@ -7,8 +7,15 @@ reachable points (a fixed bijection, as tests/test_loop_batch.py checks). Sample
 for both (the closed form's exact columns are switched off), so the two integrate the same kind
 of estimate; the difference must lie within the sum of the two error estimates.
 
-Run: python benchmarks/compare_generic_volume.py [--step 0.02] [--rtol 1e-2] [--limits all] [--json]
-(tens of minutes at the generic path's ~10^3 points/s: the volume asks for millions of margin evaluations)
+Two cheaper forms, for the strokes-only limits (whose 8 per-mode volumes at step 0.02 m and rtol
+1e-2 ask for ~5e7 margin evaluations, hours through the generic path):
+* --union-only: the union's volume alone (every branch is still solved at every point; only the
+  engine's refinement is driven by the union: ~2e6 evaluations);
+* --slice Y: per-mode and union areas of the plane y = Y [m] (a 2D column integration).
+
+Run: python benchmarks/compare_generic_volume.py [--step 0.02] [--rtol 1e-2] [--limits all]
+[--union-only | --slice Y] [--json]
+(minutes to tens of minutes at the generic path's ~10^3-10^4 points/s)
 """
 
 from __future__ import annotations
@@ -34,16 +41,26 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=0.02)
     ap.add_argument("--rtol", type=float, default=1e-2)
     ap.add_argument("--limits", default="all", choices=["all", "actuators"])
+    ap.add_argument("--union-only", action="store_true", help="measure the union only")
+    ap.add_argument("--slice", type=float, default=None, metavar="Y",
+                    help="per-mode areas of the plane y = Y [m] instead of volumes")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     robot = load_robot("p2us")
     P = read_params(robot.urdf_path)
     lo, hi = bounding_box(P)
     load0 = os.getloadavg()
+    if a.slice is not None:  # the plane y = Y: (x, z) -> (x, Y, z)
+        y0 = a.slice
+        lo, hi = lo[[0, 2]], hi[[0, 2]]
+        lift = lambda q: np.c_[q[:, 0], np.full(len(q), y0), q[:, 1]]  # noqa: E731
+    else:
+        lift = lambda q: q  # noqa: E731
+    pick = (lambda v: v[:, -1:]) if a.union_only else (lambda v: v)
 
     t = time.perf_counter()
-    closed = P2USMargin(P, list(range(len(par.MODES))), a.limits).sampled()
-    ref = column_volume(closed, lo, hi, step=a.step, rtol=a.rtol)
+    closed_3d = P2USMargin(P, list(range(len(par.MODES))), a.limits).sampled()
+    ref = column_volume(lambda q: pick(closed_3d(lift(q))), lo, hi, step=a.step, rtol=a.rtol)
     t_closed = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -56,11 +73,11 @@ def main() -> None:
     if not np.array_equal(mapping[0], mapping[1]) or len(set(mapping[0])) != len(mapping[0]):
         raise SystemExit(f"generic branches do not map one-to-one onto the closed-form modes: {mapping}")
     lb.forget()
-    gen = column_volume(lambda p: lb.margin(p, a.limits), lo, hi, step=a.step, rtol=a.rtol)
+    gen = column_volume(lambda q: pick(lb.margin(lift(q), a.limits)), lo, hi, step=a.step, rtol=a.rtol)
     t_generic = time.perf_counter() - t
 
     rows = []
-    for b, m in enumerate(mapping[0]):
+    for b, m in ([] if a.union_only else enumerate(mapping[0])):
         rows.append({"mode": par.MODES[m], "closed_form_m3": float(ref.estimate[m]), "closed_error": float(ref.error[m]),
                      "generic_m3": float(gen.estimate[b]), "generic_error": float(gen.error[b])})
     rows.append({"mode": "union", "closed_form_m3": float(ref.estimate[-1]), "closed_error": float(ref.error[-1]),
@@ -68,7 +85,8 @@ def main() -> None:
     for r in rows:
         r["difference"] = r["generic_m3"] - r["closed_form_m3"]
         r["within_estimates"] = abs(r["difference"]) <= r["closed_error"] + r["generic_error"]
-    out = {"step_m": a.step, "rtol": a.rtol, "limits": a.limits, "rows": rows,
+    out = {"step_m": a.step, "rtol": a.rtol, "limits": a.limits, "slice_y_m": a.slice, "union_only": a.union_only,
+           "measure": "area_m2" if a.slice is not None else "volume_m3", "rows": rows,
            "closed_form": {"seconds": t_closed, "points": ref.points_evaluated, "converged": ref.converged},
            "generic": {"seconds": t_generic, "points": gen.points_evaluated, "converged": gen.converged,
                        "points_per_s": gen.points_evaluated / t_generic},
@@ -76,7 +94,8 @@ def main() -> None:
     if a.json:
         print(json.dumps(out, indent=2))
         return
-    print(f"{'mode':6s} {'closed form [m^3]':>20s} {'generic [m^3]':>20s} {'difference':>12s}  within")
+    unit = "m^2" if a.slice is not None else "m^3"
+    print(f"{'mode':6s} {f'closed form [{unit}]':>20s} {f'generic [{unit}]':>20s} {'difference':>12s}  within")
     for r in rows:
         print(f"{r['mode']:6s} {r['closed_form_m3']:.6f} ± {r['closed_error']:.1e} {r['generic_m3']:.6f} ± "
               f"{r['generic_error']:.1e} {r['difference']:+.2e}  {r['within_estimates']}")
