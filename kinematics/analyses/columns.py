@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -522,7 +522,7 @@ def column_volume(
     run = _run_exact if _exact_of(margin, d) is not None else _run_sampled
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check:
-        return replace(first, target_converged=_within(first.estimate, first.error, rtol, floor))
+        return first
     if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
         second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
                             min_nodes=2 * MIN_NODES, floor=floor)
@@ -620,7 +620,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
         converged=bool(conv[0]) and all_conv[0] and counter.columns <= max_points and bool(q[0, -1] > 0),
         rtol=rtol, step=step, cell=step, columns=counter.columns, points_evaluated=counter.points,
         check_difference=np.full(q.shape[1], np.nan), box=np.where(np.isfinite(box), box, np.nan),
-        target_converged=np.ones(q.shape[1], bool), check_agrees=np.ones(q.shape[1], bool),
+        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool),
     )
 
 
@@ -681,5 +681,5 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         step=step, cell=8 * step, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
-        target_converged=np.ones(q.shape[1], bool), check_agrees=np.ones(q.shape[1], bool),
+        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool),
     )

@@ -686,11 +686,7 @@ class LoopBatch:
         lo, hi = robot.lower, robot.upper
         self._centre = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
         # structural pattern: the columns each residual row can depend on
-        cols = []
-        for k, t in enumerate(ctype):
-            mask = anc[cf1[k]] | anc[cf2[k]]
-            cols += [np.flatnonzero(mask)] * (3 if t == 0 else 6)
-        cols += [np.flatnonzero(anc[ee])] * ((3 if self.translational else 0) + len(self.task_axes))
+        cols = [np.flatnonzero(row) for row in self.row_dependencies()]
         width = max(len(c) for c in cols)
         self._nzn = np.array([len(c) for c in cols], dtype=np.int64)
         self._nzc = np.array([np.pad(c, (0, width - len(c)), constant_values=-1) for c in cols], dtype=np.int64)
@@ -756,7 +752,7 @@ class LoopBatch:
         Raises:
             UnsupportedRobotError: pinned on a mechanism that is not translational with a 3D task.
         """
-        if pinned and not (self.translational and self.task_dim == 3):
+        if pinned and not self.can_pin:
             raise UnsupportedRobotError(self.robot.name, "pinning the end effector needs a translational "
                                                          "mechanism with a 3D position task")
         free = np.ones(self.n, dtype=np.bool_) if free is None else np.asarray(free, dtype=np.bool_)
