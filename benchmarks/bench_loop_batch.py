@@ -4,7 +4,9 @@ today's per-point Pinocchio solver (kinematics.generic.closedloop), measured sid
 
 Run: python benchmarks/bench_loop_batch.py [--points 20000] [--loop 4] [--json]
 
-Scenarios for the generic path (all 8 branches of every point, margins included):
+The generic path runs with each of its two solvers (`LoopBatch(solver=...)`): block by block (the
+default) and all unknowns of a branch at once. Scenarios (all 8 branches of every point, margins
+included):
 * cold: uniform random points in the bounding box, no cache (only the batch's own coarse-subset
   continuation);
 * columns: the same number of points as columns along z over an x-y grid (what the column volume
@@ -26,7 +28,7 @@ from _timing import best_of
 
 from kinematics.errors import ConvergenceError
 from kinematics.generic.closedloop import ClosedLoop
-from kinematics.generic.loop_batch import LoopBatch
+from kinematics.generic.loop_batch import SOLVERS, LoopBatch
 from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us.scan import bounding_box, scan
 from kinematics.mechanisms.p2us.urdf import read_params
@@ -58,22 +60,26 @@ def main() -> None:
     t = time.perf_counter()
     lb = LoopBatch.from_robot(robot)
     t_build = time.perf_counter() - t
-    lb.ik(pts[:100], warm=False)  # compile / load the kernels
-
-    def cold() -> None:
-        lb.ik(pts, warm=False)
-
-    def col() -> None:
-        lb.ik(cols, warm=False)
-
-    t_cold = best_of(2, cold)
-    t_col = best_of(2, col)
-    lb.forget()
-    first = lb.ik(cols)
-    shifted = cols + 1e-3
-    t_warm = best_of(1, lambda: lb.ik(shifted))
     reach = par.ik(P, cols, limits=False).reachable[:, 0]
-    missed = int(np.sum(reach & ~first.found.all(axis=1)))
+    generic = {}
+    for solver in SOLVERS:
+        lb = LoopBatch.from_robot(robot, solver=solver)
+        lb.ik(pts[:100], warm=False)  # compile / load the kernels
+
+        def cold(lb: LoopBatch = lb) -> None:
+            lb.ik(pts, warm=False)
+
+        def col(lb: LoopBatch = lb) -> None:
+            lb.ik(cols, warm=False)
+
+        t_cold = best_of(2, cold)
+        t_col = best_of(2, col)
+        lb.forget()
+        first = lb.ik(cols)
+        shifted = cols + 1e-3
+        t_warm = best_of(1, lambda lb=lb, shifted=shifted: lb.ik(shifted))
+        generic[solver] = {"cold": args.points / t_cold, "columns": len(cols) / t_col, "warm": len(cols) / t_warm,
+                           "missed": int(np.sum(reach & ~first.found.all(axis=1)))}
 
     t_np = best_of(3, lambda: par.ik(P, pts))
     scan(P, pts[:10])
@@ -99,11 +105,15 @@ def main() -> None:
         "cores": os.cpu_count(),
         "load_average": [round(x, 2) for x in load],
         "build_s": round(t_build, 3),
-        "generic_cold_points_per_s": args.points / t_cold,
-        "generic_columns_points_per_s": len(cols) / t_col,
-        "generic_warm_points_per_s": len(cols) / t_warm,
-        "generic_reachable_missed": missed,
+        "generic_cold_points_per_s": generic["blocks"]["cold"],
+        "generic_columns_points_per_s": generic["blocks"]["columns"],
+        "generic_warm_points_per_s": generic["blocks"]["warm"],
+        "generic_reachable_missed": generic["blocks"]["missed"],
         "generic_reachable_points": int(reach.sum()),
+        "whole_cold_points_per_s": generic["whole"]["cold"],
+        "whole_columns_points_per_s": generic["whole"]["columns"],
+        "whole_warm_points_per_s": generic["whole"]["warm"],
+        "whole_reachable_missed": generic["whole"]["missed"],
         "closed_form_numpy_points_per_s": args.points / t_np,
         "closed_form_scan_kernel_points_per_s": args.points / t_scan,
         "per_point_solver_points_per_s": 1 / t_loop,
@@ -115,10 +125,13 @@ def main() -> None:
         return
     print(f"3-[P2(US)], IK in all 8 working modes; {args.points:,} points; {out['cores']} cores; "
           f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    print(f"  generic batched solver, cold random   : {out['generic_cold_points_per_s']:14,.0f} points/s")
-    print(f"  generic batched solver, columns       : {out['generic_columns_points_per_s']:14,.0f} points/s")
-    print(f"  generic batched solver, warm (cached) : {out['generic_warm_points_per_s']:14,.0f} points/s")
-    print(f"    reachable column points missing a branch: {missed} of {int(reach.sum())}")
+    for solver, name in (("blocks", "generic, block by block"), ("whole", "generic, all unknowns at once")):
+        r = generic[solver]
+        print(f"  {name}:")
+        print(f"    cold random points                  : {r['cold']:14,.0f} points/s")
+        print(f"    columns                             : {r['columns']:14,.0f} points/s")
+        print(f"    warm (cached)                       : {r['warm']:14,.0f} points/s")
+        print(f"    reachable column points missing a branch: {r['missed']} of {int(reach.sum())}")
     print(f"  closed form, NumPy (parallel.ik)      : {out['closed_form_numpy_points_per_s']:14,.0f} points/s")
     print(f"  closed form, fused scan kernel        : {out['closed_form_scan_kernel_points_per_s']:14,.0f} points/s")
     print(f"  per-point Pinocchio solver (cold)     : {out['per_point_solver_points_per_s']:14,.2f} points/s "

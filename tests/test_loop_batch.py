@@ -330,3 +330,55 @@ def test_bad_input(p2us):
         lb.margin(np.array([[np.nan, 0.0, 0.0]]))
     with pytest.raises(UnknownChoiceError):
         lb.margin_function(limits="some")
+
+
+# -- the block solver against the whole-system solver (two independent paths) -----------------------
+def _cases():
+    return [("p2us", None, 11), ("delta", None, 12), ("fivebar", FIVEBAR, 13)]
+
+
+@pytest.mark.parametrize(("name", "path", "seed"), _cases())
+def test_block_solver_agrees_with_the_whole_system_solver(name, path, seed):
+    """Same atlas (same seeds), two solvers: where both find a (point, branch) they find the same
+    pose (every joint origin to 1e-9 m: joint representations may differ) and the same margin.
+    Tolerance: both solve to residual rows <= 1e-12 m at points whose Jacobian blocks are regular,
+    so poses agree to ~1e-12 / (smallest singular value); 1e-9 allows 1e-3. Each search can miss a
+    branch's basin (the documented limit; not at the same points, as their starts differ): the
+    found sets may differ in at most 2 % of the pairs either finds, where a wrong label map or a
+    wrong block would differ in whole branches (>= 1/8 of them)."""
+    robot = load_robot(path or name)
+    blocks = LoopBatch.from_robot(robot, seeds=256)
+    whole = LoopBatch.from_robot(robot, seeds=256, solver="whole")
+    assert blocks.labels == whole.labels and np.array_equal(blocks.atlas, whole.atlas)
+    lo, hi = blocks.bounding_box()
+    pts = np.random.default_rng(seed).uniform(lo, hi, (400, blocks.task_dim))
+    a, b = blocks.ik(pts, warm=False), whole.ik(pts, warm=False)
+    assert 40 < a.found.any(axis=1).sum() < 360, "the sample must see points inside and outside"
+    assert np.sum(a.found != b.found) <= 0.02 * np.sum(a.found | b.found)
+    i, k = np.nonzero(a.found & b.found)
+    _, _, pa = blocks.evaluate(pts[i], a.x[i, k])
+    _, _, pb = whole.evaluate(pts[i], b.x[i, k])
+    assert np.abs(pa - pb).max() <= 1e-9
+    both = a.found & b.found
+    np.testing.assert_allclose(a.margin[both], b.margin[both], rtol=0, atol=1e-9)  # inf: no limited joint
+    assert (a.margin[~a.found] < 0).all() and (b.margin[~b.found] < 0).all()
+
+
+def test_every_block_solves_blocks_no_branch_needs(p2us):
+    """Outside the workspace the block solver skips a limb's blocks once another limb rules every
+    branch out; every_block solves them anyway, so each limb's own end is there (loop_fields)."""
+    _, _, lb = p2us
+    lo, hi = lb.bounding_box()
+    pts = np.random.default_rng(14).uniform(lo, hi, (300, 3))
+    lazy, full = lb.ik(pts, warm=False), lb.ik(pts, warm=False, every_block=True)
+    assert np.array_equal(lazy.found, full.found)
+    out = ~full.found.any(axis=1)
+    first = list(lb.block_models[0].block.cols)  # the platform's limb (no held joints)
+    assert np.isfinite(full.end[out][:, :, first]).all()
+    assert np.isnan(lazy.end[out][:, :, first]).any()
+
+
+def test_a_nan_start_is_no_root(p2us):
+    _, _, lb = p2us
+    x, res, _ = lb.newton(np.zeros((1, 3)), np.full((1, lb.n), np.nan))
+    assert not res[0] <= 1e-12

@@ -20,13 +20,15 @@ the Delta); otherwise the task is the d = (number of actuators) position axes be
 them (the planar five-bar: x, y). Mechanisms whose actuators drive a rotation of the end effector
 (a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
 
-**Solver.** Levenberg-Marquardt on ||r||^2, vectorised over rows (target, start) in one compiled
-kernel (prange over blocks): A = J^T J + lam diag(J^T J), dx = -A^-1 J^T r by Cholesky, accept and
-lam /= 10 when ||r|| drops, else lam *= 10; revolute values are wrapped to within pi of the middle
-of their limits. It stops at max|r| <= TOL (a root: the loops close and the target is met) or when
-it stalls (a least-squares point: no root near this start). The kinematics (all joint placements
-of the tree, frame placements, Jacobian columns w x (p_f - o_j) / w) are evaluated in the same
-kernel, not by per-point Pinocchio calls.
+**Solver.** Levenberg-Marquardt on ||r||^2 in compiled kernels, one row (target, start) per
+thread at a time: A = J^T J + lam diag(J^T J), dx = -A^-1 J^T r by Cholesky, accept and lam /= 10
+when ||r|| drops, else lam *= 10; revolute values are wrapped to within pi of the middle of their
+limits. It stops at max|r| <= TOL (a root: the loops close and the target is met) or when it
+stalls (a least-squares point: no root near this start; after 3 steps, an accepted step, or the
+step the linear model predicts, that lowers ||r||^2 by less than STALL of it). The kinematics (all
+joint placements of the tree, frame placements, Jacobian columns w x (p_f - o_j) / w) are
+evaluated in the same kernel, not by per-point Pinocchio calls; a rejected trial evaluates the
+residual only, an accepted one adds the Jacobian from the trial's placements.
 
 **Branches (working modes).** With the end effector fixed the equations split into blocks
 (`blocks`): groups of rows (a closure, the task) that determine a set of unknowns on their own,
@@ -36,10 +38,24 @@ actuator's working mode: the sign of its determinant cannot change without the b
 (a type I singularity), so the vector of those signs labels a branch and is stable across each
 singularity-free region of the workspace. The *atlas* of branches is found once, at the end
 effector's reference position, from `seeds` random starts within the joint limits (converged,
-deduplicated by the positions of every joint origin, labelled). For a batch of targets each
-branch is then sought from (1) a solved neighbour (a cache of earlier batches and a coarse subset
-of this batch solved first: continuation), (2) the atlas configuration of that label, (3)
-`restarts` random starts where a target has some branches but not all.
+deduplicated by the positions of every joint origin, labelled).
+
+`ik` then solves (`solver="blocks"`, the default) **block by block**: each block is a small model
+of its own (`block_models`: the ancestors of its frames; for a closure of a translational
+mechanism with a 3D task the platform placed at the target), with one *slot* per choice of the
+labels its held joints depend on, times its own sign for a labelling block (3-[P2(US)], Delta: 2
+slots per block, 12 small solves per target instead of 8 of all 18 unknowns). A branch is the
+combination of the slots of its labels; it exists where every block has a root in its slot.
+Each slot is sought from (1) a solved neighbour's end of that slot (a cache of earlier batches
+and, inside a batch, every 64th then every 8th point solved first: continuation, also through the
+least-squares points of targets outside), else (2) the atlas configuration of that slot, then (3)
+`restarts` quasi-random starts of the block's unknowns where another slot of the block was found
+or the block holds joints of earlier blocks that closed. Blocks are solved in a dependency order,
+the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
+reach costs that limb's solves only. A block that later blocks hold values of is solved to
+TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
+`solver="whole"` solves every unknown of each branch at once (8 rows per target for the
+3-[P2(US)]): the reference path the tests hold the block solver to, and 10-15x slower.
 
 A passive sub-chain can reach one position in several ways that are the same mechanism pose (a
 universal joint's (a, b) and (a + pi, pi - b), a spherical joint's two Euler triples); they are
@@ -47,19 +63,21 @@ merged (same joint-origin positions) and the one closest to the reference config
 so the labels and the reported joint values use one representation throughout.
 
 **What the search can miss.** A branch that exists at a target but is reached from none of the
-three starts (its basin missed by the neighbour, the atlas configuration and the random starts) is
-reported absent (margin < 0): most likely in a branch region that does not contain the reference
-position's branch of the same label and is far from the batch's other points. A target where no
-start converges at all is reported as having no branch; random restarts are not tried there (they
-would cost most of the time outside the workspace). Solutions whose label is not in the atlas
-(assembly modes absent at the reference position) are counted in `BranchSolutions.unlabelled`,
-not returned. Two physically different poses with the same label at one target keep only the one
-nearest the reference (counted in `conflicts`).
+starts (a block's basin missed by the neighbour's end, the atlas configuration and the restarts)
+is reported absent (margin < 0): most likely in a branch region that does not contain the
+reference position's branch of the same label and is far from the batch's other points, or next
+to the workspace's boundary where the nearest solved point lies outside and its least-squares
+point leads nowhere (restarts are not spent on a labelling block with no root at all: outside
+they would cost most of the time). Solutions whose label is not in the atlas (assembly modes
+absent at the reference position) are counted in `BranchSolutions.unlabelled`, not returned. Two
+physically different poses with the same label at one target keep only the one nearest the
+reference (counted in `conflicts`).
 
 **Margins.** Per branch, the smallest joint-limit slack in metres (prismatic: the distance to the
 limit; revolute: the angle times `scale`), over every joint with a finite range narrower than
 2 pi; >= 0 inside. Where the branch has no solution, minus the least-squares residual [m] reached
-from its best start (< 0). The union is the largest branch margin.
+from its best start (< 0; block by block: the largest over the blocks tried, a block skipped
+because an earlier one has no root counting for nothing). The union is the largest branch margin.
 
 **Singularities** (Gosselin & Angeles), from the Jacobian U of all rows (closures, orientation,
 task) at a solution, U_a / U_p its actuated / passive columns, and P the task rows:
@@ -107,6 +125,10 @@ CACHE_POINTS = 100_000
 
 LIMITS = ("all", "actuators")
 """Which joint limits the margins apply."""
+
+SOLVERS = ("blocks", "whole")
+"""How `LoopBatch.ik` solves: block by block (each block's roots once per branch choice it depends
+on, combined into branches) or every unknown of every branch at once (the reference path)."""
 
 REVOLUTE, PRISMATIC = 0, 1
 
@@ -165,35 +187,161 @@ class Singularities(NamedTuple):
     types: np.ndarray
 
 
+class BlockModel(NamedTuple):
+    """One block of the loop equations as a small model of its own (`LoopBatch.block_models`).
+
+    The sub-tree holds the ancestors of the block's frames; the block's unknowns are free, the
+    joints that earlier blocks determine are held (their values per branch), and for a closure of a
+    translational mechanism with a 3D task the end effector's joint is placed at the target
+    (`pinned`: the platform's other ancestors drop out). Its kernel arrays (`g`, the row pattern,
+    row weights that keep only the block's rows) are those `_lm_kernel` takes for the whole tree.
+
+    Attributes:
+        block: the block.
+        joints: degree-of-freedom index of each sub-tree joint.
+        free: (n_sub,) the block's unknowns.
+        held: sub-tree indices of the joints that earlier blocks determine.
+        owner: for each held joint, (earlier block index, position among its `cols`).
+        rows: the block's rows in the sub-model (Block.rows order); cols: its unknowns there
+            (Block.cols order); middles: the middle joints of concurrent groups among them.
+        label: index among `LoopBatch.label_blocks`, -1 for a block that labels no working mode.
+        depends: label-block indices whose branch choice the held values depend on (transitively).
+        pinned: the end effector's joint is placed at the target.
+    """
+
+    block: Block
+    joints: np.ndarray
+    free: np.ndarray
+    held: np.ndarray
+    owner: tuple[tuple[int, int], ...]
+    rows: np.ndarray
+    cols: np.ndarray
+    middles: np.ndarray
+    label: int
+    depends: tuple[int, ...]
+    pinned: bool
+    g: tuple[Any, ...]
+    m: int
+    nzc: np.ndarray
+    nzn: np.ndarray
+    centre: np.ndarray
+    weights: np.ndarray
+
+
+def _row_pattern(anc: np.ndarray, ctype: np.ndarray, cf1: np.ndarray, cf2: np.ndarray, ee: int,
+                 task: int) -> np.ndarray:
+    """(m, n) bool: the unknowns each residual row can depend on, from the frames' ancestors."""
+    out = []
+    for k, t in enumerate(ctype):
+        out += [anc[cf1[k]] | anc[cf2[k]]] * (3 if t == 0 else 6)
+    out += [anc[ee]] * task
+    return np.array(out, dtype=bool).reshape(len(out), anc.shape[1])
+
+
+def _sparsity(pattern: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's per-row column lists (padded with -1) and their lengths."""
+    cols = [np.flatnonzero(row) for row in pattern]
+    width = max([len(c) for c in cols] + [1])
+    nzn = np.array([len(c) for c in cols], dtype=np.int64)
+    nzc = np.array([np.pad(c, (0, width - len(c)), constant_values=-1) for c in cols], dtype=np.int64)
+    return nzc.reshape(len(cols), width), nzn
+
+
 # -- compiled kernels ------------------------------------------------------------------------------
+# A model reaches the kernels packed in two flat arrays (`_pack`): every array argument of a
+# compiled call costs its fields on the stack and every array a function binds costs reference
+# counting, which for these small trees took more time than the kinematics itself.
+#
+# gi (int64): [n, nf, nc, ee, d, orient, o_parent, o_kind, o_fparent, o_anc, o_ctype, o_cf1, o_cf2,
+#              o_taxes, 0, 0] then those arrays (anc as nf x n 0/1);
+# gf (float64): [scale, axis (n x 3), jR (n x 9), jt (n x 3), fR (nf x 9), ft (nf x 3), R0 (9)];
+# ws (float64 scratch): [oR (n x 9), op (n x 3), FR (nf x 9), Fp (nf x 3), pin_R (9), pin_p (3),
+#              H_A (9), H_B (9), C (9)].
+GI_HEADER = 16
+
+
+def _pack(g: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' flat (gi, gf) arrays of a model tuple (`LoopBatch._g`, `BlockModel.g`)."""
+    parent, kind, axis, jR, jt, fparent, fR, ft, anc, ctype, cf1, cf2, ee, taxes, R0, orient, scale = g
+    n, nf, nc = len(parent), len(fparent), len(ctype)
+    parts = [parent, kind, fparent, np.asarray(anc, dtype=np.int64).ravel(), ctype, cf1, cf2, taxes]
+    offsets = np.cumsum([GI_HEADER] + [len(p) for p in parts])[:-1]
+    head = np.zeros(GI_HEADER, dtype=np.int64)
+    head[:6] = [n, nf, nc, int(ee), len(taxes), int(bool(orient))]
+    head[6:14] = offsets
+    gi = np.concatenate([head] + [np.asarray(p, dtype=np.int64).ravel() for p in parts])
+    gf = np.concatenate([[float(scale)], np.ravel(axis), np.ravel(jR), np.ravel(jt), np.ravel(fR), np.ravel(ft),
+                         np.ravel(np.asarray(R0))]).astype(float)
+    return gi, gf
+
+
 @njit(cache=True)
-def _fk(x, parent, kind, axis, jR, jt, oR, op, pin_j, pin_R, pin_p):  # pragma: no cover - compiled
-    """World rotation oR[j] and origin op[j] of every joint frame of the tree at values x; joint
-    pin_j (if >= 0) is placed at (pin_R, pin_p) instead, its descendants following it."""
-    nj = parent.shape[0]
-    for j in range(nj):
-        p = parent[j]
+def _ws_size(gi):  # pragma: no cover - compiled
+    return 12 * gi[0] + 12 * gi[1] + 39
+
+
+@njit(cache=True)
+def _pin_pose(gi, gf, ws, target):  # pragma: no cover - compiled
+    """The placement (pin_R, pin_p in ws) of the end effector's parent joint that puts the end
+    effector at `target` (every position axis) with orientation R0: R = R0 fR[ee]^T,
+    p = target - R ft[ee]. Returns that joint's index."""
+    n, nf, ee = gi[0], gi[1], gi[3]
+    fR0, ft0, R00 = 1 + 15 * n, 1 + 15 * n + 9 * nf, 1 + 15 * n + 12 * nf
+    PR, PP = 12 * n + 12 * nf, 12 * n + 12 * nf + 9
+    for a in range(3):
+        for b in range(3):
+            s = 0.0
+            for c in range(3):
+                s += gf[R00 + 3 * a + c] * gf[fR0 + 9 * ee + 3 * b + c]
+            ws[PR + 3 * a + b] = s
+    for a in range(3):
+        ws[PP + gi[gi[13] + a]] = target[a]
+    for a in range(3):
+        s = 0.0
+        for c in range(3):
+            s += ws[PR + 3 * a + c] * gf[ft0 + 3 * ee + c]
+        ws[PP + a] -= s
+    return gi[gi[8] + ee]
+
+
+@njit(cache=True, inline="always")
+def _placements(x, gi, gf, ws, pin_j):  # pragma: no cover - compiled
+    """World rotation and origin of every joint frame of the tree at values x (ws oR, op), then of
+    every frame (ws FR, Fp); joint pin_j (if >= 0) is placed at (pin_R, pin_p) instead, its
+    descendants following it."""
+    n, nf = gi[0], gi[1]
+    oP, oK, oF = gi[6], gi[7], gi[8]
+    AX, JR, JT = 1, 1 + 3 * n, 1 + 12 * n
+    FR0, FT0 = 1 + 15 * n, 1 + 15 * n + 9 * nf
+    WP, WFR, WFP = 9 * n, 12 * n, 12 * n + 9 * nf
+    PR, PP = 12 * n + 12 * nf, 12 * n + 12 * nf + 9
+    for j in range(n):
+        p = gi[oP + j]
+        R, P = 9 * j, WP + 3 * j
         if j == pin_j:
+            for a in range(9):
+                ws[R + a] = ws[PR + a]
             for a in range(3):
-                op[j, a] = pin_p[a]
-                for b in range(3):
-                    oR[j, a, b] = pin_R[a, b]
+                ws[P + a] = ws[PP + a]
             continue
         if p < 0:
+            for a in range(9):
+                ws[R + a] = gf[JR + 9 * j + a]
             for a in range(3):
-                op[j, a] = jt[j, a]
-                for b in range(3):
-                    oR[j, a, b] = jR[j, a, b]
+                ws[P + a] = gf[JT + 3 * j + a]
         else:
+            Rp, Pp = 9 * p, WP + 3 * p
             for a in range(3):
-                op[j, a] = op[p, a] + oR[p, a, 0] * jt[j, 0] + oR[p, a, 1] * jt[j, 1] + oR[p, a, 2] * jt[j, 2]
+                ws[P + a] = (ws[Pp + a] + ws[Rp + 3 * a] * gf[JT + 3 * j] + ws[Rp + 3 * a + 1] * gf[JT + 3 * j + 1]
+                             + ws[Rp + 3 * a + 2] * gf[JT + 3 * j + 2])
                 for b in range(3):
-                    oR[j, a, b] = oR[p, a, 0] * jR[j, 0, b] + oR[p, a, 1] * jR[j, 1, b] + oR[p, a, 2] * jR[j, 2, b]
-        ax, ay, az = axis[j, 0], axis[j, 1], axis[j, 2]
+                    ws[R + 3 * a + b] = (ws[Rp + 3 * a] * gf[JR + 9 * j + b] + ws[Rp + 3 * a + 1] * gf[JR + 9 * j + 3 + b]
+                                         + ws[Rp + 3 * a + 2] * gf[JR + 9 * j + 6 + b])
+        ax, ay, az = gf[AX + 3 * j], gf[AX + 3 * j + 1], gf[AX + 3 * j + 2]
         v = x[j]
-        if kind[j] == 1:
+        if gi[oK + j] == PRISMATIC:
             for a in range(3):
-                op[j, a] += v * (oR[j, a, 0] * ax + oR[j, a, 1] * ay + oR[j, a, 2] * az)
+                ws[P + a] += v * (ws[R + 3 * a] * ax + ws[R + 3 * a + 1] * ay + ws[R + 3 * a + 2] * az)
         else:
             c, s = math.cos(v), math.sin(v)
             d = 1.0 - c
@@ -201,97 +349,87 @@ def _fk(x, parent, kind, axis, jR, jt, oR, op, pin_j, pin_R, pin_p):  # pragma: 
             e10, e11, e12 = d * ay * ax + s * az, c + d * ay * ay, d * ay * az - s * ax
             e20, e21, e22 = d * az * ax - s * ay, d * az * ay + s * ax, c + d * az * az
             for a in range(3):
-                a0, a1, a2 = oR[j, a, 0], oR[j, a, 1], oR[j, a, 2]
-                oR[j, a, 0] = a0 * e00 + a1 * e10 + a2 * e20
-                oR[j, a, 1] = a0 * e01 + a1 * e11 + a2 * e21
-                oR[j, a, 2] = a0 * e02 + a1 * e12 + a2 * e22
-
-
-@njit(cache=True)
-def _frames(fparent, fR, ft, oR, op, FR, Fp):  # pragma: no cover - compiled
-    for f in range(fparent.shape[0]):
-        j = fparent[f]
+                a0, a1, a2 = ws[R + 3 * a], ws[R + 3 * a + 1], ws[R + 3 * a + 2]
+                ws[R + 3 * a] = a0 * e00 + a1 * e10 + a2 * e20
+                ws[R + 3 * a + 1] = a0 * e01 + a1 * e11 + a2 * e21
+                ws[R + 3 * a + 2] = a0 * e02 + a1 * e12 + a2 * e22
+    for f in range(nf):
+        j = gi[oF + f]
+        R, P = 9 * j, WP + 3 * j
         for a in range(3):
-            Fp[f, a] = op[j, a] + oR[j, a, 0] * ft[f, 0] + oR[j, a, 1] * ft[f, 1] + oR[j, a, 2] * ft[f, 2]
+            ws[WFP + 3 * f + a] = (ws[P + a] + ws[R + 3 * a] * gf[FT0 + 3 * f] + ws[R + 3 * a + 1] * gf[FT0 + 3 * f + 1]
+                                   + ws[R + 3 * a + 2] * gf[FT0 + 3 * f + 2])
             for b in range(3):
-                FR[f, a, b] = oR[j, a, 0] * fR[f, 0, b] + oR[j, a, 1] * fR[f, 1, b] + oR[j, a, 2] * fR[f, 2, b]
+                ws[WFR + 9 * f + 3 * a + b] = (ws[R + 3 * a] * gf[FR0 + 9 * f + b]
+                                               + ws[R + 3 * a + 1] * gf[FR0 + 9 * f + 3 + b]
+                                               + ws[R + 3 * a + 2] * gf[FR0 + 9 * f + 6 + b])
 
 
 @njit(cache=True)
-def _orient(A, B, scale, out, k, H_A, H_B, jac):  # pragma: no cover - compiled
-    """Orientation error of A against B: out[k:k+3] = 2 l v / (1 + T), C = A B^T, v = vee(C - C^T),
-    T = tr C: l tan(angle/2) axis x 2, ~ l angle axis near A = B, infinite at a half-turn (which
-    vee(C - C^T) alone would take for a root). Its rate is H_A w_A - H_B w_B with
-    H = 2 l / (1 + T) (2 G + v v^T / (1 + T)), G_A = (T I - C)/2, G_B = (T I - C^T)/2 (from
-    vee([w] C + C^T [w]) = (T I - C) w and dT = -v . (w_A - w_B))."""
-    C = np.empty((3, 3))
+def _orient(A, a0, B, b0, scale, out, k, ws, H0, jac):  # pragma: no cover - compiled
+    """Orientation error of A (3 x 3 at A[a0:a0+9]) against B (at B[b0:b0+9]): out[k:k+3] =
+    2 l v / (1 + T), C = A B^T, v = vee(C - C^T), T = tr C: l tan(angle/2) axis x 2, ~ l angle axis
+    near A = B, infinite at a half-turn (which vee(C - C^T) alone would take for a root). Its rate
+    is H_A w_A - H_B w_B (ws[H0:H0+9], ws[H0+9:H0+18]) with H = 2 l / (1 + T) (2 G + v v^T / (1 + T)),
+    G_A = (T I - C)/2, G_B = (T I - C^T)/2 (from vee([w] C + C^T [w]) = (T I - C) w and
+    dT = -v . (w_A - w_B))."""
+    C0 = H0 + 18
     for a in range(3):
         for b in range(3):
-            C[a, b] = A[a, 0] * B[b, 0] + A[a, 1] * B[b, 1] + A[a, 2] * B[b, 2]
-    T = C[0, 0] + C[1, 1] + C[2, 2]
-    v0, v1, v2 = C[2, 1] - C[1, 2], C[0, 2] - C[2, 0], C[1, 0] - C[0, 1]
+            ws[C0 + 3 * a + b] = (A[a0 + 3 * a] * B[b0 + 3 * b] + A[a0 + 3 * a + 1] * B[b0 + 3 * b + 1]
+                                  + A[a0 + 3 * a + 2] * B[b0 + 3 * b + 2])
+    T = ws[C0] + ws[C0 + 4] + ws[C0 + 8]
+    v0, v1, v2 = ws[C0 + 7] - ws[C0 + 5], ws[C0 + 2] - ws[C0 + 6], ws[C0 + 3] - ws[C0 + 1]
     d = max(1.0 + T, 1e-9)
     f = 2.0 * scale / d
     out[k], out[k + 1], out[k + 2] = f * v0, f * v1, f * v2
     if jac:
-        v = (v0, v1, v2)
         for a in range(3):
+            va = v0 if a == 0 else (v1 if a == 1 else v2)
             for b in range(3):
-                vv = v[a] * v[b] / d
-                H_A[a, b] = f * ((T if a == b else 0.0) - C[a, b] + vv)
-                H_B[a, b] = f * ((T if a == b else 0.0) - C[b, a] + vv)
+                vb = v0 if b == 0 else (v1 if b == 1 else v2)
+                vv = va * vb / d
+                diag = T if a == b else 0.0
+                ws[H0 + 3 * a + b] = f * (diag - ws[C0 + 3 * a + b] + vv)
+                ws[H0 + 9 + 3 * a + b] = f * (diag - ws[C0 + 3 * b + a] + vv)
 
 
-@njit(cache=True)
-def _pin_pose(g, target, pin_R, pin_p):  # pragma: no cover - compiled
-    """The placement (pin_R, pin_p) of the end effector's parent joint that puts the end effector
-    at `target` (every position axis) with orientation R0: R = R0 fR[ee]^T, p = target - R ft[ee].
-    Returns that joint's index."""
-    fparent, fR, ft, ee, taxes, R0 = g[5], g[6], g[7], g[12], g[13], g[14]
-    for a in range(3):
-        for b in range(3):
-            pin_R[a, b] = R0[a, 0] * fR[ee, b, 0] + R0[a, 1] * fR[ee, b, 1] + R0[a, 2] * fR[ee, b, 2]
-    for a in range(3):
-        pin_p[taxes[a]] = target[a]
-    for a in range(3):
-        pin_p[a] -= pin_R[a, 0] * ft[ee, 0] + pin_R[a, 1] * ft[ee, 1] + pin_R[a, 2] * ft[ee, 2]
-    return fparent[ee]
-
-
-@njit(cache=True)
-def _residual(x, target, g, oR, op, FR, Fp, r, J, jac, pin_j, pin_R, pin_p):  # pragma: no cover - compiled
-    """Residual r (m,) and, if jac, its Jacobian J (m, n) at joint values x for one target.
+@njit(cache=True, inline="always")
+def _residual(x, target, gi, gf, ws, r, J, jac, pin_j, fk):  # pragma: no cover - compiled
+    """Residual r (m,) and, if jac, its Jacobian J (m, n) at joint values x for one target; fk False
+    reuses the placements in ws that the last call left for these x.
 
     pin_j >= 0 (`_pin_pose`): the end effector's body is placed at the target with orientation R0
     whatever x says, so its frames are constants (task and orientation rows vanish; the Jacobian
     is then only meaningful for joints that are not its ancestors)."""
-    (parent, kind, axis, jR, jt, fparent, fR, ft, anc, ctype, cf1, cf2, ee, taxes, R0, orient, scale) = g
-    _fk(x, parent, kind, axis, jR, jt, oR, op, pin_j, pin_R, pin_p)
-    _frames(fparent, fR, ft, oR, op, FR, Fp)
-    n = parent.shape[0]
+    if fk:
+        _placements(x, gi, gf, ws, pin_j)
+    n, nf, nc, ee, d, orient = gi[0], gi[1], gi[2], gi[3], gi[4], gi[5]
+    oK, oA, oC, o1, o2, oT = gi[7], gi[9], gi[10], gi[11], gi[12], gi[13]
+    scale = gf[0]
+    AX, R00 = 1, 1 + 15 * n + 12 * nf
+    WP, WFR, WFP = 9 * n, 12 * n, 12 * n + 9 * nf
+    H0 = 12 * n + 12 * nf + 12
     k = 0
-    nc = ctype.shape[0]
-    GA = np.empty((3, 3))
-    GB = np.empty((3, 3))
     # rows: closures, orientation (if held), task position
     for c in range(nc + 2):
         if c < nc:
-            f1, f2, rot = cf1[c], cf2[c], ctype[c] == 1
+            f1, f2, rot = gi[o1 + c], gi[o2 + c], gi[oC + c] == 1
             for a in range(3):
-                r[k + a] = Fp[f1, a] - Fp[f2, a]
+                r[k + a] = ws[WFP + 3 * f1 + a] - ws[WFP + 3 * f2 + a]
             if rot:
-                _orient(FR[f1], FR[f2], scale, r, k + 3, GA, GB, jac)
+                _orient(ws, WFR + 9 * f1, ws, WFR + 9 * f2, scale, r, k + 3, ws, H0, jac)
         elif c == nc:
             if not orient:
                 continue
             f1, f2, rot = ee, -1, True
-            _orient(FR[ee], R0, scale, r, k, GA, GB, jac)
+            _orient(ws, WFR + 9 * ee, gf, R00, scale, r, k, ws, H0, jac)
         else:
             f1, f2, rot = ee, -1, False
-            for a in range(taxes.shape[0]):
-                r[k + a] = Fp[ee, taxes[a]] - target[a]
+            for a in range(d):
+                r[k + a] = ws[WFP + 3 * ee + gi[oT + a]] - target[a]
         if jac:
-            rows = (3 if c < nc else 0) + (3 if rot else 0) if c <= nc else taxes.shape[0]
+            rows = (3 if c < nc else 0) + (3 if rot else 0) if c <= nc else d
             for i in range(rows):
                 for j in range(n):
                     J[k + i, j] = 0.0
@@ -301,64 +439,80 @@ def _residual(x, target, g, oR, op, FR, Fp, r, J, jac, pin_j, pin_R, pin_p):  # 
                 if f < 0:
                     continue
                 sg = 1.0 if side == 0 else -1.0
+                G = H0 + 9 * side
                 for j in range(n):
-                    if not anc[f, j]:
+                    if gi[oA + f * n + j] == 0:
                         continue
-                    wx = oR[j, 0, 0] * axis[j, 0] + oR[j, 0, 1] * axis[j, 1] + oR[j, 0, 2] * axis[j, 2]
-                    wy = oR[j, 1, 0] * axis[j, 0] + oR[j, 1, 1] * axis[j, 1] + oR[j, 1, 2] * axis[j, 2]
-                    wz = oR[j, 2, 0] * axis[j, 0] + oR[j, 2, 1] * axis[j, 1] + oR[j, 2, 2] * axis[j, 2]
-                    if kind[j] == 1:
+                    R = 9 * j
+                    ax, ay, az = gf[AX + 3 * j], gf[AX + 3 * j + 1], gf[AX + 3 * j + 2]
+                    wx = ws[R] * ax + ws[R + 1] * ay + ws[R + 2] * az
+                    wy = ws[R + 3] * ax + ws[R + 4] * ay + ws[R + 5] * az
+                    wz = ws[R + 6] * ax + ws[R + 7] * ay + ws[R + 8] * az
+                    if gi[oK + j] == PRISMATIC:
                         lx, ly, lz = wx, wy, wz
                     else:
-                        dx, dy, dz = Fp[f, 0] - op[j, 0], Fp[f, 1] - op[j, 1], Fp[f, 2] - op[j, 2]
+                        dx = ws[WFP + 3 * f] - ws[WP + 3 * j]
+                        dy = ws[WFP + 3 * f + 1] - ws[WP + 3 * j + 1]
+                        dz = ws[WFP + 3 * f + 2] - ws[WP + 3 * j + 2]
                         lx, ly, lz = wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
                         if rot:
-                            G = GA if side == 0 else GB
                             for a in range(3):
-                                J[ko + a, j] += sg * (G[a, 0] * wx + G[a, 1] * wy + G[a, 2] * wz)
+                                J[ko + a, j] += sg * (ws[G + 3 * a] * wx + ws[G + 3 * a + 1] * wy + ws[G + 3 * a + 2] * wz)
                     if c < nc:
                         J[k, j] += sg * lx
                         J[k + 1, j] += sg * ly
                         J[k + 2, j] += sg * lz
                     elif c > nc:
-                        lin = (lx, ly, lz)
-                        for a in range(taxes.shape[0]):
-                            J[k + a, j] += lin[taxes[a]]
+                        for a in range(d):
+                            ta = gi[oT + a]
+                            J[k + a, j] += lx if ta == 0 else (ly if ta == 1 else lz)
         if c < nc:
             k += 6 if rot else 3
         elif c == nc:
             k += 3
         else:
-            k += taxes.shape[0]
+            k += d
 
 
 @njit(cache=True)
-def _orient_trace(g, FR):  # pragma: no cover - compiled
+def _orient_trace(gi, gf, ws):  # pragma: no cover - compiled
     """Smallest tr(R_1 R_2^T) over the orientation equations: vee(C - C^T) also vanishes at half-turns
     (C symmetric), which a root must not be: tr C = 1 + 2 cos(angle) >= 1 keeps the angle within 90 deg."""
-    ctype, cf1, cf2, ee, R0, orient = g[9], g[10], g[11], g[12], g[14], g[15]
+    n, nf, nc, ee, orient = gi[0], gi[1], gi[2], gi[3], gi[5]
+    oC, o1, o2 = gi[10], gi[11], gi[12]
+    WFR, R00 = 12 * n, 1 + 15 * n + 12 * nf
     best = 3.0
-    for c in range(ctype.shape[0]):
-        if ctype[c] == 1:
+    for c in range(nc):
+        if gi[oC + c] == 1:
             t = 0.0
-            for a in range(3):
-                for b in range(3):
-                    t += FR[cf1[c], a, b] * FR[cf2[c], a, b]
+            for a in range(9):
+                t += ws[WFR + 9 * gi[o1 + c] + a] * ws[WFR + 9 * gi[o2 + c] + a]
             best = min(best, t)
     if orient:
         t = 0.0
-        for a in range(3):
-            for b in range(3):
-                t += FR[ee, a, b] * R0[a, b]
+        for a in range(9):
+            t += ws[WFR + 9 * ee + a] * gf[R00 + a]
         best = min(best, t)
     return best
 
 
+@njit(cache=True)
+def _has_orientation(gi):  # pragma: no cover - compiled
+    found = gi[5] != 0
+    for c in range(gi[2]):
+        found = found or gi[gi[10] + c] == 1  # numba: no generator expressions here
+    return found
+
+
 @njit(cache=True, inline="always")
-def _wrap(x, kind, centre):  # pragma: no cover - compiled
+def _wrap(x, gi, centre):  # pragma: no cover - compiled
+    """Revolute values to within pi of their centre (floor, not fmod: this runs every step)."""
+    oK = gi[7]
     for j in range(x.shape[0]):
-        if kind[j] == 0:
-            x[j] = (x[j] - centre[j] + math.pi) % (2 * math.pi) + centre[j] - math.pi
+        if gi[oK + j] == REVOLUTE:
+            d = x[j] - centre[j]
+            if d > math.pi or d < -math.pi:
+                x[j] = d - 2 * math.pi * math.floor((d + math.pi) / (2 * math.pi)) + centre[j]
 
 
 @njit(cache=True, inline="always")
@@ -373,13 +527,18 @@ def _weigh(w, r, J, jac):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _maxabs(r):  # pragma: no cover - compiled
+    """max |r_i|; inf if some r_i is NaN (a NaN row is no root; max() alone would skip it)."""
     m = 0.0
     for i in range(r.shape[0]):
-        m = max(m, abs(r[i]))
+        a = abs(r[i])
+        if not a <= m:
+            m = a if a == a else np.inf
+            if m == np.inf:
+                return m
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
     """Solve A out = b for symmetric positive definite A (overwritten); False if not PD."""
     n = A.shape[0]
@@ -409,137 +568,386 @@ def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
     return True
 
 
+@njit(cache=True)
+def _workspace(gi, m):  # pragma: no cover - compiled
+    """Scratch arrays of one Levenberg-Marquardt row (`_lm_row`) for model gi and m residual rows."""
+    n = gi[0]
+    return (np.empty(_ws_size(gi)), np.empty(m), np.empty(m), np.empty((m, n)), np.empty((m, n)), np.empty((n, n)),
+            np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n))
+
+
+@njit(cache=True, inline="always")
+def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J, Jt, A, D, gr, dx,
+            xt):  # pragma: no cover - compiled
+    """Levenberg-Marquardt from x (overwritten with where it ends) towards target t (see the module
+    docstring). Returns (max |weighted residual| [m], iterations); r and J then hold the weighted
+    residual and Jacobian at x; the other arrays are scratch (`_workspace`)."""
+    n = x.shape[0]
+    pin_j = _pin_pose(gi, gf, ws, t) if pinned else -1
+    _wrap(x, gi, centre)
+    _residual(x, t, gi, gf, ws, r, J, True, pin_j, True)
+    _weigh(roww, r, J, True)
+    cost = 0.0
+    for i in range(m):
+        cost += r[i] * r[i]
+    lam = 1e-8
+    it = 0
+    while it < iters and _maxabs(r) > tol:
+        it += 1
+        # J^T J and -J^T r over each row's structurally non-zero columns only
+        for a in range(n):
+            gr[a] = 0.0
+            for b in range(a + 1):
+                A[a, b] = 0.0
+        for i in range(m):
+            ri = r[i]
+            for u in range(nzn[i]):
+                a = nzc[i, u]
+                ja = J[i, a]
+                gr[a] -= ja * ri
+                for v in range(nzn[i]):
+                    b = nzc[i, v]
+                    if b <= a:
+                        A[a, b] += ja * J[i, b]
+        trace = 0.0
+        for a in range(n):
+            for b in range(a):
+                A[b, a] = A[a, b]
+            trace += A[a, a]
+        for a in range(n):
+            if not free[a]:  # frozen unknown: dx[a] = 0
+                for b in range(n):
+                    A[a, b] = 0.0
+                    A[b, a] = 0.0
+                A[a, a] = 1.0
+                gr[a] = 0.0
+        accepted = False
+        c2 = cost
+        step = 0.0
+        while lam < 1e10:
+            for a in range(n):
+                for b in range(n):
+                    D[a, b] = A[a, b]
+                D[a, a] += lam * A[a, a] + 1e-14 * trace / n + 1e-300
+            if not _cholesky_solve(D, gr, dx):
+                lam *= 10.0
+                continue
+            # the decrease of ||r||^2 the linear model predicts, 2 dx.g - dx^T A dx: where it is
+            # nil (a stationary point) or, after 3 steps, a small fraction of the cost (the start
+            # stalls at a least-squares point) no trial can be accepted for more; stop without
+            # the ~20 damping increases that would otherwise end the loop
+            pred = 0.0
+            step = 0.0
+            for a in range(n):
+                step = max(step, abs(dx[a]))
+                q = 0.0
+                for b in range(n):
+                    q += A[a, b] * dx[b]
+                pred += dx[a] * (2.0 * gr[a] - q)
+            if step < 1e-15 or pred <= 1e-16 * cost or (it >= 3 and pred <= STALL * cost):
+                break
+            for j in range(n):
+                xt[j] = x[j] + dx[j]
+            _wrap(xt, gi, centre)
+            _residual(xt, t, gi, gf, ws, rt, Jt, False, pin_j, True)
+            _weigh(roww, rt, Jt, False)
+            c2 = 0.0
+            for i in range(m):
+                c2 += rt[i] * rt[i]
+            if c2 < cost:
+                accepted = True
+                break
+            lam *= 10.0
+        if not accepted:
+            break
+        lam = max(lam * 0.1, 1e-12)
+        for j in range(n):
+            x[j] = xt[j]
+        # the Jacobian at the accepted trial from the placements its residual left (no second FK)
+        _residual(x, t, gi, gf, ws, r, J, True, pin_j, False)
+        _weigh(roww, r, J, True)
+        drop = cost - c2
+        cost = c2
+        # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
+        # convergence drops it by far more than this each step)
+        if step < 1e-15 or drop <= 1e-16 * cost or (it >= 3 and drop <= STALL * cost):
+            break
+    res = _maxabs(r)
+    # ws holds x's placements: a converged row's last evaluation was its accepted step (or its start)
+    if res <= max(tol, TOL) and _has_orientation(gi) and _orient_trace(gi, gf, ws) < 1.0:
+        res = 1.0  # a half-turn, not a root
+    return res, it
+
+
 @njit(cache=True, parallel=True)
-def _lm_kernel(targets, x0, g, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out, pinned):  # pragma: no cover - compiled
-    """Levenberg-Marquardt from every row's start x0 towards its target (see the module docstring)."""
-    kind = g[1]
+def _lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out, pinned):  # pragma: no cover - compiled
+    """`_lm_row` from every row's start x0 towards its target."""
     nrows = targets.shape[0]
-    n = g[0].shape[0]
-    nf = g[5].shape[0]
+    n = gi[0]
     BLK = 16
     for blk in prange((nrows + BLK - 1) // BLK):
-        oR = np.empty((n, 3, 3))
-        op = np.empty((n, 3))
-        FR = np.empty((nf, 3, 3))
-        Fp = np.empty((nf, 3))
-        r = np.empty(m)
-        rt = np.empty(m)
-        J = np.empty((m, n))
-        A = np.empty((n, n))
-        D = np.empty((n, n))
-        gr = np.empty(n)
-        dx = np.empty(n)
+        ws, r, rt, J, Jt, A, D, gr, dx, xt = _workspace(gi, m)
         x = np.empty(n)
-        xt = np.empty(n)
-        pin_R = np.empty((3, 3))
-        pin_p = np.empty(3)
         for row in range(blk * BLK, min(nrows, (blk + 1) * BLK)):
-            t = targets[row]
-            pin_j = _pin_pose(g, t, pin_R, pin_p) if pinned else -1
             for j in range(n):
                 x[j] = x0[row, j]
-            _wrap(x, kind, centre)
-            _residual(x, t, g, oR, op, FR, Fp, r, J, True, pin_j, pin_R, pin_p)
-            _weigh(roww, r, J, True)
-            cost = 0.0
-            for i in range(m):
-                cost += r[i] * r[i]
-            lam = 1e-8
-            it = 0
-            while it < iters and _maxabs(r) > tol:
-                it += 1
-                # J^T J and -J^T r over each row's structurally non-zero columns only
-                for a in range(n):
-                    gr[a] = 0.0
-                    for b in range(a + 1):
-                        A[a, b] = 0.0
-                for i in range(m):
-                    ri = r[i]
-                    for u in range(nzn[i]):
-                        a = nzc[i, u]
-                        ja = J[i, a]
-                        gr[a] -= ja * ri
-                        for v in range(nzn[i]):
-                            b = nzc[i, v]
-                            if b <= a:
-                                A[a, b] += ja * J[i, b]
-                trace = 0.0
-                for a in range(n):
-                    for b in range(a):
-                        A[b, a] = A[a, b]
-                    trace += A[a, a]
-                for a in range(n):
-                    if not free[a]:  # frozen unknown: dx[a] = 0
-                        for b in range(n):
-                            A[a, b] = 0.0
-                            A[b, a] = 0.0
-                        A[a, a] = 1.0
-                        gr[a] = 0.0
-                accepted = False
-                c2 = cost
-                while lam < 1e10:
-                    for a in range(n):
-                        for b in range(n):
-                            D[a, b] = A[a, b]
-                        D[a, a] += lam * A[a, a] + 1e-14 * trace / n + 1e-300
-                    if not _cholesky_solve(D, gr, dx):
-                        lam *= 10.0
-                        continue
-                    for j in range(n):
-                        xt[j] = x[j] + dx[j]
-                    _wrap(xt, kind, centre)
-                    _residual(xt, t, g, oR, op, FR, Fp, rt, J, False, pin_j, pin_R, pin_p)
-                    _weigh(roww, rt, J, False)
-                    c2 = 0.0
-                    for i in range(m):
-                        c2 += rt[i] * rt[i]
-                    if c2 < cost:
-                        accepted = True
-                        break
-                    lam *= 10.0
-                if not accepted:
-                    break
-                lam = max(lam * 0.1, 1e-12)
-                step = 0.0
-                for j in range(n):
-                    step = max(step, abs(dx[j]))
-                    x[j] = xt[j]
-                drop = cost - c2
-                cost = c2
-                _residual(x, t, g, oR, op, FR, Fp, r, J, True, pin_j, pin_R, pin_p)
-                _weigh(roww, r, J, True)
-                # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
-                # convergence drops it by far more than this each step)
-                if step < 1e-15 or drop <= 1e-16 * cost or (it >= 3 and drop <= STALL * cost):
-                    break
+            res, it = _lm_row(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J,
+                              Jt, A, D, gr, dx, xt)
             for j in range(n):
                 x_out[row, j] = x[j]
-            res_out[row] = _maxabs(r)
-            _residual(x, t, g, oR, op, FR, Fp, rt, J, False, pin_j, pin_R, pin_p)
-            if _orient_trace(g, FR) < 1.0:  # a half-turn, not a root
-                res_out[row] = max(res_out[row], 1.0) if res_out[row] <= tol else res_out[row]
+            res_out[row] = res
             it_out[row] = it
 
 
 @njit(cache=True)
-def _eval_kernel(targets, x, g, r_out, J_out, pos_out):  # pragma: no cover - compiled
-    """Residuals, Jacobians and joint-origin positions at rows of joint values."""
-    n = g[0].shape[0]
-    nf = g[5].shape[0]
-    oR = np.empty((n, 3, 3))
-    op = np.empty((n, 3))
-    FR = np.empty((nf, 3, 3))
-    Fp = np.empty((nf, 3))
-    pin_R = np.empty((3, 3))
-    pin_p = np.empty(3)
+def _det_sign(J, rows, cols, nc, M):  # pragma: no cover - compiled
+    """Sign of det J[rows][:, cols] (nc x nc, Gaussian elimination with partial pivoting); 0 if singular."""
+    for a in range(nc):
+        for b in range(nc):
+            M[a, b] = J[rows[a], cols[b]]
+    sign = 1
+    for c in range(nc):
+        p, best = c, abs(M[c, c])
+        for a in range(c + 1, nc):
+            if abs(M[a, c]) > best:
+                p, best = a, abs(M[a, c])
+        if best == 0.0:
+            return 0
+        if p != c:
+            sign = -sign
+            for b in range(nc):
+                M[c, b], M[p, b] = M[p, b], M[c, b]
+        if M[c, c] < 0.0:
+            sign = -sign
+        for a in range(c + 1, nc):
+            f = M[a, c] / M[c, c]
+            for b in range(c + 1, nc):
+                M[a, b] -= f * M[c, b]
+    return sign
+
+
+@njit(cache=True, parallel=True)
+def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
+                  restarts, alive, sol, found, dist, res, end, counts):  # pragma: no cover - compiled
+    """Block k of the block solver (`LoopBatch._solve_blocks`) at every target row.
+
+    Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
+    then, where another slot of the block was found, `restarts` quasi-random starts for each slot
+    still missing. A start's held joints come from the earlier blocks' solutions of its slot's
+    branch choice; its root (if any) goes to the slot of its label, the one nearest the reference
+    kept. A branch dies (`alive`) with the first block slot it needs that is not found.
+    (One call site per solver step: every compiled call binds its array arguments with reference
+    counting, which at this size costs as much as the kinematics.)"""
+    N = targets.shape[0]
+    B = bslot.shape[0]
+    n = gi[0]
+    (pinned, ncol, cols, rows_det, label, middles, nmid, flips, nflip, held, nheld, held_owner, held_pos, held_slot,
+     land, ref, act, held_by_others) = T
+    nc = ncol[k]
+    # a block whose values later blocks hold is solved past TOL (Newton's last step squares the
+    # error): a held value within TOL of its root can leave an over-determined block (a second
+    # rod) unable to close to TOL itself
+    tol = TOL * 1e-2 if held_by_others[k] else TOL
+    S = nslot[k]
+    oK = gi[7]
+    BLK = 16
+    for chunk in prange((N + BLK - 1) // BLK):
+        ws, r, rt, J, Jt, A, D, gr, dx, xt = _workspace(gi, m)
+        x = np.empty(n)
+        t = np.empty(targets.shape[1])
+        M = np.empty((nc, nc))
+        need = np.empty(S, dtype=np.bool_)
+        for i in range(chunk * BLK, min(N, (chunk + 1) * BLK)):
+            for a in range(t.shape[0]):
+                t[a] = targets[i, a]
+            for s in range(S):
+                need[s] = False
+            for b in range(B):
+                if alive[i, b]:
+                    need[bslot[b, k]] = True
+            idx0 = (i * nslot.shape[0] + k) * S * restarts
+            for attempt in range(S * (1 + restarts)):
+                if attempt == S:
+                    # restarts only where the block has some root, or where the blocks it builds on
+                    # closed (a closure that cannot close there is rare; a target a limb cannot
+                    # reach is not: restarting those would cost most of the time outside)
+                    some = nheld[k] > 0
+                    for q in range(S):
+                        some = some or found[i, k, q]
+                    if not some:
+                        break
+                s = attempt if attempt < S else (attempt - S) // restarts
+                if not need[s] or found[i, k, s]:
+                    continue
+                # the start: the block's unknowns, then the held joints of this slot's branch choice
+                for j in range(n):
+                    x[j] = 0.0
+                iters = 20
+                if attempt < S:
+                    cold = not np.isfinite(warm[i, k, s, 0])
+                    iters = 40 if cold else 20
+                    for c in range(nc):
+                        x[cols[k, c]] = atlas[k, s, c] if cold else warm[i, k, s, c]
+                else:
+                    q = idx0 + attempt - S + 1
+                    for c in range(nc):
+                        x[cols[k, c]] = lo[k, c] + ((0.5 + q * alpha[k, c]) % 1.0) * (hi[k, c] - lo[k, c])
+                usable = True
+                for h in range(nheld[k]):
+                    x[held[k, h]] = sol[i, held_owner[k, h], held_slot[k, s, h], held_pos[k, h]]
+                    usable = usable and np.isfinite(x[held[k, h]])
+                if not usable:  # an earlier block of this branch choice has no root here
+                    continue
+                rr, it = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
+                                 Jt, A, D, gr, dx, xt)
+                counts[i, 2] += it
+                counts[i, 3] += 1
+                if rr < res[i, k, s]:
+                    res[i, k, s] = rr
+                    for c in range(nc):
+                        end[i, k, s, c] = x[cols[k, c]]
+                if not rr <= TOL:
+                    continue
+                s2 = s
+                if label[k] >= 0:
+                    sg = _det_sign(J, rows_det[k], cols[k], nc, M)
+                    for q in range(nmid[k]):
+                        if math.cos(x[middles[k, q]]) < 0.0:
+                            sg = -sg
+                    s2 = land[k, s, sg + 1]
+                if s2 < 0:
+                    counts[i, 0] += 1
+                    continue
+                # one representation per pose (`LoopBatch.canonical`)
+                for q in range(nflip[k]):
+                    a, b, c3 = flips[k, q, 0], flips[k, q, 1], flips[k, q, 2]
+                    if math.cos(x[b]) < 0.0:
+                        x[a] += math.pi
+                        x[b] = math.pi - x[b]
+                        if c3 >= 0:
+                            x[c3] += math.pi
+                _wrap(x, gi, centre)
+                d = 0.0
+                for c in range(nc):
+                    e = x[cols[k, c]] - ref[k, c]
+                    if gi[oK + cols[k, c]] == REVOLUTE:
+                        e = (e + math.pi) % (2 * math.pi) - math.pi
+                    d += e * e
+                if found[i, k, s2]:
+                    for c in range(nc):
+                        if act[k, c] and abs(x[cols[k, c]] - sol[i, k, s2, c]) > 1e-9:
+                            counts[i, 1] += 1
+                            break
+                    if d >= dist[i, k, s2]:
+                        continue
+                found[i, k, s2] = True
+                dist[i, k, s2] = d
+                res[i, k, s2] = 0.0
+                for c in range(nc):
+                    sol[i, k, s2, c] = x[cols[k, c]]
+                    end[i, k, s2, c] = x[cols[k, c]]
+            for b in range(B):
+                if not found[i, k, bslot[b, k]]:
+                    alive[i, b] = False
+
+
+@njit(cache=True, inline="always")
+def _slack_row(x, lo, hi, use, unit, pairs, paired, centre):  # pragma: no cover - compiled
+    """`LoopBatch.limit_margin` of one row of joint values."""
+    best = np.inf
+    for j in range(x.shape[0]):
+        if use[j] and not paired[j]:
+            best = min(best, min(x[j] - lo[j], hi[j] - x[j]) * unit[j])
+    for q in range(pairs.shape[0]):
+        j1, j2 = pairs[q, 0], pairs[q, 1]
+        s1 = np.inf
+        s2 = np.inf
+        a2 = (x[j1] + math.pi - centre[j1] + math.pi) % (2 * math.pi) + centre[j1] - math.pi
+        b2 = (math.pi - x[j2] - centre[j2] + math.pi) % (2 * math.pi) + centre[j2] - math.pi
+        if use[j1]:
+            s1 = min(s1, min(x[j1] - lo[j1], hi[j1] - x[j1]) * unit[j1])
+            s2 = min(s2, min(a2 - lo[j1], hi[j1] - a2) * unit[j1])
+        if use[j2]:
+            s1 = min(s1, min(x[j2] - lo[j2], hi[j2] - x[j2]) * unit[j2])
+            s2 = min(s2, min(b2 - lo[j2], hi[j2] - b2) * unit[j2])
+        best = min(best, max(s1, s2))
+    return best
+
+
+@njit(cache=True, parallel=True)
+def _slack_kernel(x, lo, hi, use, unit, pairs, paired, centre, out):  # pragma: no cover - compiled
+    for r in prange(x.shape[0]):
+        out[r] = _slack_row(x[r], lo, hi, use, unit, pairs, paired, centre)
+
+
+@njit(cache=True, parallel=True)
+def _assemble_kernel(sol, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
+                     x_out, end_out, ok_out, res_out, margin_out):  # pragma: no cover - compiled
+    """The block solver's per-slot results combined into branches (`LoopBatch._solve_blocks`):
+    joint values (NaN unless every block of the branch was found), ends, residuals (the largest of
+    the blocks tried; an untried block's earlier block failed) and margins."""
+    N = sol.shape[0]
+    B, K = bslot.shape
+    n = x_out.shape[2]
+    for i in prange(N):
+        for b in range(B):
+            ok = True
+            r = 0.0
+            for k in range(K):
+                s = bslot[b, k]
+                for c in range(ncol[k]):
+                    x_out[i, b, cols[k, c]] = sol[i, k, s, c]
+                    end_out[i, b, cols[k, c]] = end[i, k, s, c]
+                ok = ok and found[i, k, s]
+                if np.isfinite(res[i, k, s]) and res[i, k, s] > r:
+                    r = res[i, k, s]
+            ok_out[i, b] = ok
+            if ok:
+                res_out[i, b] = 0.0
+                margin_out[i, b] = _slack_row(x_out[i, b], lo, hi, use, unit, pairs, paired, centre)
+            else:
+                res_out[i, b] = r
+                margin_out[i, b] = -max(r, 1e-300)
+                for j in range(n):
+                    x_out[i, b, j] = np.nan
+
+
+@njit(cache=True)
+def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out, pinned):  # pragma: no cover - compiled
+    """Residuals, Jacobians and joint-origin positions at rows of joint values (pinned: as in
+    `_lm_kernel`)."""
+    n, nf = gi[0], gi[1]
+    ws = np.empty(_ws_size(gi))
+    WP, WFP = 9 * n, 12 * n + 9 * nf
     for row in range(x.shape[0]):  # serial: cheap next to the solves, and compiles faster
-        _residual(x[row], targets[row], g, oR, op, FR, Fp, r_out[row], J_out[row], True, -1, pin_R, pin_p)
+        pin_j = _pin_pose(gi, gf, ws, targets[row]) if pinned else -1
+        _residual(x[row], targets[row], gi, gf, ws, r_out[row], J_out[row], True, pin_j, True)
         for j in range(n):
             for a in range(3):
-                pos_out[row, j, a] = op[j, a]
+                pos_out[row, j, a] = ws[WP + 3 * j + a]
         for f in range(nf):
             for a in range(3):
-                pos_out[row, n + f, a] = Fp[f, a]
+                pos_out[row, n + f, a] = ws[WFP + 3 * f + a]
+
+
+class _Slots(NamedTuple):
+    """The block solver's per-slot results (`LoopBatch._solve_slots`, `_block_kernel`)."""
+
+    sol: np.ndarray  # (N, K, S, cmax) each block's unknowns per slot (NaN where not found)
+    found: np.ndarray  # (N, K, S)
+    dist: np.ndarray  # (N, K, S) distance to the reference of the kept root
+    res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried)
+    end: np.ndarray  # (N, K, S, cmax) where that best start ended
+    counts: np.ndarray  # (N, 4) unlabelled roots, conflicts, iterations, starts
+
+    @classmethod
+    def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
+        return cls(np.full((N, K, S, cmax), np.nan), np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
+                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 4), dtype=np.int64))
+
+    def put(self, idx: np.ndarray, part: _Slots) -> None:
+        for mine, theirs in zip(self, part, strict=True):
+            mine[idx] = theirs
 
 
 # -- the mechanism ---------------------------------------------------------------------------------
@@ -573,6 +981,7 @@ class LoopBatch:
     atlas: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
     blocks: tuple[Block, ...] = ()
     restarts: int = 8
+    solver: str = "blocks"
     frames: tuple[str, ...] = ()
     _g: tuple[Any, ...] = ()
     _m: int = 0
@@ -582,11 +991,14 @@ class LoopBatch:
     _reference: np.ndarray = field(default_factory=lambda: np.empty(0))
     _anchor: np.ndarray = field(default_factory=lambda: np.empty(0))
     _cache: tuple[np.ndarray, np.ndarray] | None = None
+    _cache_fill: int = 0
+    _cache_at: int = 0
 
     # -- construction ----------------------------------------------------------------------------
     @classmethod
     def from_robot(cls, robot: Robot, *, task_axes: tuple[int, ...] | None = None, seeds: int = 512,
-                   restarts: int = 8, rng: int | np.random.Generator | None = 0) -> LoopBatch:
+                   restarts: int = 8, rng: int | np.random.Generator | None = 0, solver: str = "blocks"
+                   ) -> LoopBatch:
         """Compile a closed-loop robot and find its branches at the reference position.
 
         Args:
@@ -595,6 +1007,7 @@ class LoopBatch:
             seeds: random starts of the branch search at the reference position.
             restarts: random starts per target that misses some branch (`ik`).
             rng: seed of the random starts (the result is deterministic for a fixed seed).
+            solver: one of SOLVERS (`ik`).
 
         Raises:
             UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, or a task
@@ -602,6 +1015,10 @@ class LoopBatch:
         """
         from kinematics.generic.closedloop import ClosedLoop
 
+        if solver not in SOLVERS:
+            from kinematics.errors import UnknownChoiceError
+
+            raise UnknownChoiceError(solver, SOLVERS)
         if robot.loops is None:
             raise UnsupportedRobotError(robot.name, "no loop-closure sidecar (<name>.loops.yaml) next to its URDF")
         model = robot.model
@@ -630,7 +1047,7 @@ class LoopBatch:
                                             "the batched solver handles position tasks only")
             task_axes = tuple(axes)
         self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), translational=translational,
-                   scale=_length(robot, q), restarts=restarts)
+                   scale=_length(robot, q), restarts=restarts, solver=solver)
         self._compile(q)
         self._reference = robot.values_from_configuration(q)
         pin.framesForwardKinematics(model, robot.data, q)
@@ -686,10 +1103,11 @@ class LoopBatch:
         lo, hi = robot.lower, robot.upper
         self._centre = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
         # structural pattern: the columns each residual row can depend on
-        cols = [np.flatnonzero(row) for row in self.row_dependencies()]
-        width = max(len(c) for c in cols)
-        self._nzn = np.array([len(c) for c in cols], dtype=np.int64)
-        self._nzc = np.array([np.pad(c, (0, width - len(c)), constant_values=-1) for c in cols], dtype=np.int64)
+        self._nzc, self._nzn = _sparsity(self.row_dependencies())
+
+    @functools.cached_property
+    def _packed(self) -> tuple[np.ndarray, np.ndarray]:
+        return _pack(self._g)
 
     # -- basic properties ------------------------------------------------------------------------
     @property
@@ -763,7 +1181,7 @@ class LoopBatch:
         res = np.empty(len(t))
         its = np.empty(len(t), dtype=np.int64)
         if len(t):
-            _lm_kernel(t, x0, self._g, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its,
+            _lm_kernel(t, x0, *self._packed, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its,
                        bool(pinned))
         return x, res, its
 
@@ -777,7 +1195,7 @@ class LoopBatch:
         J = np.empty((R, self._m, self.n))
         pos = np.empty((R, self.n + self._g[5].shape[0], 3))
         if R:
-            _eval_kernel(t, x, self._g, r, J, pos)
+            _eval_kernel(t, x, *self._packed, r, J, pos, False)
         return r, J, pos
 
     # -- structure -------------------------------------------------------------------------------
@@ -807,11 +1225,7 @@ class LoopBatch:
                 j = int(parent[j])
             below = anc[:, int(fparent[ee])]  # frames carried by the end effector's joint
             anc[below] &= ~above
-        out = []
-        for k, t in enumerate(ctype):
-            out += [anc[cf1[k]] | anc[cf2[k]]] * (3 if t == 0 else 6)
-        out += [anc[ee]] * len(self.task_rows)
-        return np.array(out, dtype=bool).reshape(self._m, self.n)
+        return _row_pattern(anc, ctype, cf1, cf2, ee, len(self.task_rows))
 
     def _row_groups(self) -> list[tuple[int, ...]]:
         groups, k = [], 0
@@ -887,6 +1301,94 @@ class LoopBatch:
                     sign = sign * np.sign(np.cos(x[:, grp[1]]))
             out[:, k] = sign.astype(np.int8)
         return out
+
+    @functools.cached_property
+    def block_models(self) -> tuple[BlockModel, ...]:
+        """Each block of `blocks` as a small model of its own (`BlockModel`), for the block solver."""
+        parent, kind, axis, jR, jt, fparent, fR, ft, anc, ctype, cf1, cf2, ee, taxes, R0, orient, scale = self._g
+        groups = self._row_groups()
+        nc = len(ctype)
+        carrier = int(fparent[ee])
+        task_rows = set(self.task_rows)
+        label_index = {b: k for k, b in enumerate(self.label_blocks)}
+        owner = np.full(self.n, -1)
+        middle = {grp[1] for grp in self.concurrent_groups}
+        models: list[BlockModel] = []
+        for k, blk in enumerate(self.blocks):
+            rows = set(blk.rows)
+            closures = [c for c in range(nc) if rows & set(groups[c])]
+            task = bool(rows & task_rows)
+            pinned = self.can_pin and not task
+            frames = sorted({int(cf1[c]) for c in closures} | {int(cf2[c]) for c in closures}
+                            | ({int(ee)} if task or pinned else set()))
+            joints: set[int] = set()
+            for f in frames:
+                chain = set(np.flatnonzero(anc[f]).tolist())
+                if pinned and anc[f, carrier]:  # carried by the placed joint: the path below it only
+                    chain = {j for j in chain if self._descends(j, carrier)}
+                joints |= chain
+            js = np.array(sorted(joints), dtype=np.int64)
+            where = {int(j): i for i, j in enumerate(js)}
+            sub_parent = np.array([-1 if (pinned and j == carrier) or parent[j] < 0 else where[int(parent[j])]
+                                   for j in js], dtype=np.int64)
+            sub_anc = np.zeros((len(frames), len(js)), dtype=np.bool_)
+            for i, f in enumerate(frames):
+                j = where[int(fparent[f])]
+                while j >= 0:
+                    sub_anc[i, j] = True
+                    j = int(sub_parent[j])
+            fi = {f: i for i, f in enumerate(frames)}
+            # an end effector the block does not use points at its first frame; its rows weigh 0
+            sub_ee = fi.get(int(ee), 0)
+            sub_fparent = np.array([where.get(int(fparent[f]), 0) for f in frames], dtype=np.int64)
+            held_orient = bool(orient) and task
+            sub_ctype = np.array([ctype[c] for c in closures], dtype=np.int64)
+            g = (sub_parent, kind[js], axis[js], jR[js], jt[js], sub_fparent, fR[frames], ft[frames], sub_anc,
+                 sub_ctype, np.array([fi[int(cf1[c])] for c in closures], dtype=np.int64),
+                 np.array([fi[int(cf2[c])] for c in closures], dtype=np.int64), int(sub_ee), taxes, R0,
+                 held_orient, float(scale))
+            # full row -> sub-model row
+            to_sub: dict[int, int] = {}
+            r = 0
+            for c in closures:
+                for i in groups[c]:
+                    to_sub[i] = r
+                    r += 1
+            if held_orient:
+                for i in groups[nc]:
+                    to_sub[i] = r
+                    r += 1
+            for i in groups[-1]:
+                to_sub[i] = r
+                r += 1
+            m = r
+            weights = np.zeros(m)
+            weights[[to_sub[i] for i in blk.rows]] = 1.0
+            pattern = _row_pattern(sub_anc, g[9], g[10], g[11], int(sub_ee), m - sum(3 if t == 0 else 6
+                                                                                       for t in sub_ctype))
+            pattern[weights == 0.0] = False
+            nzc, nzn = _sparsity(pattern)
+            free = np.isin(js, blk.cols)
+            held = np.array([i for i, j in enumerate(js) if not free[i] and not (pinned and j == carrier)],
+                            dtype=np.int64)
+            own = tuple((int(owner[js[i]]), self.blocks[int(owner[js[i]])].cols.index(int(js[i]))) for i in held)
+            if any(o < 0 for o, _ in own):
+                raise UnsupportedRobotError(self.robot.name, f"block {k} of the loop equations uses a joint that no "
+                                            "earlier block determines")
+            depends: set[int] = set()
+            for o, _ in own:
+                depends |= set(models[o].depends)
+                if models[o].label >= 0:
+                    depends.add(models[o].label)
+            models.append(BlockModel(
+                block=blk, joints=js, free=free, held=held, owner=own,
+                rows=np.array([to_sub[i] for i in blk.rows], dtype=np.int64),
+                cols=np.array([where[c] for c in blk.cols], dtype=np.int64),
+                middles=np.array([where[c] for c in blk.cols if c in middle], dtype=np.int64),
+                label=label_index.get(blk, -1), depends=tuple(sorted(depends)), pinned=pinned, g=g, m=m,
+                nzc=nzc, nzn=nzn, centre=self._centre[js], weights=weights))
+            owner[list(blk.cols)] = k
+        return tuple(models)
 
     # -- branch search ---------------------------------------------------------------------------
     def random_configurations(self, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -1012,14 +1514,19 @@ class LoopBatch:
         self.labels = tuple(keys)
         self.atlas = np.array([x[best[k]] for k in keys])
 
-    def ik(self, points: np.ndarray, *, warm: bool = True) -> BranchSolutions:
+    def ik(self, points: np.ndarray, *, warm: bool = True, every_block: bool = False) -> BranchSolutions:
         """Every atlas branch at every task point (see the module docstring for the search).
 
         Args:
             points: (N, d) task coordinates [m].
             warm: use (and update) the cache of earlier batches' solutions as starts.
+            every_block: (block solver) solve every block even where an earlier one already rules
+                out every branch that uses it, so that `end` holds each block's own end everywhere
+                (singularity fields outside the workspace); slower outside.
         """
         p = self._points(points)
+        if self.solver == "blocks":
+            return self._ik_blocks(p, warm, every_block)
         N = len(p)
         if N > 64:
             # continuation inside the batch: a coarse subset first, the rest from its ends
@@ -1035,14 +1542,26 @@ class LoopBatch:
         return out
 
     def _remember(self, p: np.ndarray, end: np.ndarray) -> None:
-        if self._cache is not None:
-            p = np.vstack([p, self._cache[0]])[:CACHE_POINTS]
-            end = np.vstack([end, self._cache[1]])[:CACHE_POINTS]
-        self._cache = (p, end)
+        """Keep the latest CACHE_POINTS solved points and their ends (a ring: no copy of the old ones)."""
+        p, end = p[-CACHE_POINTS:], end[-CACHE_POINTS:]
+        if self._cache is None or self._cache[1].shape[1:] != end.shape[1:]:
+            self._cache = (np.empty((CACHE_POINTS,) + p.shape[1:]), np.empty((CACHE_POINTS,) + end.shape[1:]))
+            self._cache_fill = self._cache_at = 0
+        rows = (self._cache_at + np.arange(len(p))) % CACHE_POINTS
+        self._cache[0][rows], self._cache[1][rows] = p, end
+        self._cache_at = int((self._cache_at + len(p)) % CACHE_POINTS)
+        self._cache_fill = min(CACHE_POINTS, self._cache_fill + len(p))
+
+    def _cached(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The cached points and ends, or None."""
+        if self._cache is None or not self._cache_fill:
+            return None
+        return self._cache[0][: self._cache_fill], self._cache[1][: self._cache_fill]
 
     def forget(self) -> None:
         """Drop the warm-start cache."""
         self._cache = None
+        self._cache_fill = self._cache_at = 0
 
     def _solve(self, p: np.ndarray, warm: bool,
                extra: tuple[np.ndarray, np.ndarray] | None = None) -> BranchSolutions:
@@ -1099,7 +1618,7 @@ class LoopBatch:
         # (1) neighbours (earlier batches, this batch's coarse subset): each slot from the same
         # slot's root or least-squares point there (continuation)
         tried = np.zeros((N, B), dtype=bool)
-        for src in (self._cache if warm else None, extra):
+        for src in (self._cached() if warm else None, extra):
             if src is None or not len(src[0]):
                 continue
             tree = cKDTree(src[0])
@@ -1122,6 +1641,177 @@ class LoopBatch:
         margin = np.where(found, self.limit_margin(np.nan_to_num(best_x)),
                           -np.maximum(np.nan_to_num(residual, nan=1.0), 1e-300))
         return BranchSolutions(best_x, found, residual, margin, counters[0], counters[1], end_x)
+
+    @functools.cached_property
+    def _block_tables(self) -> dict[str, Any]:
+        """The block solver's packed arrays (`_block_kernel`): per block its slots (one per choice
+        of the labels it depends on, times its own sign for a labelling block), the slot each
+        branch uses, the starts, and the sub-model indices padded to the largest block."""
+        models = self.block_models
+        K, B = len(models), len(self.labels)
+        labels = np.array(self.labels, dtype=np.int64).reshape(B, -1)
+        cmax = max(len(bm.cols) for bm in models)
+        keys: list[list[tuple[int, ...]]] = []
+        bslot = np.zeros((B, K), dtype=np.int64)
+        for k, bm in enumerate(models):
+            own = (bm.label,) if bm.label >= 0 else ()
+            key = [tuple(int(v) for v in labels[b, list(bm.depends) + list(own)]) for b in range(B)]
+            uniq = sorted(set(key), reverse=True)
+            keys.append(uniq)
+            bslot[:, k] = [uniq.index(c) for c in key]
+        S = max(len(u) for u in keys)
+        nslot = np.array([len(u) for u in keys], dtype=np.int64)
+        rep = np.zeros((K, S), dtype=np.int64)  # a branch that uses each slot
+        for k in range(K):
+            for s in range(nslot[k]):
+                rep[k, s] = int(np.flatnonzero(bslot[:, k] == s)[0])
+        land = np.full((K, S, 3), -1, dtype=np.int64)
+        for k, bm in enumerate(models):
+            for s, slot_key in enumerate(keys[k]):
+                if bm.label < 0:
+                    land[k, s] = s
+                    continue
+                for sign in (-1, 0, 1):
+                    other = slot_key[:-1] + (sign,)
+                    land[k, s, sign + 1] = keys[k].index(other) if other in keys[k] else -1
+        hmax = max([len(bm.held) for bm in models] + [1])
+        held = np.zeros((K, hmax), dtype=np.int64)
+        held_owner = np.zeros((K, hmax), dtype=np.int64)
+        held_pos = np.zeros((K, hmax), dtype=np.int64)
+        held_slot = np.zeros((K, S, hmax), dtype=np.int64)
+        for k, bm in enumerate(models):
+            for h, (o, pos) in enumerate(bm.owner):
+                held[k, h], held_owner[k, h], held_pos[k, h] = bm.held[h], o, pos
+                held_slot[k, : nslot[k], h] = bslot[rep[k, : nslot[k]], o]
+        flippable = self.flippable_groups
+        fmax = max([len(bm.cols) for bm in models] + [1])
+        flips = np.full((K, fmax, 3), -1, dtype=np.int64)
+        nflip = np.zeros(K, dtype=np.int64)
+        mmax = max([len(bm.middles) for bm in models] + [1])
+        middles = np.zeros((K, mmax), dtype=np.int64)
+        cols = np.zeros((K, cmax), dtype=np.int64)
+        rows_det = np.zeros((K, cmax), dtype=np.int64)
+        ref = np.zeros((K, cmax))
+        act = np.zeros((K, cmax), dtype=np.bool_)
+        atlas = np.zeros((K, S, cmax))
+        lo = np.zeros((K, cmax))
+        hi = np.zeros((K, cmax))
+        alpha = np.zeros((K, cmax))
+        span = np.where(self.limited, self.robot.upper - self.robot.lower, 0.0)
+        r_lo = np.where(self.limited, self.robot.lower - 0.5 * span, self._centre - math.pi)
+        r_hi = np.where(self.limited, self.robot.upper + 0.5 * span, self._centre + math.pi)
+        for k, bm in enumerate(models):
+            full = np.array(bm.block.cols, dtype=np.int64)
+            nc = len(full)
+            where = {int(j): i for i, j in enumerate(bm.joints)}
+            q = 0
+            for grp in flippable:
+                if all(j in bm.block.cols for j in grp):
+                    flips[k, q, : len(grp)] = [where[j] for j in grp]
+                    q += 1
+            nflip[k] = q
+            middles[k, : len(bm.middles)] = bm.middles
+            cols[k, :nc] = bm.cols
+            if bm.label >= 0:
+                rows_det[k, :nc] = bm.rows
+            ref[k, :nc] = self._reference[full]
+            act[k, :nc] = np.isin(full, self.actuated)
+            atlas[k, : nslot[k], :nc] = self.atlas[rep[k, : nslot[k]]][:, full]
+            lo[k, :nc], hi[k, :nc] = r_lo[full], r_hi[full]
+            # the additive recurrence of the R_d sequence (plastic-number family): well spread in d dims
+            phi = 2.0
+            for _ in range(64):
+                phi = (1.0 + phi) ** (1.0 / (nc + 1))
+            alpha[k, :nc] = (1.0 / phi) ** np.arange(1, nc + 1) % 1.0
+        T = (np.array([bm.pinned for bm in models], dtype=np.bool_), np.array([len(bm.cols) for bm in models],
+             dtype=np.int64), cols, rows_det, np.array([bm.label for bm in models], dtype=np.int64), middles,
+             np.array([len(bm.middles) for bm in models], dtype=np.int64), flips, nflip, held,
+             np.array([len(bm.held) for bm in models], dtype=np.int64), held_owner, held_pos, held_slot, land, ref, act,
+             np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_))
+        kernel_models = tuple((*_pack(bm.g), bm.m, bm.nzc, bm.nzn, bm.centre, bm.free, bm.weights) for bm in models)
+        # solve order: every block after the blocks it holds joints of, the smallest sub-model first
+        # among those ready (a target that one limb cannot reach is dropped before the costlier ones)
+        order: list[int] = []
+        while len(order) < K:
+            ready = [k for k in range(K) if k not in order and all(o in order for o, _ in models[k].owner)]
+            order.append(min(ready, key=lambda k: (len(models[k].joints), k)))
+        full_cols = np.zeros((K, cmax), dtype=np.int64)
+        for k, bm in enumerate(models):
+            full_cols[k, : len(bm.block.cols)] = bm.block.cols
+        return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "rep": rep, "atlas": atlas,
+                "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax}
+
+    def _ik_blocks(self, p: np.ndarray, warm: bool, every_block: bool = False) -> BranchSolutions:
+        """`ik` block by block (`block_models`, `_block_kernel`): each block's roots once per choice
+        of the branches it depends on, combined into the atlas branches (`_assemble_kernel`).
+        Warm starts are per block slot: the slot's end at the nearest cached point, or at the
+        nearest point of this batch solved before it (coarse levels first), whichever is nearer."""
+        from scipy.spatial import cKDTree
+
+        tb = self._block_tables
+        N, B, n = len(p), len(self.labels), self.n
+        K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
+        radius = WARM_RADIUS_FACTOR * self.scale
+        starts = np.full((N, K, S, cmax), np.nan)
+        best = np.full(N, np.inf)
+        cached = self._cached() if warm else None
+        if cached is not None:
+            d, j = cKDTree(cached[0]).query(p, distance_upper_bound=radius)
+            near = np.isfinite(d)
+            starts[near], best[near] = cached[1][j[near]], d[near]
+        slots = _Slots.empty(N, K, S, cmax)
+        # continuation inside the batch: every 64th point, then every 8th, then the rest, each
+        # level from the nearest point of the levels before
+        done = np.zeros(N, dtype=bool)
+        for stride in (64, 8, 1):
+            level = np.flatnonzero(~done & (np.arange(N) % stride == 0))
+            if not len(level) or (stride > 1 and 8 * stride >= N):
+                continue
+            if done.any():
+                # the nearest solved point: all its slot ends within the continuation radius (roots
+                # and least-squares points alike); farther, its roots only, and only where it is
+                # nearer than the reference position (whose roots are the atlas starts)
+                solved = np.flatnonzero(done)
+                d, j = cKDTree(p[solved]).query(p[level])
+                src = solved[j]
+                near = (d <= radius) & (d < best[level])
+                starts[level[near]], best[level[near]] = slots.end[src[near]], d[near]
+                far = ~near & ~np.isfinite(best[level]) & (d < np.linalg.norm(p[level] - self._anchor, axis=1))
+                roots = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
+                starts[level[far]] = roots
+            slots.put(level, self._solve_slots(p[level], starts[level], every_block))
+            done[level] = True
+        x = np.empty((N, B, n))
+        end_x = np.empty((N, B, n))
+        ok = np.empty((N, B), dtype=np.bool_)
+        residual = np.empty((N, B))
+        margin = np.empty((N, B))
+        if N:
+            lo, hi, use, unit, pairs, paired, centre = self._slack_args("all")
+            _assemble_kernel(slots.sol, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"], tb["T"][1],
+                             lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
+        if warm:
+            self._remember(p, slots.end)
+        return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
+                               end_x)
+
+    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, every_block: bool = False) -> _Slots:
+        """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none); a slot no
+        live branch needs is skipped unless every_block."""
+        tb = self._block_tables
+        N, B = len(p), len(self.labels)
+        K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
+        out = _Slots.empty(N, K, S, cmax)
+        alive = np.ones((N, B), dtype=np.bool_)
+        starts = np.ascontiguousarray(starts)
+        for k in tb["order"] if N else ():
+            if every_block:
+                alive[:] = True
+            gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
+            _block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
+                          tb["hi"], tb["alpha"], int(self.restarts), alive, out.sol, out.found, out.dist, out.res,
+                          out.end, out.counts)
+        return out
 
     def blockwise(self, targets: np.ndarray, slot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Starts for branch `slot` at each target, built block by block in the triangular order:
@@ -1169,26 +1859,27 @@ class LoopBatch:
             from kinematics.errors import UnknownChoiceError
 
             raise UnknownChoiceError(limits, LIMITS)
-        lo, hi = self.robot.lower, self.robot.upper
-        k = self.limited.copy()
-        if limits == "actuators":
-            k[self.passive] = False
-        unit = np.where(self._g[1] == PRISMATIC, 1.0, self.scale)
         x = np.asarray(x, dtype=float)
-        slack = np.where(k, np.minimum(x - lo, hi - x) * unit, np.inf)
-        for j1, j2 in self.free_pairs:
-            # (a + pi, pi - b) is the same pose up to unlimited joints below: take the better one
-            c = self._centre
-            a2 = (x[..., j1] + math.pi - c[j1] + math.pi) % (2 * math.pi) + c[j1] - math.pi
-            b2 = (math.pi - x[..., j2] - c[j2] + math.pi) % (2 * math.pi) + c[j2] - math.pi
-            s1 = np.minimum(slack[..., j1], slack[..., j2])
-            s2 = np.minimum(np.where(k[j1], np.minimum(a2 - lo[j1], hi[j1] - a2) * unit[j1], np.inf),
-                            np.where(k[j2], np.minimum(b2 - lo[j2], hi[j2] - b2) * unit[j2], np.inf))
-            better = s2 > s1
-            slack[..., j1] = np.where(better, s2, slack[..., j1])
-            slack[..., j2] = np.where(better, s2, slack[..., j2])
-        out = slack.min(axis=-1)
-        return np.where(np.isfinite(out), out, np.inf)
+        if x.shape[-1] != self.n:
+            raise InvalidInputError("x", f"expected (..., {self.n}) joint values, got {x.shape}")
+        flat = np.ascontiguousarray(x.reshape(-1, self.n))
+        out = np.empty(len(flat))
+        if len(flat):
+            lo, hi, use, unit, pairs, paired, centre = self._slack_args(limits)
+            _slack_kernel(flat, lo, hi, use, unit, pairs, paired, centre, out)
+        return out.reshape(x.shape[:-1])
+
+    def _slack_args(self, limits: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                np.ndarray]:
+        use = self.limited.copy()
+        if limits == "actuators":
+            use[self.passive] = False
+        unit = np.where(self._g[1] == PRISMATIC, 1.0, self.scale)
+        pairs = np.array(self.free_pairs, dtype=np.int64).reshape(-1, 2)
+        paired = np.zeros(self.n, dtype=np.bool_)
+        paired[pairs.ravel()] = True
+        return (np.asarray(self.robot.lower, dtype=float), np.asarray(self.robot.upper, dtype=float), use, unit, pairs,
+                paired, self._centre)
 
     @functools.cached_property
     def free_pairs(self) -> tuple[tuple[int, int], ...]:
@@ -1228,7 +1919,8 @@ class LoopBatch:
 
         def margin(points: np.ndarray) -> np.ndarray:
             sol = self.ik(points)
-            m = np.where(sol.found, self.limit_margin(np.nan_to_num(sol.x), limits), sol.margin)[:, cols]
+            m = sol.margin if limits == "all" else np.where(sol.found, self.limit_margin(sol.x, limits), sol.margin)
+            m = m[:, cols]
             return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
         return margin
