@@ -578,10 +578,11 @@ def _workspace(gi, m):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J, Jt, A, D, gr, dx,
-            xt):  # pragma: no cover - compiled
+            xt, settle):  # pragma: no cover - compiled
     """Levenberg-Marquardt from x (overwritten with where it ends) towards target t (see the module
     docstring). Returns (max |weighted residual| [m], iterations); r and J then hold the weighted
-    residual and Jacobian at x; the other arrays are scratch (`_workspace`)."""
+    residual and Jacobian at x; the other arrays are scratch (`_workspace`). The stall rule applies
+    from step `settle` on."""
     n = x.shape[0]
     pin_j = _pin_pose(gi, gf, ws, t) if pinned else -1
     _wrap(x, gi, centre)
@@ -644,7 +645,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
                 for b in range(n):
                     q += A[a, b] * dx[b]
                 pred += dx[a] * (2.0 * gr[a] - q)
-            if step < 1e-15 or pred <= 1e-16 * cost or (it >= 3 and pred <= STALL * cost):
+            if step < 1e-15 or pred <= 1e-16 * cost or (it >= settle and pred <= STALL * cost):
                 break
             for j in range(n):
                 xt[j] = x[j] + dx[j]
@@ -670,7 +671,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
         cost = c2
         # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
         # convergence drops it by far more than this each step)
-        if step < 1e-15 or drop <= 1e-16 * cost or (it >= 3 and drop <= STALL * cost):
+        if step < 1e-15 or drop <= 1e-16 * cost or (it >= settle and drop <= STALL * cost):
             break
     res = _maxabs(r)
     # ws holds x's placements: a converged row's last evaluation was its accepted step (or its start)
@@ -692,7 +693,7 @@ def _lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol,
             for j in range(n):
                 x[j] = x0[row, j]
             res, it = _lm_row(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J,
-                              Jt, A, D, gr, dx, xt)
+                              Jt, A, D, gr, dx, xt, 3)
             for j in range(n):
                 x_out[row, j] = x[j]
             res_out[row] = res
@@ -783,9 +784,12 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                 for j in range(n):
                     x[j] = 0.0
                 iters = 20
+                settle = 3
                 if attempt < S:
                     cold = not np.isfinite(warm[i, k, s, 0])
                     iters = 40 if cold else 20
+                    # from a neighbour's end Newton converges at once or the start is stalling
+                    settle = 3 if cold else 2
                     for c in range(nc):
                         x[cols[k, c]] = atlas[k, s, c] if cold else warm[i, k, s, c]
                 else:
@@ -799,7 +803,7 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
                 rr, it = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                 Jt, A, D, gr, dx, xt)
+                                 Jt, A, D, gr, dx, xt, settle)
                 counts[i, 2] += it
                 counts[i, 3] += 1
                 if rr < res[i, k, s]:
