@@ -169,13 +169,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         return _serial_volume(args, robot, out)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
-    branches = mech.check_branches(args.modes or None)
-    rtol = None if args.rtol == 0 else args.rtol
-    t0 = time.perf_counter()
-    sing_summary: dict[str, Any] = {}
-    singular_points: list[dict[str, Any]] = []
-    sing: Any = None
-    paper: dict[str, Any] = {}
     kernels = mech.kernels()
     if kernels and show_progress(args):  # a terminal's notice, like the progress bars
         from kinematics import jit
@@ -184,6 +177,14 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
+    # (a generic closed loop compiles its solver here: its branches come from an atlas search)
+    branches = mech.check_branches(args.modes or None)
+    rtol = None if args.rtol == 0 else args.rtol
+    t0 = time.perf_counter()
+    sing_summary: dict[str, Any] = {}
+    singular_points: list[dict[str, Any]] = []
+    sing: Any = None
+    paper: dict[str, Any] = {}
     # check: a second run at half the column step; disagreement beyond the estimates -> not converged
     ws = measure_workspace(mech, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
                            progress=show_progress(args), check=True)

@@ -193,8 +193,9 @@ class BlockModel(NamedTuple):
     The sub-tree holds the ancestors of the block's frames; the block's unknowns are free, the
     joints that earlier blocks determine are held (their values per branch), and for a closure of a
     translational mechanism with a 3D task the end effector's joint is placed at the target
-    (`pinned`: the platform's other ancestors drop out). Its kernel arrays (`g`, the row pattern,
-    row weights that keep only the block's rows) are those `_lm_kernel` takes for the whole tree.
+    (`pinned`: the platform's other ancestors drop out). Its arrays are those of the whole tree's
+    model in kind (`g`, packed for the kernels by `_pack`; the row pattern; row weights that keep
+    only the block's rows), so the same compiled solver runs on either.
 
     Attributes:
         block: the block.
@@ -934,6 +935,48 @@ def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out, pinned):  # pragma: 
                 pos_out[row, n + f, a] = ws[WFP + 3 * f + a]
 
 
+class _WarmCache:
+    """Solved points and where their starts ended, for warm starts: a frozen part with its KD-tree
+    and the points added since; those are merged in (newest first, at most CACHE_POINTS kept, the
+    tree rebuilt) once they reach a quarter of the capacity, so a small batch (a root refinement
+    step) does not pay for a tree over every cached point."""
+
+    def __init__(self, shape: tuple[int, ...]) -> None:
+        self.shape = shape
+        self.points = np.empty((0, 0))
+        self.ends = np.empty((0,) + shape)
+        self.tree: Any = None
+        self.recent: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add(self, p: np.ndarray, end: np.ndarray) -> None:
+        self.recent.append((np.array(p, dtype=float), np.array(end, dtype=float)))
+        if sum(len(r[0]) for r in self.recent) > CACHE_POINTS // 4:
+            from scipy.spatial import cKDTree
+
+            parts = self.recent[::-1] + ([(self.points, self.ends)] if len(self.points) else [])
+            self.points = np.concatenate([q for q, _ in parts])[:CACHE_POINTS]
+            self.ends = np.concatenate([e for _, e in parts])[:CACHE_POINTS]
+            self.tree = cKDTree(self.points)
+            self.recent = []
+
+    def nearest(self, q: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """(distance (N,), ends (N, *shape)) of the nearest cached point within `radius` of each
+        row of q (inf and NaN where none)."""
+        from scipy.spatial import cKDTree
+
+        dist = np.full(len(q), np.inf)
+        ends = np.full((len(q),) + self.shape, np.nan)
+        sources = [(self.tree, self.ends)] if self.tree is not None else []
+        if self.recent:
+            p_new = np.concatenate([r[0] for r in self.recent[::-1]])
+            sources.append((cKDTree(p_new), np.concatenate([r[1] for r in self.recent[::-1]])))
+        for tree, e in sources:
+            d, j = tree.query(q, distance_upper_bound=radius)
+            better = d < dist
+            dist[better], ends[better] = d[better], e[j[better]]
+        return dist, ends
+
+
 class _Slots(NamedTuple):
     """The block solver's per-slot results (`LoopBatch._solve_slots`, `_block_kernel`)."""
 
@@ -994,9 +1037,7 @@ class LoopBatch:
     _centre: np.ndarray = field(default_factory=lambda: np.empty(0))
     _reference: np.ndarray = field(default_factory=lambda: np.empty(0))
     _anchor: np.ndarray = field(default_factory=lambda: np.empty(0))
-    _cache: tuple[np.ndarray, np.ndarray] | None = None
-    _cache_fill: int = 0
-    _cache_at: int = 0
+    _warm: _WarmCache | None = None
 
     # -- construction ----------------------------------------------------------------------------
     @classmethod
@@ -1546,26 +1587,20 @@ class LoopBatch:
         return out
 
     def _remember(self, p: np.ndarray, end: np.ndarray) -> None:
-        """Keep the latest CACHE_POINTS solved points and their ends (a ring: no copy of the old ones)."""
-        p, end = p[-CACHE_POINTS:], end[-CACHE_POINTS:]
-        if self._cache is None or self._cache[1].shape[1:] != end.shape[1:]:
-            self._cache = (np.empty((CACHE_POINTS,) + p.shape[1:]), np.empty((CACHE_POINTS,) + end.shape[1:]))
-            self._cache_fill = self._cache_at = 0
-        rows = (self._cache_at + np.arange(len(p))) % CACHE_POINTS
-        self._cache[0][rows], self._cache[1][rows] = p, end
-        self._cache_at = int((self._cache_at + len(p)) % CACHE_POINTS)
-        self._cache_fill = min(CACHE_POINTS, self._cache_fill + len(p))
+        """Keep solved points and their ends for the next batches' warm starts (`_WarmCache`)."""
+        if self._warm is None or self._warm.shape != end.shape[1:]:
+            self._warm = _WarmCache(end.shape[1:])
+        self._warm.add(p, end)
 
-    def _cached(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The cached points and ends, or None."""
-        if self._cache is None or not self._cache_fill:
-            return None
-        return self._cache[0][: self._cache_fill], self._cache[1][: self._cache_fill]
+    def _nearest_cached(self, p: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """`_WarmCache.nearest` within the continuation radius (none if nothing of `shape` is cached)."""
+        if self._warm is None or self._warm.shape != shape:
+            return np.full(len(p), np.inf), np.full((len(p),) + shape, np.nan)
+        return self._warm.nearest(p, WARM_RADIUS_FACTOR * self.scale)
 
     def forget(self) -> None:
         """Drop the warm-start cache."""
-        self._cache = None
-        self._cache_fill = self._cache_at = 0
+        self._warm = None
 
     def _solve(self, p: np.ndarray, warm: bool,
                extra: tuple[np.ndarray, np.ndarray] | None = None) -> BranchSolutions:
@@ -1622,15 +1657,16 @@ class LoopBatch:
         # (1) neighbours (earlier batches, this batch's coarse subset): each slot from the same
         # slot's root or least-squares point there (continuation)
         tried = np.zeros((N, B), dtype=bool)
-        for src in (self._cached() if warm else None, extra):
-            if src is None or not len(src[0]):
-                continue
-            tree = cKDTree(src[0])
-            dist, j = tree.query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale)
+        sources = [self._nearest_cached(p, (B, n))] if warm else []
+        if extra is not None and len(extra[0]):
+            dist, j = cKDTree(extra[0]).query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale)
+            sources.append((dist, np.where(np.isfinite(dist)[:, None, None], extra[1][np.minimum(j, len(extra[0]) - 1)],
+                                           np.nan)))
+        for dist, ends in sources:
             near = np.isfinite(dist)
-            has = np.isfinite(src[1][np.minimum(j, len(src[0]) - 1), :, 0])
+            has = np.isfinite(ends[:, :, 0])
             idx, slot = np.nonzero(near[:, None] & has & ~np.isfinite(best_d))
-            attempt(idx, slot, src[1][j[idx], slot], 20)
+            attempt(idx, slot, ends[idx, slot], 20)
             tried[idx, slot] = True
         # (2) the atlas configuration of each label not started from a neighbour
         idx, slot = np.nonzero(~tried & ~np.isfinite(best_d))
@@ -1742,7 +1778,7 @@ class LoopBatch:
         full_cols = np.zeros((K, cmax), dtype=np.int64)
         for k, bm in enumerate(models):
             full_cols[k, : len(bm.block.cols)] = bm.block.cols
-        return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "rep": rep, "atlas": atlas,
+        return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "atlas": atlas,
                 "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax}
 
     def _ik_blocks(self, p: np.ndarray, warm: bool, every_block: bool = False) -> BranchSolutions:
@@ -1758,11 +1794,10 @@ class LoopBatch:
         radius = WARM_RADIUS_FACTOR * self.scale
         starts = np.full((N, K, S, cmax), np.nan)
         best = np.full(N, np.inf)
-        cached = self._cached() if warm else None
-        if cached is not None:
-            d, j = cKDTree(cached[0]).query(p, distance_upper_bound=radius)
+        if warm:
+            d, ends = self._nearest_cached(p, (K, S, cmax))
             near = np.isfinite(d)
-            starts[near], best[near] = cached[1][j[near]], d[near]
+            starts[near], best[near] = ends[near], d[near]
         slots = _Slots.empty(N, K, S, cmax)
         # continuation inside the batch: every 64th point, then every 8th, then the rest, each
         # level from the nearest point of the levels before
@@ -2014,6 +2049,11 @@ def _length(robot: Robot, q: np.ndarray) -> float:
     pin.forwardKinematics(robot.model, data, q)
     d = [float(np.linalg.norm(data.oMi[j].translation)) for j in range(1, robot.model.njoints)]
     return max(max(d, default=0.0), 1e-3)
+
+
+def kernels() -> tuple[Any, ...]:
+    """The compiled kernels of this module (for `kinematics.jit`)."""
+    return (_lm_kernel, _eval_kernel, _block_kernel, _assemble_kernel, _slack_kernel)
 
 
 @functools.lru_cache(maxsize=16)

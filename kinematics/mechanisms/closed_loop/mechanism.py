@@ -69,6 +69,11 @@ class GenericClosedLoop(Mechanism):
     def task_axes(self) -> tuple[str, ...]:  # type: ignore[override]
         return tuple(_AXES[k] for k in self.batch.task_axes)
 
+    def kernels(self) -> tuple[Any, ...]:
+        from kinematics.generic.loop_batch import kernels
+
+        return kernels()
+
     def parameters(self) -> dict[str, Any]:
         loops = self.robot.loops
         return {"closures": len(loops.closures) if loops else 0,
