@@ -123,6 +123,9 @@ WARM_RADIUS_FACTOR = 0.1
 CACHE_POINTS = 100_000
 """Solved points kept for warm starts (the most recent first)."""
 
+RECENT_POINTS = 8192
+"""Points added to the warm-start cache before its KD-tree is rebuilt (`_WarmCache`)."""
+
 LIMITS = ("all", "actuators")
 """Which joint limits the margins apply."""
 
@@ -938,8 +941,8 @@ def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out, pinned):  # pragma: 
 class _WarmCache:
     """Solved points and where their starts ended, for warm starts: a frozen part with its KD-tree
     and the points added since; those are merged in (newest first, at most CACHE_POINTS kept, the
-    tree rebuilt) once they reach a quarter of the capacity, so a small batch (a root refinement
-    step) does not pay for a tree over every cached point."""
+    tree rebuilt) once they pass RECENT_POINTS, so a small batch (a root refinement step) does not
+    pay for a tree over every cached point."""
 
     def __init__(self, shape: tuple[int, ...]) -> None:
         self.shape = shape
@@ -950,7 +953,7 @@ class _WarmCache:
 
     def add(self, p: np.ndarray, end: np.ndarray) -> None:
         self.recent.append((np.array(p, dtype=float), np.array(end, dtype=float)))
-        if sum(len(r[0]) for r in self.recent) > CACHE_POINTS // 4:
+        if sum(len(r[0]) for r in self.recent) > RECENT_POINTS:
             from scipy.spatial import cKDTree
 
             parts = self.recent[::-1] + ([(self.points, self.ends)] if len(self.points) else [])
@@ -1802,7 +1805,9 @@ class LoopBatch:
         # continuation inside the batch: every 64th point, then every 8th, then the rest, each
         # level from the nearest point of the levels before
         done = np.zeros(N, dtype=bool)
-        for stride in (64, 8, 1):
+        # (a batch whose points mostly have a cached neighbour, such as a root refinement step, in one go)
+        strides = (1,) if np.isfinite(best).mean() >= 0.9 else (64, 8, 1)
+        for stride in strides:
             level = np.flatnonzero(~done & (np.arange(N) % stride == 0))
             if not len(level) or (stride > 1 and 8 * stride >= N):
                 continue
