@@ -806,10 +806,8 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                     usable = usable and np.isfinite(x[held[k, h]])
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
-                rr, it = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                 Jt, A, D, gr, dx, xt, settle)
-                counts[i, 2] += it
-                counts[i, 3] += 1
+                rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
+                                Jt, A, D, gr, dx, xt, settle)
                 if rr < res[i, k, s]:
                     res[i, k, s] = rr
                     for c in range(nc):
@@ -921,15 +919,13 @@ def _assemble_kernel(sol, end, found, res, bslot, cols, ncol, lo, hi, use, unit,
 
 
 @njit(cache=True)
-def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out, pinned):  # pragma: no cover - compiled
-    """Residuals, Jacobians and joint-origin positions at rows of joint values (pinned: as in
-    `_lm_kernel`)."""
+def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out):  # pragma: no cover - compiled
+    """Residuals, Jacobians and joint-origin positions at rows of joint values."""
     n, nf = gi[0], gi[1]
     ws = np.empty(_ws_size(gi))
     WP, WFP = 9 * n, 12 * n + 9 * nf
     for row in range(x.shape[0]):  # serial: cheap next to the solves, and compiles faster
-        pin_j = _pin_pose(gi, gf, ws, targets[row]) if pinned else -1
-        _residual(x[row], targets[row], gi, gf, ws, r_out[row], J_out[row], True, pin_j, True)
+        _residual(x[row], targets[row], gi, gf, ws, r_out[row], J_out[row], True, -1, True)
         for j in range(n):
             for a in range(3):
                 pos_out[row, j, a] = ws[WP + 3 * j + a]
@@ -988,12 +984,12 @@ class _Slots(NamedTuple):
     dist: np.ndarray  # (N, K, S) distance to the reference of the kept root
     res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried)
     end: np.ndarray  # (N, K, S, cmax) where that best start ended
-    counts: np.ndarray  # (N, 4) unlabelled roots, conflicts, iterations, starts
+    counts: np.ndarray  # (N, 2) unlabelled roots, conflicts
 
     @classmethod
     def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
         return cls(np.full((N, K, S, cmax), np.nan), np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
-                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 4), dtype=np.int64))
+                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 2), dtype=np.int64))
 
     def put(self, idx: np.ndarray, part: _Slots) -> None:
         for mine, theirs in zip(self, part, strict=True):
@@ -1243,7 +1239,7 @@ class LoopBatch:
         J = np.empty((R, self._m, self.n))
         pos = np.empty((R, self.n + self._g[5].shape[0], 3))
         if R:
-            _eval_kernel(t, x, *self._packed, r, J, pos, False)
+            _eval_kernel(t, x, *self._packed, r, J, pos)
         return r, J, pos
 
     # -- structure -------------------------------------------------------------------------------
@@ -1388,7 +1384,7 @@ class LoopBatch:
             fi = {f: i for i, f in enumerate(frames)}
             # an end effector the block does not use points at its first frame; its rows weigh 0
             sub_ee = fi.get(int(ee), 0)
-            sub_fparent = np.array([where.get(int(fparent[f]), 0) for f in frames], dtype=np.int64)
+            sub_fparent = np.array([where[int(fparent[f])] for f in frames], dtype=np.int64)
             held_orient = bool(orient) and task
             sub_ctype = np.array([ctype[c] for c in closures], dtype=np.int64)
             g = (sub_parent, kind[js], axis[js], jR[js], jt[js], sub_fparent, fR[frames], ft[frames], sub_anc,

@@ -72,7 +72,7 @@ def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFiel
     from kinematics.generic.loop_batch import TOL
 
     p = np.atleast_2d(np.asarray(points, dtype=float))
-    sol = batch.ik(p, every_block=True) if batch.solver == "blocks" else batch.ik(p)
+    sol = batch.ik(p, every_block=True)  # each block's own end outside (the whole-system solver has them anyway)
     N, B = sol.found.shape
     x = np.nan_to_num(sol.x)
     margin = np.where(sol.found, batch.limit_margin(x.reshape(-1, batch.n), limits).reshape(N, B), sol.margin)
