@@ -109,6 +109,27 @@ def test_p2us_margin_sign_matches_the_closed_form(p2us):
     np.testing.assert_array_equal(np.sign(generic[:, :8][clear]), np.sign(c[clear]))
 
 
+def test_p2us_strokes_only_grid_signs_match_the_closed_form(p2us):
+    """A whole grid in one batch, strokes only: the continuation carries least-squares ends of
+    targets outside into targets inside, next to the boundary, where the search used to miss
+    branches (35 of the 19,333 grid points inside at this step read as outside before a stalled
+    neighbour start got its atlas start too). Each branch's inside set must equal its closed-form
+    mode's; a sign exactly at the boundary (|closed margin| < 1e-9 m) is rounding and left out."""
+    _, P, lb = p2us
+    lo, hi = bounding_box(P)
+    axes = [np.arange(a, b + 1e-9, 0.02) for a, b in zip(lo, hi, strict=True)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    closed = scan(P, pts, "actuators").margin
+    home = np.array([[0.0, 0.0, -0.45]])
+    mapping = mode_map(lb.ik(home, warm=False).x[..., lb.actuated], par.ik(P, home, limits=False).q, np.ones(1, bool))
+    lb.forget()
+    generic = lb.margin(pts, "actuators")
+    c = closed[:, mapping]
+    clear = np.abs(c) > 1e-9
+    assert (c[clear] >= 0).sum() > 20_000  # (32,101 (point, mode) pairs inside: a large set)
+    np.testing.assert_array_equal(generic[:, :8][clear] >= 0, c[clear] >= 0)
+
+
 def test_p2us_singularity_types_match_classify(p2us):
     _, P, lb = p2us
     rng = np.random.default_rng(3)
@@ -382,3 +403,28 @@ def test_a_nan_start_is_no_root(p2us):
     _, _, lb = p2us
     x, res, _ = lb.newton(np.zeros((1, 3)), np.full((1, lb.n), np.nan))
     assert not res[0] <= 1e-12
+
+
+def test_warm_cache_ring_returns_each_points_own_ends(monkeypatch):
+    """The warm-start cache is a ring whose big KD-tree is rebuilt every RECENT_POINTS new points
+    (CACHE_POINTS kept); shrunk here so that batches of every size relative to RECENT_POINTS wrap
+    it several times. Each point's "ends" are its own coordinates, so a stale row (a tree index
+    pointing at a row since overwritten) would show as ends that differ from the point found; and
+    exactly the newest CACHE_POINTS .. CACHE_POINTS + RECENT_POINTS points must be findable."""
+    import kinematics.generic.loop_batch as module
+
+    monkeypatch.setattr(module, "CACHE_POINTS", 40)
+    monkeypatch.setattr(module, "RECENT_POINTS", 16)
+    cache = module._WarmCache((3,))
+    added = np.empty((0, 3))
+    rng = np.random.default_rng(22)
+    for size in (10, 37, 5, 60, 16, 1, 90, 3):
+        p = rng.uniform(0.0, 1.0, (size, 3))
+        cache.add(p, p.copy())
+        added = np.concatenate([added, p])
+        d, ends = cache.nearest(added, 1e-12)  # each point exactly, or nothing
+        hit = np.isfinite(d)
+        np.testing.assert_array_equal(ends[hit], added[hit])
+        newest = np.zeros(len(added), dtype=bool)
+        newest[-40:] = True
+        assert hit[newest].all() and hit.sum() <= 40 + 16

@@ -48,7 +48,9 @@ slots per block, 12 small solves per target instead of 8 of all 18 unknowns). A 
 combination of the slots of its labels; it exists where every block has a root in its slot.
 Each slot is sought from (1) a solved neighbour's end of that slot (a cache of earlier batches
 and, inside a batch, every 64th then every 8th point solved first: continuation, also through the
-least-squares points of targets outside), else (2) the atlas configuration of that slot, then (3)
+least-squares points of targets outside), else (2) the atlas configuration of that slot, which is
+also tried where a neighbour's end stalled less than the continuation radius from closure (a
+neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
 `restarts` quasi-random starts of the block's unknowns where another slot of the block was found
 or the block holds joints of earlier blocks that closed. Blocks are solved in a dependency order,
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
@@ -66,12 +68,12 @@ so the labels and the reported joint values use one representation throughout.
 starts (a block's basin missed by the neighbour's end, the atlas configuration and the restarts)
 is reported absent (margin < 0): most likely in a branch region that does not contain the
 reference position's branch of the same label and is far from the batch's other points, or next
-to the workspace's boundary where the nearest solved point lies outside and its least-squares
-point leads nowhere (restarts are not spent on a labelling block with no root at all: outside
-they would cost most of the time). Solutions whose label is not in the atlas (assembly modes
-absent at the reference position) are counted in `BranchSolutions.unlabelled`, not returned. Two
-physically different poses with the same label at one target keep only the one nearest the
-reference (counted in `conflicts`).
+to the workspace's boundary where the nearest solved point lies outside, its least-squares point
+leads nowhere and the atlas start lies in another basin (restarts are not spent on a labelling
+block with no root at all: outside they would cost most of the time). Solutions whose label is
+not in the atlas (assembly modes absent at the reference position) are counted in
+`BranchSolutions.unlabelled`, not returned. Two physically different poses with the same label at
+one target keep only the one nearest the reference (counted in `conflicts`).
 
 **Margins.** Per branch, the smallest joint-limit slack in metres (prismatic: the distance to the
 limit; revolute: the angle times `scale`), over every joint with a finite range narrower than
@@ -733,12 +735,13 @@ def _det_sign(J, rows, cols, nc, M):  # pragma: no cover - compiled
 
 @njit(cache=True, parallel=True)
 def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
-                  restarts, alive, sol, found, dist, res, end, counts):  # pragma: no cover - compiled
+                  restarts, near, alive, sol, found, dist, res, end, counts):  # pragma: no cover - compiled
     """Block k of the block solver (`LoopBatch._solve_blocks`) at every target row.
 
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
-    then, where another slot of the block was found, `restarts` quasi-random starts for each slot
-    still missing. A start's held joints come from the earlier blocks' solutions of its slot's
+    a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
+    where another slot of the block was found, `restarts` quasi-random starts for each slot still
+    missing. A start's held joints come from the earlier blocks' solutions of its slot's
     branch choice; its root (if any) goes to the slot of its label, the one nearest the reference
     kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
@@ -771,8 +774,15 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                 if alive[i, b]:
                     need[bslot[b, k]] = True
             idx0 = (i * nslot.shape[0] + k) * S * restarts
-            for attempt in range(S * (1 + restarts)):
-                if attempt == S:
+            for attempt in range(S * (2 + restarts)):
+                if S <= attempt < 2 * S:
+                    # a warm start that stalled within `near` of closure gets its slot's atlas
+                    # start too: the neighbour's end can lie across a fold (the neighbour outside,
+                    # a limb stretched) or in the other root's basin
+                    s = attempt - S
+                    if not need[s] or found[i, k, s] or not np.isfinite(warm[i, k, s, 0]) or not res[i, k, s] < near:
+                        continue
+                if attempt == 2 * S:
                     # restarts only where the block has some root, or where the blocks it builds on
                     # closed (a closure that cannot close there is rare; a target a limb cannot
                     # reach is not: restarting those would cost most of the time outside)
@@ -781,7 +791,7 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                         some = some or found[i, k, q]
                     if not some:
                         break
-                s = attempt if attempt < S else (attempt - S) // restarts
+                s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts
                 if not need[s] or found[i, k, s]:
                     continue
                 # the start: the block's unknowns, then the held joints of this slot's branch choice
@@ -789,15 +799,15 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                     x[j] = 0.0
                 iters = 20
                 settle = 3
-                if attempt < S:
-                    cold = not np.isfinite(warm[i, k, s, 0])
+                if attempt < 2 * S:
+                    cold = attempt >= S or not np.isfinite(warm[i, k, s, 0])
                     iters = 40 if cold else 20
                     # from a neighbour's end Newton converges at once or the start is stalling
                     settle = 3 if cold else 2
                     for c in range(nc):
                         x[cols[k, c]] = atlas[k, s, c] if cold else warm[i, k, s, c]
                 else:
-                    q = idx0 + attempt - S + 1
+                    q = idx0 + attempt - 2 * S + 1
                     for c in range(nc):
                         x[cols[k, c]] = lo[k, c] + ((0.5 + q * alpha[k, c]) % 1.0) * (hi[k, c] - lo[k, c])
                 usable = True
@@ -935,28 +945,45 @@ def _eval_kernel(targets, x, gi, gf, r_out, J_out, pos_out):  # pragma: no cover
 
 
 class _WarmCache:
-    """Solved points and where their starts ended, for warm starts: a frozen part with its KD-tree
-    and the points added since; those are merged in (newest first, at most CACHE_POINTS kept, the
-    tree rebuilt) once they pass RECENT_POINTS, so a small batch (a root refinement step) does not
-    pay for a tree over every cached point."""
+    """Solved points and where their starts ended, for warm starts, in a ring of CACHE_POINTS +
+    RECENT_POINTS rows: a KD-tree over the newest CACHE_POINTS at its last rebuild, and the rows
+    written since (at most RECENT_POINTS, searched through a small tree of their own). The rows
+    the next writes overwrite are never in the big tree, so it stays valid until it is rebuilt, and
+    nothing but the new rows is copied: a small batch (a root refinement step) pays neither for a
+    tree over every cached point nor for copying the cache."""
 
     def __init__(self, shape: tuple[int, ...]) -> None:
         self.shape = shape
         self.points = np.empty((0, 0))
         self.ends = np.empty((0,) + shape)
+        self.head = 0  # the next row written
+        self.count = 0  # rows holding a point
+        self.fresh = 0  # rows written since the tree was built
         self.tree: Any = None
-        self.recent: list[tuple[np.ndarray, np.ndarray]] = []
+        self.tree_rows = np.empty(0, dtype=np.int64)
 
     def add(self, p: np.ndarray, end: np.ndarray) -> None:
-        self.recent.append((np.array(p, dtype=float), np.array(end, dtype=float)))
-        if sum(len(r[0]) for r in self.recent) > RECENT_POINTS:
-            from scipy.spatial import cKDTree
+        if not len(self.points):
+            self.points = np.empty((CACHE_POINTS + RECENT_POINTS, p.shape[1]))
+            self.ends = np.empty((CACHE_POINTS + RECENT_POINTS,) + self.shape)
+        size = len(self.points)
+        for c in range(0, len(p), RECENT_POINTS):
+            piece = slice(c, c + RECENT_POINTS)
+            m = len(p[piece])
+            if self.fresh + m > RECENT_POINTS:
+                self._rebuild()
+            rows = (self.head + np.arange(m)) % size
+            self.points[rows], self.ends[rows] = p[piece], end[piece]
+            self.head = (self.head + m) % size
+            self.fresh += m
+            self.count = min(self.count + m, size)
 
-            parts = self.recent[::-1] + ([(self.points, self.ends)] if len(self.points) else [])
-            self.points = np.concatenate([q for q, _ in parts])[:CACHE_POINTS]
-            self.ends = np.concatenate([e for _, e in parts])[:CACHE_POINTS]
-            self.tree = cKDTree(self.points)
-            self.recent = []
+    def _rebuild(self) -> None:
+        from scipy.spatial import cKDTree
+
+        self.tree_rows = (self.head - 1 - np.arange(min(self.count, CACHE_POINTS))) % len(self.points)
+        self.tree = cKDTree(self.points[self.tree_rows], balanced_tree=False, compact_nodes=False)
+        self.fresh = 0
 
     def nearest(self, q: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
         """(distance (N,), ends (N, *shape)) of the nearest cached point within `radius` of each
@@ -965,14 +992,14 @@ class _WarmCache:
 
         dist = np.full(len(q), np.inf)
         ends = np.full((len(q),) + self.shape, np.nan)
-        sources = [(self.tree, self.ends)] if self.tree is not None else []
-        if self.recent:
-            p_new = np.concatenate([r[0] for r in self.recent[::-1]])
-            sources.append((cKDTree(p_new), np.concatenate([r[1] for r in self.recent[::-1]])))
-        for tree, e in sources:
+        sources = [(self.tree, self.tree_rows)] if self.tree is not None else []
+        if self.fresh:
+            rows = (self.head - self.fresh + np.arange(self.fresh)) % len(self.points)
+            sources.append((cKDTree(self.points[rows], balanced_tree=False, compact_nodes=False), rows))
+        for tree, rows in sources:
             d, j = tree.query(q, distance_upper_bound=radius)
             better = d < dist
-            dist[better], ends[better] = d[better], e[j[better]]
+            dist[better], ends[better] = d[better], self.ends[rows[j[better]]]
         return dist, ends
 
 
@@ -1849,7 +1876,7 @@ class LoopBatch:
                 alive[:] = True
             gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
             _block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
-                          tb["hi"], tb["alpha"], int(self.restarts), alive, out.sol, out.found, out.dist, out.res,
+                          tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.sol, out.found, out.dist, out.res,
                           out.end, out.counts)
         return out
 
