@@ -157,3 +157,37 @@ def test_cli_on_the_fixture(capsys):
         assert code == 0 and err == "" and out
     code, out, err = run(capsys, "fk", path, "--q", "0.1")
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def _lens(r1: float, r2: float, d: float) -> float:
+    """Area [m^2] of the intersection of two discs of radii r1, r2 whose centres are d apart."""
+    if d >= r1 + r2:
+        return 0.0
+    if d <= abs(r1 - r2):
+        return float(np.pi * min(r1, r2) ** 2)
+    a1 = r1**2 * np.arccos((d * d + r1 * r1 - r2 * r2) / (2 * d * r1))
+    a2 = r2**2 * np.arccos((d * d + r2 * r2 - r1 * r1) / (2 * d * r2))
+    return float(a1 + a2 - 0.5 * np.sqrt((-d + r1 + r2) * (d + r1 - r2) * (d - r1 + r2) * (d + r1 + r2)))
+
+
+def test_cli_workspace_area_of_the_planar_fixture(capsys, tmp_path):
+    """`workspace-volume` on a planar closed loop: the five-bar's joints span full turns, so every
+    working mode's workspace is where both chains reach, the intersection of the annuli
+    |a_i - b_i| <= |P - A_i| <= a_i + b_i; its area (discs by inclusion-exclusion, each small disc
+    inside its large one) must lie within the reported error estimate. Its singular points and a
+    planar plot come with it."""
+    from .fivebar import FiveBar
+
+    five = FiveBar.from_robot(load_robot(FIXTURE / "robot.urdf"))
+    d = float(np.linalg.norm(five.A[1] - five.A[0]))
+    outer, inner = five.a + five.b, np.abs(five.a - five.b)
+    exact = (_lens(outer[0], outer[1], d) - _lens(outer[0], inner[1], d) - _lens(inner[0], outer[1], d)
+             + _lens(inner[0], inner[1], d))
+    plot = tmp_path / "ws.png"
+    code, data, err = run_json(capsys, "workspace-volume", str(FIXTURE / "robot.urdf"), "--step", "0.05",
+                               "--rtol", "5e-2", "--modes", "++", "--plot", str(plot))
+    assert code == 0 and data["converged"]
+    assert abs(data["area_m2"] - exact) <= data["error_estimate"], (data["area_m2"], exact)
+    assert data["singularities"]["type_II"]["inside_workspace"] > 0  # the distal links align inside
+    assert all(len(p["position"]) == 2 for p in data["singular_points"])
+    assert plot.stat().st_size > 10_000

@@ -113,3 +113,66 @@ def test_cli_singularities_of_a_generic_spatial_loop(capsys, tmp_path):
     assert code == 0
     assert d["singularities"]["type_III"]["inside_workspace"] > 0
     assert d["singularities"]["type_II"]["locus_points"] > 0
+
+
+def test_planar_loci_of_the_five_bar_match_its_closed_forms():
+    """A planar closed loop's loci (the task space is one plane): on the generic scan's grid, type I
+    crossings are the grid edges across a chain's reach circle (|P - A_i| = a_i + b_i or
+    |a_i - b_i|, tests/fivebar.py), type II ones the edges where sin(phi_2 - phi_1) changes sign in
+    some working mode with both chains reaching at both ends."""
+    from scipy.spatial import cKDTree
+
+    from .fivebar import FiveBar
+    from .test_fivebar import FIXTURE
+
+    robot = load_robot(FIXTURE / "robot.urdf")
+    five = FiveBar.from_robot(robot)
+    mech = mechanism_of(robot)
+    step = 0.02
+    g = singular_loci(mech, step=step, limits="all")
+    assert g.locus.points.shape[1] == 2
+    lo, hi = mech.bounding_box("all")
+    dims = np.ceil((hi - lo) / step).astype(int) + 1
+    P = np.stack(np.meshgrid(*(lo[k] + step * np.arange(dims[k]) for k in range(2)), indexing="ij"), axis=-1)
+    d = [np.linalg.norm(P - five.A[i], axis=-1) for i in range(2)]
+    reach = [np.minimum(five.a[i] + five.b[i] - d[i], d[i] - abs(five.a[i] - five.b[i])) for i in range(2)]
+
+    def edges(f: np.ndarray, ok: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(a, b) grid points of the edges where f changes sign, both ends ok."""
+        out = []
+        for sa, sb in (((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+                       ((slice(None), slice(None, -1)), (slice(None), slice(1, None)))):
+            hit = ((f[sa] >= 0) != (f[sb] >= 0)) & ok[sa] & ok[sb]
+            out.append((P[sa][hit], P[sb][hit], f[sa][hit], f[sb][hit]))
+        return out
+
+    # type I: limb k is chain k (the tip hangs on chain 1, so chain 2's closure is measured from
+    # it: where chain 1 cannot reach, chain 2's field is undefined and its edges are not scanned)
+    for k in range(2):
+        ok = np.ones(P.shape[:2], dtype=bool) if k == 0 else reach[0] >= 0
+        expected = sum(len(a) for a, *_ in edges(reach[k], ok))
+        pts = g.locus.points[(g.locus.kind == 1) & (g.locus.which == k)]
+        assert len(pts) == expected > 50
+        # each crossing lies on its edge, so within one step of the circle the edge crosses
+        dk = np.linalg.norm(pts - five.A[k], axis=1)
+        off = np.minimum(abs(dk - five.a[k] - five.b[k]), abs(dk - abs(five.a[k] - five.b[k])))
+        assert off.max() <= step
+    # type II: the generic field is det of the inverse Jacobian's normalised rows, +-(P - B_i) / b_i,
+    # i.e. +-sin(phi_2 - phi_1), so both interpolate to the same point (to the 1e-12 m solves'
+    # rounding over a field difference of order step: 1e-6 m leaves room for nearly flat edges)
+    both = (reach[0] >= 0) & (reach[1] >= 0)
+    crossings = []
+    for modes in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        s = np.full(P.shape[:2], np.nan)
+        for idx in zip(*np.nonzero(both), strict=True):
+            theta = five.ik(P[idx], modes)
+            if theta is not None:
+                phi = five.distal_angles(theta, P[idx])
+                s[idx] = np.sin(phi[1] - phi[0])
+        for a, b, fa, fb in edges(s, both):
+            crossings.append(a + (fa / (fa - fb))[:, None] * (b - a))
+    expected_pts = np.concatenate(crossings)
+    got = g.locus.points[g.locus.kind >= 2]
+    assert len(got) == len(expected_pts) > 50
+    dist, _ = cKDTree(expected_pts).query(got)
+    assert np.all(dist <= 1e-6), dist.max()

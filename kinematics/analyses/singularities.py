@@ -16,7 +16,8 @@ points that happen to land on it:
   limb reaching at both ends (J_x singular); *in the workspace* when both ends are in mode m's workspace.
 * type III: a type II edge that shares an end with a type I edge (both within one step).
 
-The grid is scanned plane by plane along z, so memory stays at a few planes whatever the step.
+The grid is scanned plane by plane along z, so memory stays at a few planes whatever the step; a
+planar task space (x, y) is a single plane, and its loci are curves.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ class SingularLocus:
     """Points [m] on a singular locus and what they are.
 
     Attributes:
-        points: (K, 3) interpolated positions.
+        points: (K, d) interpolated positions (d = the task dimension, 2 or 3).
         kind: (K,) 1 (type I), 2 (type II) or 3 (type III).
         which: (K,) the limb (type I, 0-based) or mode index into MODES (types II, III).
         inside: (K,) type II/III: in the (joint-limited) workspace; type I: on its boundary (see
@@ -148,11 +149,11 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     [m] on its bounding box (see the module docstring; for the 3-[P2(US)] the fields come from
     the fused scan kernel)."""
     mech.require("singular_fields", "a singular-locus scan")
-    if mech.task_dim != 3:
+    if mech.task_dim not in (2, 3):
         from kinematics.errors import UnsupportedRobotError
 
-        raise UnsupportedRobotError(mech.name, f"singular loci are scanned over a 3D grid; this task space is "
-                                               f"{mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
+        raise UnsupportedRobotError(mech.name, f"singular loci are scanned over a 2D or 3D grid; this task space "
+                                               f"is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
     mech.check_limits(limits)
     check_step(step)
     chosen = mech.check_branches(branches)
@@ -160,6 +161,7 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     lo, hi = mech.bounding_box(limits)
     check_points("step", grid_points(lo, hi, step), hint=f"{step:g} m is too fine a step")
     dims = np.ceil((hi - lo) / step).astype(int) + 1
+    planes = int(dims[2]) if len(dims) == 3 else 1  # a planar task space is one plane
     t0 = time.perf_counter()
     ix, iy = (a.ravel() for a in np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij"))
     plane_ids = ix * dims[1] + iy
@@ -168,10 +170,11 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=int(dims[2]), desc="singularities", unit="plane", delay=1.0, leave=False)
+        bar = tqdm(total=planes, desc="singularities", unit="plane", delay=1.0, leave=False)
     prev = None
-    for k in range(dims[2]):
-        pts = np.stack([lo[0] + step * ix, lo[1] + step * iy, np.full(len(ix), lo[2] + step * k)], axis=1)
+    for k in range(planes):
+        xyz = [lo[0] + step * ix, lo[1] + step * iy] + ([np.full(len(ix), lo[2] + step * k)] if len(dims) == 3 else [])
+        pts = np.stack(xyz, axis=1)
         r = mech.singular_fields(pts, limits)
         cur = {"margin": r.margin, "det": r.det, "disc": r.limb}
         ids = plane_ids + k * len(plane_ids)

@@ -575,8 +575,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "of revolution's profile, 128 in space)")
 
     p = command("workspace-volume", cmd_workspace_volume,
-                "workspace volume (p2us, serial arms) or area (planar arms) with its error estimate, per mode, with "
-                "singular points")
+                "workspace volume (p2us, delta, closed loops, serial arms) or area (planar arms and loops) with its "
+                "error estimate, per mode, with singular points")
     robot_arg(p)
     scan_args(p, 0.01)
     p.add_argument("--rtol", type=_non_negative, default=1e-3, metavar="R",
@@ -586,8 +586,8 @@ def build_parser() -> argparse.ArgumentParser:
     serial_args(p)
 
     p = command("singularities", cmd_singularities,
-                "type I/II/III singular loci over a grid (p2us); theta2 = 0 boundary (planar arm); possibly "
-                "singular joint boxes (serial arms)")
+                "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
+                "(planar arm); possibly singular joint boxes (serial arms)")
     robot_arg(p)
     scan_args(p, 0.01)
     p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")

@@ -481,20 +481,27 @@ def _residual(x, target, gi, gf, ws, r, J, jac, pin_j, fk):  # pragma: no cover 
 
 
 @njit(cache=True)
-def _orient_trace(gi, gf, ws):  # pragma: no cover - compiled
-    """Smallest tr(R_1 R_2^T) over the orientation equations: vee(C - C^T) also vanishes at half-turns
-    (C symmetric), which a root must not be: tr C = 1 + 2 cos(angle) >= 1 keeps the angle within 90 deg."""
+def _orient_trace(gi, gf, ws, roww):  # pragma: no cover - compiled
+    """Smallest tr(R_1 R_2^T) over the orientation equations solved (weight roww != 0; rows are
+    closures, each position then for a 6D one orientation, then the held orientation): vee(C - C^T)
+    also vanishes at half-turns (C symmetric), which a root must not be: tr C = 1 + 2 cos(angle) >= 1
+    keeps the angle within 90 deg."""
     n, nf, nc, ee, orient = gi[0], gi[1], gi[2], gi[3], gi[5]
     oC, o1, o2 = gi[10], gi[11], gi[12]
     WFR, R00 = 12 * n, 1 + 15 * n + 12 * nf
     best = 3.0
+    k = 0
     for c in range(nc):
         if gi[oC + c] == 1:
-            t = 0.0
-            for a in range(9):
-                t += ws[WFR + 9 * gi[o1 + c] + a] * ws[WFR + 9 * gi[o2 + c] + a]
-            best = min(best, t)
-    if orient:
+            if roww[k + 3] != 0.0 or roww[k + 4] != 0.0 or roww[k + 5] != 0.0:
+                t = 0.0
+                for a in range(9):
+                    t += ws[WFR + 9 * gi[o1 + c] + a] * ws[WFR + 9 * gi[o2 + c] + a]
+                best = min(best, t)
+            k += 6
+        else:
+            k += 3
+    if orient and (roww[k] != 0.0 or roww[k + 1] != 0.0 or roww[k + 2] != 0.0):
         t = 0.0
         for a in range(9):
             t += ws[WFR + 9 * ee + a] * gf[R00 + a]
@@ -681,7 +688,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
             break
     res = _maxabs(r)
     # ws holds x's placements: a converged row's last evaluation was its accepted step (or its start)
-    if res <= max(tol, TOL) and _has_orientation(gi) and _orient_trace(gi, gf, ws) < 1.0:
+    if res <= max(tol, TOL) and _has_orientation(gi) and _orient_trace(gi, gf, ws, roww) < 1.0:
         res = 1.0  # a half-turn, not a root
     return res, it
 

@@ -62,7 +62,9 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
                       singular: Any = None) -> Any:
     """Horizontal slices of a spatial mechanism's union workspace (coloured by the number of
     branches, e.g. working modes, within limits there) and a 3D view of its sampled points, with
-    type II / I singular points when given."""
+    type II / I singular points when given. A planar task space (x, y) gets `planar_workspace`."""
+    if mech.task_dim == 2:
+        return planar_workspace(mech, limits, step / 2, singular)
     lo, hi = mech.bounding_box(limits)
     nb = len(mech.branches)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(3)]
@@ -100,17 +102,41 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
     return fig
 
 
+def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singular: Any = None) -> Any:
+    """A planar mechanism's union workspace over its (x, y) bounding box, coloured by the number of
+    branches (e.g. working modes) within limits, with the singular points in (type II / III) or on
+    (type I) it when given."""
+    lo, hi = mech.bounding_box(limits)
+    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
+    X, Y = np.meshgrid(*axes, indexing="ij")
+    margin = mech.margin(None, limits)(np.stack([X.ravel(), Y.ravel()], axis=1))[:, :-1]
+    count = (margin >= 0).sum(axis=1).reshape(X.shape)
+    fig, ax = _figure(1, (6.0, 5.0))
+    im = ax[0].pcolormesh(X, Y, np.ma.masked_equal(count, 0), vmin=0, vmax=len(mech.branches),
+                          cmap=CONDITIONING_CMAP, shading="auto")
+    fig.colorbar(im, ax=ax[0], shrink=0.8, label=f"{mech.branch_kind}s within limits")
+    if singular is not None:
+        _singular_scatter(ax[0], singular.points, singular.kind, singular.inside, 2, size=2.0, plane=(0, 1))
+        ax[0].legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=7, markerscale=2, ncols=3,
+                     title="singular points in / on the workspace", title_fontsize=7)
+    ax[0].set_title(f"workspace ({LIMITS_TEXT[limits]})")
+    ax[0].set_aspect("equal")
+    ax[0].set_xlabel("x [m]")
+    ax[0].set_ylabel("y [m]")
+    return fig
+
+
 def _singular_scatter(ax: Any, points: np.ndarray, kind: np.ndarray, select: np.ndarray | None, dims: int,
-                      cap: int = 4000, size: float = 1.0) -> None:
+                      cap: int = 4000, size: float = 1.0, plane: tuple[int, int] = (0, 2)) -> None:
     """Singular points by type (`SINGULAR_STYLE` colour and marker, count in the label), the most
     numerous type first so that the rarer ones stay on top; at most `cap` drawn per type, marker
-    areas scaled by `size`."""
+    areas scaled by `size`; in 2D the coordinates `plane` (x-z by default)."""
     counts = {k: int(((kind == k) if select is None else (kind == k) & select).sum()) for k in SINGULAR_STYLE}
     for k in sorted(counts, key=lambda k: -counts[k]):
         colour, marker, label = SINGULAR_STYLE[k]
         sel = (kind == k) if select is None else (kind == k) & select
         pts = points[sel][:: max(1, counts[k] // cap)]
-        xyz = (pts[:, 0], pts[:, 1], pts[:, 2]) if dims == 3 else (pts[:, 0], pts[:, 2])
+        xyz = (pts[:, 0], pts[:, 1], pts[:, 2]) if dims == 3 else (pts[:, plane[0]], pts[:, plane[1]])
         # type I covers the workspace's boundary: faint when numerous, so II / III inside show through
         faint = k == 1 and counts[k] > 1000
         ax.scatter(*xyz, s=size * (3 if k == 1 else 4), c=colour, marker=marker, alpha=0.3 if faint else 0.8,
@@ -121,8 +147,21 @@ def _singular_scatter(ax: Any, points: np.ndarray, kind: np.ndarray, select: np.
 
 def p2us_singular_loci(scan_result: Any) -> Any:
     """Type I / II / III locus points in 3D and projected on x-z; the points in (type II / III) or
-    on (type I) the workspace get a panel of their own, so the closure does not hide the loci."""
+    on (type I) the workspace get a panel of their own, so the closure does not hide the loci. Loci
+    of a planar task space (points (K, 2)) get the two x-y panels."""
     loc = scan_result.locus
+    if loc.points.shape[1] == 2:
+        fig, ax = _figure(2, (4.6, 4.4))
+        _singular_scatter(ax[0], loc.points, loc.kind, None, 2, plane=(0, 1))
+        _singular_scatter(ax[1], loc.points, loc.kind, loc.inside, 2, plane=(0, 1))
+        ax[0].set_title(f"singular loci over the bounding box (step {scan_result.step:g} m)", fontsize=9)
+        ax[1].set_title(f"in / on the workspace ({LIMITS_TEXT[scan_result.limits]})", fontsize=9)
+        for a in ax:
+            a.set_xlabel("x [m]")
+            a.set_ylabel("y [m]")
+            a.set_aspect("equal")
+            a.legend(markerscale=3, fontsize=7, loc="lower left")
+        return fig
     fig, ax = _figure(3, (4.6, 4.4), ["3d", None, None])
     _singular_scatter(ax[0], loc.points, loc.kind, None, 3)
     _singular_scatter(ax[1], loc.points, loc.kind, None, 2)
