@@ -251,7 +251,7 @@ def test_show_draws_a_mesh_file_and_the_delta(capsys, tmp_path):
 
 
 def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
-    """`show MODEL.urdf --workspace` for a closed loop without closed forms: the five-bar's drawn
+    """`show MODEL.urdf --workspace --singularities` for a closed loop without closed forms: the five-bar's drawn
     grid points are exactly those inside both limbs' annuli |P - A_i| in [|a_i - b_i|, a_i + b_i]
     (its joints are continuous, so reach is the only limit), away from the annuli's edges."""
     from kinematics.model.robot import load_robot
@@ -269,8 +269,15 @@ def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
 
     monkeypatch.setattr(viz.Scene, "add_points", record)
     step = 0.08
-    viz.closed_loop_view(robot, workspace=True, step=step)
+    viz.closed_loop_view(robot, workspace=True, singularities=True, step=step)
     pts, cond = drawn["overlays/workspace"]
+    # the planar loci are drawn in the workspace's plane: type I on its boundary, where a chain
+    # is stretched or folded (|P - A_i| = a_i + b_i or |a_i - b_i|, within the grid step)
+    sing, _ = drawn["overlays/singular_1"]
+    assert np.all(sing[:, 2] == pts[0, 2])
+    d = np.linalg.norm(sing[:, None, :2] - fb.A[None], axis=-1)
+    off = np.minimum(np.abs(d - np.abs(fb.a - fb.b)), np.abs(d - (fb.a + fb.b))).min(axis=1)
+    assert np.all(off <= step)
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
