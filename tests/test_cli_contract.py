@@ -146,7 +146,7 @@ CASES: list[tuple[list[str], str]] = [
     (["workspace-volume", "p2us", "--points", "adir/"], "is a directory"),
     # singularities
     (["singularities", "nosuchbot"], "unknown robot"),
-    (["singularities", str(MODELS / "rssr.urdf")], "scanned over a 3D grid; this task space is 1-dimensional"),
+    (["singularities", str(MODELS / "rssr.urdf")], "scanned over a 2D or 3D grid; this task space is 1-dimensional"),
     (["usable-workspace", "ur5", "--shape", "cube"], "needs its mechanism's margin"),
     (["singularities", "delta", "--paper-scan"], "3-[P2(US)]"),
     (["singularities", "ur5", "--max-points", "0"], POSITIVE),

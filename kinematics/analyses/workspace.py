@@ -43,6 +43,7 @@ class Workspace:
     Attributes:
         robot: its name. planar: area [m^2] rather than volume [m^3].
         targets: the regions measured, e.g. ("---", "union") or ("up", "down", "union").
+        branch_key: the JSON key of the per-branch results: "elbows" for a planar arm's, else "modes".
         limits: "all" or "actuators".
         result: the measurement, one entry per target (ColumnVolume; VolumeEstimate for the
             "cells" engine).
@@ -56,6 +57,7 @@ class Workspace:
     result: ColumnVolume | VolumeEstimate
     seconds: float
     parameters: dict[str, Any] = field(default_factory=dict)
+    branch_key: str = "modes"
 
     def unconverged(self) -> dict[str, str]:
         """Targets (branches, union) whose own estimate failed, each with the reason (empty for the
@@ -79,7 +81,7 @@ class Workspace:
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready report with the issue's stable keys (volume_m3 / area_m2, error_estimate,
-        converged, modes / elbows, seconds)."""
+        converged, modes / elbows (`branch_key`), seconds)."""
         r = self.result
         unit = "m2" if self.planar else "m3"
         key = "area" if self.planar else "volume"
@@ -96,7 +98,7 @@ class Workspace:
             "error_estimate": self.error,
             "rtol": r.rtol,
             "converged": r.converged,
-            "elbows" if self.planar else "modes": per,
+            self.branch_key: per,
             "bbox": [box[0].tolist(), box[1].tolist()],
             "points_evaluated": r.points_evaluated,
             "step_m": r.step,
@@ -157,7 +159,7 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     t0 = time.perf_counter()
     res = _measure(mech.margin(chosen, limits), lo, hi, step, rtol, engine, progress, max_points, check)
     return Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res, time.perf_counter() - t0,
-                     mech.parameters())
+                     mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
 
 
 def p2us_workspace(params: P2USParams, *, step: float = 0.005, rtol: float | None = 1e-4,
