@@ -591,10 +591,11 @@ def _workspace(gi, m):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J, Jt, A, D, gr, dx,
-            xt, settle):  # pragma: no cover - compiled
+            xt, settle, final_jac):  # pragma: no cover - compiled
     """Levenberg-Marquardt from x (overwritten with where it ends) towards target t (see the module
     docstring). Returns (max |weighted residual| [m], iterations); r and J then hold the weighted
-    residual and Jacobian at x; the other arrays are scratch (`_workspace`). The stall rule applies
+    residual and Jacobian at x (J: unless final_jac is False and the last step converged, when it
+    is the previous step's); the other arrays are scratch (`_workspace`). The stall rule applies
     from step `settle` on."""
     n = x.shape[0]
     pin_j = _pin_pose(gi, gf, ws, t) if pinned else -1
@@ -677,9 +678,13 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
         lam = max(lam * 0.1, 1e-12)
         for j in range(n):
             x[j] = xt[j]
-        # the Jacobian at the accepted trial from the placements its residual left (no second FK)
-        _residual(x, t, gi, gf, ws, r, J, True, pin_j, False)
-        _weigh(roww, r, J, True)
+        if final_jac or _maxabs(rt) > tol:
+            # the Jacobian at the accepted trial from the placements its residual left (no second FK)
+            _residual(x, t, gi, gf, ws, r, J, True, pin_j, False)
+            _weigh(roww, r, J, True)
+        else:  # converged, and nobody reads the Jacobian at the root
+            for i in range(m):
+                r[i] = rt[i]
         drop = cost - c2
         cost = c2
         # a least-squares point, not a root: the cost stalls (near a root Newton's quadratic
@@ -706,7 +711,7 @@ def _lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol,
             for j in range(n):
                 x[j] = x0[row, j]
             res, it = _lm_row(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J,
-                              Jt, A, D, gr, dx, xt, 3)
+                              Jt, A, D, gr, dx, xt, 3, True)
             for j in range(n):
                 x_out[row, j] = x[j]
             res_out[row] = res
@@ -823,8 +828,9 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                     usable = usable and np.isfinite(x[held[k, h]])
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
+                # a labelling block's root is labelled by the sign of its Jacobian's determinant there
                 rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                Jt, A, D, gr, dx, xt, settle)
+                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0)
                 if rr < res[i, k, s]:
                     res[i, k, s] = rr
                     for c in range(nc):
@@ -904,26 +910,28 @@ def _slack_kernel(x, lo, hi, use, unit, pairs, paired, centre, out):  # pragma: 
 
 
 @njit(cache=True, parallel=True)
-def _assemble_kernel(sol, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
+def _assemble_kernel(order, sol, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
                      x_out, end_out, ok_out, res_out, margin_out):  # pragma: no cover - compiled
-    """The block solver's per-slot results combined into branches (`LoopBatch._solve_blocks`):
+    """The block solver's per-slot results combined into branches (`LoopBatch._ik_blocks`):
     joint values (NaN unless every block of the branch was found), ends, residuals (the largest of
-    the blocks tried; an untried block's earlier block failed) and margins."""
+    the blocks tried; an untried block's earlier block failed) and margins; slot row r is target
+    order[r]."""
     N = sol.shape[0]
     B, K = bslot.shape
     n = x_out.shape[2]
-    for i in prange(N):
+    for row in prange(N):
+        i = order[row]
         for b in range(B):
             ok = True
             r = 0.0
             for k in range(K):
                 s = bslot[b, k]
                 for c in range(ncol[k]):
-                    x_out[i, b, cols[k, c]] = sol[i, k, s, c]
-                    end_out[i, b, cols[k, c]] = end[i, k, s, c]
-                ok = ok and found[i, k, s]
-                if np.isfinite(res[i, k, s]) and res[i, k, s] > r:
-                    r = res[i, k, s]
+                    x_out[i, b, cols[k, c]] = sol[row, k, s, c]
+                    end_out[i, b, cols[k, c]] = end[row, k, s, c]
+                ok = ok and found[row, k, s]
+                if np.isfinite(res[row, k, s]) and res[row, k, s] > r:
+                    r = res[row, k, s]
             ok_out[i, b] = ok
             if ok:
                 res_out[i, b] = 0.0
@@ -1024,10 +1032,6 @@ class _Slots(NamedTuple):
     def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
         return cls(np.full((N, K, S, cmax), np.nan), np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
                    np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 2), dtype=np.int64))
-
-    def put(self, idx: np.ndarray, part: _Slots) -> None:
-        for mine, theirs in zip(self, part, strict=True):
-            mine[idx] = theirs
 
 
 # -- the mechanism ---------------------------------------------------------------------------------
@@ -1825,36 +1829,43 @@ class LoopBatch:
         N, B, n = len(p), len(self.labels), self.n
         K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
         radius = WARM_RADIUS_FACTOR * self.scale
-        starts = np.full((N, K, S, cmax), np.nan)
         best = np.full(N, np.inf)
+        cached = None
         if warm:
-            d, ends = self._nearest_cached(p, (K, S, cmax))
-            near = np.isfinite(d)
-            starts[near], best[near] = ends[near], d[near]
-        slots = _Slots.empty(N, K, S, cmax)
+            d, cached = self._nearest_cached(p, (K, S, cmax))
+            best = np.where(np.isfinite(d), d, np.inf)
         # continuation inside the batch: every 64th point, then every 8th, then the rest, each
-        # level from the nearest point of the levels before
-        done = np.zeros(N, dtype=bool)
+        # level from the nearest point of the levels before; the points are taken level by level
+        # (order) so that each level's slots are one contiguous slice of the arrays
         # (a batch whose points mostly have a cached neighbour, such as a root refinement step, in one go)
         strides = (1,) if np.isfinite(best).mean() >= 0.9 else (64, 8, 1)
+        levels, taken = [], np.zeros(N, dtype=bool)
         for stride in strides:
-            level = np.flatnonzero(~done & (np.arange(N) % stride == 0))
-            if not len(level) or (stride > 1 and 8 * stride >= N):
-                continue
-            if done.any():
+            level = np.flatnonzero(~taken & (np.arange(N) % stride == 0))
+            if len(level) and not (stride > 1 and 8 * stride >= N):
+                levels.append(level)
+                taken[level] = True
+        order = np.concatenate(levels) if levels else np.arange(0)
+        q, best = p[order], best[order]
+        starts = np.full((N, K, S, cmax), np.nan)
+        if cached is not None:
+            near = np.isfinite(best)
+            starts[near] = cached[order[near]]
+        slots = _Slots.empty(N, K, S, cmax)
+        a = 0
+        for level in levels:
+            b = a + len(level)
+            if a:
                 # the nearest solved point: all its slot ends within the continuation radius (roots
                 # and least-squares points alike); farther, its roots only, and only where it is
                 # nearer than the reference position (whose roots are the atlas starts)
-                solved = np.flatnonzero(done)
-                d, j = cKDTree(p[solved]).query(p[level])
-                src = solved[j]
-                near = (d <= radius) & (d < best[level])
-                starts[level[near]], best[level[near]] = slots.end[src[near]], d[near]
-                far = ~near & ~np.isfinite(best[level]) & (d < np.linalg.norm(p[level] - self._anchor, axis=1))
-                roots = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
-                starts[level[far]] = roots
-            slots.put(level, self._solve_slots(p[level], starts[level], every_block))
-            done[level] = True
+                d, src = cKDTree(q[:a]).query(q[a:b])
+                near = (d <= radius) & (d < best[a:b])
+                starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
+                far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
+                starts[a:b][far] = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
+            self._solve_slots(q[a:b], starts[a:b], every_block, _Slots(*(v[a:b] for v in slots)))
+            a = b
         x = np.empty((N, B, n))
         end_x = np.empty((N, B, n))
         ok = np.empty((N, B), dtype=np.bool_)
@@ -1862,20 +1873,21 @@ class LoopBatch:
         margin = np.empty((N, B))
         if N:
             lo, hi, use, unit, pairs, paired, centre = self._slack_args("all")
-            _assemble_kernel(slots.sol, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"], tb["T"][1],
-                             lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
+            _assemble_kernel(order, slots.sol, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"],
+                             tb["T"][1], lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
         if warm:
-            self._remember(p, slots.end)
+            self._remember(q, slots.end)
         return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
                                end_x)
 
-    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, every_block: bool = False) -> _Slots:
+    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, every_block: bool = False,
+                     out: _Slots | None = None) -> _Slots:
         """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none); a slot no
         live branch needs is skipped unless every_block."""
         tb = self._block_tables
         N, B = len(p), len(self.labels)
         K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
-        out = _Slots.empty(N, K, S, cmax)
+        out = _Slots.empty(N, K, S, cmax) if out is None else out
         alive = np.ones((N, B), dtype=np.bool_)
         starts = np.ascontiguousarray(starts)
         for k in tb["order"] if N else ():
