@@ -1882,8 +1882,9 @@ class LoopBatch:
 
     def _solve_slots(self, p: np.ndarray, starts: np.ndarray, every_block: bool = False,
                      out: _Slots | None = None) -> _Slots:
-        """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none); a slot no
-        live branch needs is skipped unless every_block."""
+        """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none), written to
+        `out` (rows of the caller's arrays) or to new arrays; a slot no live branch needs is skipped
+        unless every_block."""
         tb = self._block_tables
         N, B = len(p), len(self.labels)
         K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
