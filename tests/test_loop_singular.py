@@ -137,8 +137,9 @@ def test_planar_loci_of_the_five_bar_match_its_closed_forms():
     d = [np.linalg.norm(P - five.A[i], axis=-1) for i in range(2)]
     reach = [np.minimum(five.a[i] + five.b[i] - d[i], d[i] - abs(five.a[i] - five.b[i])) for i in range(2)]
 
-    def edges(f: np.ndarray, ok: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(a, b) grid points of the edges where f changes sign, both ends ok."""
+    def edges(f: np.ndarray, ok: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+        """(a, b, f(a), f(b)) along x, then along y, of the grid edges where f changes sign with
+        both ends ok."""
         out = []
         for sa, sb in (((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
                        ((slice(None), slice(None, -1)), (slice(None), slice(1, None)))):

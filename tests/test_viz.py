@@ -251,9 +251,10 @@ def test_show_draws_a_mesh_file_and_the_delta(capsys, tmp_path):
 
 
 def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
-    """`show MODEL.urdf --workspace --singularities` for a closed loop without closed forms: the five-bar's drawn
-    grid points are exactly those inside both limbs' annuli |P - A_i| in [|a_i - b_i|, a_i + b_i]
-    (its joints are continuous, so reach is the only limit), away from the annuli's edges."""
+    """`show MODEL.urdf --workspace --singularities` for a closed loop without closed forms: the
+    five-bar's drawn grid points are exactly those inside both limbs' annuli |P - A_i| in
+    [|a_i - b_i|, a_i + b_i] (its joints are continuous, so reach is the only limit), away from the
+    annuli's edges."""
     from kinematics.model.robot import load_robot
 
     from .fivebar import FiveBar

@@ -1829,11 +1829,10 @@ class LoopBatch:
         N, B, n = len(p), len(self.labels), self.n
         K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
         radius = WARM_RADIUS_FACTOR * self.scale
-        best = np.full(N, np.inf)
+        best = np.full(N, np.inf)  # distance to the nearest start's source (inf: none)
         cached = None
         if warm:
-            d, cached = self._nearest_cached(p, (K, S, cmax))
-            best = np.where(np.isfinite(d), d, np.inf)
+            best, cached = self._nearest_cached(p, (K, S, cmax))
         # continuation inside the batch: every 64th point, then every 8th, then the rest, each
         # level from the nearest point of the levels before; the points are taken level by level
         # (order) so that each level's slots are one contiguous slice of the arrays
@@ -1864,7 +1863,7 @@ class LoopBatch:
                 starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
                 far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
                 starts[a:b][far] = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
-            self._solve_slots(q[a:b], starts[a:b], every_block, _Slots(*(v[a:b] for v in slots)))
+            self._solve_slots(q[a:b], starts[a:b], _Slots(*(v[a:b] for v in slots)), every_block)
             a = b
         x = np.empty((N, B, n))
         end_x = np.empty((N, B, n))
@@ -1880,15 +1879,12 @@ class LoopBatch:
         return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
                                end_x)
 
-    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, every_block: bool = False,
-                     out: _Slots | None = None) -> _Slots:
+    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, out: _Slots, every_block: bool = False) -> None:
         """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none), written to
-        `out` (rows of the caller's arrays) or to new arrays; a slot no live branch needs is skipped
-        unless every_block."""
+        `out` (rows of the caller's arrays); a slot no live branch needs is skipped unless
+        every_block."""
         tb = self._block_tables
         N, B = len(p), len(self.labels)
-        K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
-        out = _Slots.empty(N, K, S, cmax) if out is None else out
         alive = np.ones((N, B), dtype=np.bool_)
         starts = np.ascontiguousarray(starts)
         for k in tb["order"] if N else ():
@@ -1898,7 +1894,6 @@ class LoopBatch:
             _block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
                           tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.sol, out.found, out.dist, out.res,
                           out.end, out.counts)
-        return out
 
     def blockwise(self, targets: np.ndarray, slot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Starts for branch `slot` at each target, built block by block in the triangular order:
