@@ -343,6 +343,28 @@ def test_fivebar_branches_and_joint_values():
     assert np.count_nonzero(hits) == 4 and np.all(hits.sum(axis=0) > 0)
 
 
+def test_fivebar_cold_grid_finds_every_reachable_branch():
+    """A cold first pass over a 0.01 m grid of the five-bar's box against its reach annuli (each
+    distal point within a_i + b_i and beyond |a_i - b_i| of its motor, 1e-6 m clear of both circles:
+    4 branches there, none elsewhere). The search may miss a basin (its documented limit): at most
+    1 pair in 10,000 (measured 0 of 27,064 here and 1 on the grids shifted by 3 and 7 mm; with
+    lam / 10 after every step for the descents too, 8, 2 and 5: Levenberg-Marquardt from chain 1's
+    atlas start stalled on the plateau beside its folded configuration)."""
+    robot = load_robot(FIVEBAR)
+    five = FiveBar.from_robot(robot)
+    lb = LoopBatch.from_robot(robot)
+    lo, hi = lb.bounding_box()
+    g = np.stack(np.meshgrid(*[np.arange(lo[k], hi[k], 0.01) for k in range(2)], indexing="ij"), -1).reshape(-1, 2)
+    d = [np.linalg.norm(g - five.A[i], axis=1) for i in range(2)]
+    inner = [(d[i] < five.a[i] + five.b[i] - 1e-6) & (d[i] > abs(five.a[i] - five.b[i]) + 1e-6) for i in range(2)]
+    outer = [(d[i] > five.a[i] + five.b[i] + 1e-6) | (d[i] < abs(five.a[i] - five.b[i]) - 1e-6) for i in range(2)]
+    reach, out = inner[0] & inner[1], outer[0] | outer[1]
+    assert reach.sum() > 5000 and out.sum() > 5000
+    s = lb.ik(g, warm=False)
+    assert not s.found[out].any()
+    assert np.sum(~s.found[reach]) <= 1e-4 * 4 * reach.sum()
+
+
 def test_bad_input(p2us):
     _, _, lb = p2us
     with pytest.raises(InvalidInputError):

@@ -591,12 +591,13 @@ def _workspace(gi, m):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J, Jt, A, D, gr, dx,
-            xt, settle, final_jac):  # pragma: no cover - compiled
+            xt, settle, final_jac, adapt):  # pragma: no cover - compiled
     """Levenberg-Marquardt from x (overwritten with where it ends) towards target t (see the module
     docstring). Returns (max |weighted residual| [m], iterations); r and J then hold the weighted
     residual and Jacobian at x (J: unless final_jac is False and the last step converged, when it
     is the previous step's); the other arrays are scratch (`_workspace`). The stall rule applies
-    from step `settle` on."""
+    from step `settle` on. adapt: Nielsen's damping update (a descent towards the nearest root or
+    least-squares point); else lam / 10 after every accepted step (long Gauss-Newton steps)."""
     n = x.shape[0]
     pin_j = _pin_pose(gi, gf, ws, t) if pinned else -1
     _wrap(x, gi, centre)
@@ -606,6 +607,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
     for i in range(m):
         cost += r[i] * r[i]
     lam = 1e-8
+    up = 10.0  # lam's factor at the next rejected trial
     it = 0
     while it < iters and _maxabs(r) > tol:
         it += 1
@@ -645,7 +647,8 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
                     D[a, b] = A[a, b]
                 D[a, a] += lam * A[a, a] + 1e-14 * trace / n + 1e-300
             if not _cholesky_solve(D, gr, dx):
-                lam *= 10.0
+                lam *= up
+                up *= 2.0 if adapt else 1.0
                 continue
             # the decrease of ||r||^2 the linear model predicts, 2 dx.g - dx^T A dx: where it is
             # nil (a stationary point) or, after 3 steps, a small fraction of the cost (the start
@@ -672,10 +675,20 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
             if c2 < cost:
                 accepted = True
                 break
-            lam *= 10.0
+            lam *= up
+            up *= 2.0 if adapt else 1.0
         if not accepted:
             break
-        lam = max(lam * 0.1, 1e-12)
+        if adapt:
+            # Nielsen (1999): lam follows the gain ratio rho = actual / predicted decrease
+            # (x max(1/3, 1 - (2 rho - 1)^3)), the rejection factor doubles from 2: from a start at
+            # a least-squares point (singular J, overlong Gauss-Newton steps) lam / 10 after each
+            # step costs a rejected trial at the next, about one in two steps
+            g = 2.0 * (cost - c2) / pred - 1.0
+            lam = max(lam * max(1.0 / 3.0, 1.0 - g * g * g), 1e-12)
+            up = 2.0
+        else:
+            lam = max(lam * 0.1, 1e-12)
         for j in range(n):
             x[j] = xt[j]
         if final_jac or _maxabs(rt) > tol:
@@ -711,7 +724,7 @@ def _lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol,
             for j in range(n):
                 x[j] = x0[row, j]
             res, it = _lm_row(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J,
-                              Jt, A, D, gr, dx, xt, 3, True)
+                              Jt, A, D, gr, dx, xt, 3, True, False)
             for j in range(n):
                 x_out[row, j] = x[j]
             res_out[row] = res
@@ -828,9 +841,11 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                     usable = usable and np.isfinite(x[held[k, h]])
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
-                # a labelling block's root is labelled by the sign of its Jacobian's determinant there
+                # a labelling block's root is labelled by the sign of its Jacobian's determinant there;
+                # the restarts explore (lam / 10 per step: Gauss-Newton's long steps reach more
+                # basins), the other starts descend
                 rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0)
+                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0, attempt < 2 * S)
                 if rr < res[i, k, s]:
                     res[i, k, s] = rr
                     for c in range(nc):
@@ -1012,7 +1027,7 @@ class _WarmCache:
             rows = (self.head - self.fresh + np.arange(self.fresh)) % len(self.points)
             sources.append((cKDTree(self.points[rows], balanced_tree=False, compact_nodes=False), rows))
         for tree, rows in sources:
-            d, j = tree.query(q, distance_upper_bound=radius)
+            d, j = tree.query(q, distance_upper_bound=radius, workers=-1)
             better = d < dist
             dist[better], ends[better] = d[better], self.ends[rows[j[better]]]
         return dist, ends
@@ -1696,7 +1711,7 @@ class LoopBatch:
         tried = np.zeros((N, B), dtype=bool)
         sources = [self._nearest_cached(p, (B, n))] if warm else []
         if extra is not None and len(extra[0]):
-            dist, j = cKDTree(extra[0]).query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale)
+            dist, j = cKDTree(extra[0]).query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale, workers=-1)
             sources.append((dist, np.where(np.isfinite(dist)[:, None, None], extra[1][np.minimum(j, len(extra[0]) - 1)],
                                            np.nan)))
         for dist, ends in sources:
@@ -1858,7 +1873,7 @@ class LoopBatch:
                 # the nearest solved point: all its slot ends within the continuation radius (roots
                 # and least-squares points alike); farther, its roots only, and only where it is
                 # nearer than the reference position (whose roots are the atlas starts)
-                d, src = cKDTree(q[:a]).query(q[a:b])
+                d, src = cKDTree(q[:a]).query(q[a:b], workers=-1)
                 near = (d <= radius) & (d < best[a:b])
                 starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
                 far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
