@@ -760,7 +760,7 @@ def _det_sign(J, rows, cols, nc, M):  # pragma: no cover - compiled
 
 @njit(cache=True, parallel=True)
 def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
-                  restarts, near, alive, sol, found, dist, res, end, counts):  # pragma: no cover - compiled
+                  restarts, near, alive, found, dist, res, end, counts):  # pragma: no cover - compiled
     """Block k of the block solver (`LoopBatch._solve_blocks`) at every target row.
 
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
@@ -837,8 +837,9 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                         x[cols[k, c]] = lo[k, c] + ((0.5 + q * alpha[k, c]) % 1.0) * (hi[k, c] - lo[k, c])
                 usable = True
                 for h in range(nheld[k]):
-                    x[held[k, h]] = sol[i, held_owner[k, h], held_slot[k, s, h], held_pos[k, h]]
-                    usable = usable and np.isfinite(x[held[k, h]])
+                    o, so = held_owner[k, h], held_slot[k, s, h]
+                    x[held[k, h]] = end[i, o, so, held_pos[k, h]]
+                    usable = usable and found[i, o, so]
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
                 # a labelling block's root is labelled by the sign of its Jacobian's determinant there;
@@ -879,7 +880,7 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                     d += e * e
                 if found[i, k, s2]:
                     for c in range(nc):
-                        if act[k, c] and abs(x[cols[k, c]] - sol[i, k, s2, c]) > 1e-9:
+                        if act[k, c] and abs(x[cols[k, c]] - end[i, k, s2, c]) > 1e-9:
                             counts[i, 1] += 1
                             break
                     if d >= dist[i, k, s2]:
@@ -888,7 +889,6 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                 dist[i, k, s2] = d
                 res[i, k, s2] = 0.0
                 for c in range(nc):
-                    sol[i, k, s2, c] = x[cols[k, c]]
                     end[i, k, s2, c] = x[cols[k, c]]
             for b in range(B):
                 if not found[i, k, bslot[b, k]]:
@@ -925,13 +925,13 @@ def _slack_kernel(x, lo, hi, use, unit, pairs, paired, centre, out):  # pragma: 
 
 
 @njit(cache=True, parallel=True)
-def _assemble_kernel(order, sol, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
+def _assemble_kernel(order, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
                      x_out, end_out, ok_out, res_out, margin_out):  # pragma: no cover - compiled
     """The block solver's per-slot results combined into branches (`LoopBatch._ik_blocks`):
     joint values (NaN unless every block of the branch was found), ends, residuals (the largest of
     the blocks tried; an untried block's earlier block failed) and margins; slot row r is target
     order[r]."""
-    N = sol.shape[0]
+    N = end.shape[0]
     B, K = bslot.shape
     n = x_out.shape[2]
     for row in prange(N):
@@ -942,7 +942,7 @@ def _assemble_kernel(order, sol, end, found, res, bslot, cols, ncol, lo, hi, use
             for k in range(K):
                 s = bslot[b, k]
                 for c in range(ncol[k]):
-                    x_out[i, b, cols[k, c]] = sol[row, k, s, c]
+                    x_out[i, b, cols[k, c]] = end[row, k, s, c]  # the root where found
                     end_out[i, b, cols[k, c]] = end[row, k, s, c]
                 ok = ok and found[row, k, s]
                 if np.isfinite(res[row, k, s]) and res[row, k, s] > r:
@@ -1027,7 +1027,7 @@ class _WarmCache:
             rows = (self.head - self.fresh + np.arange(self.fresh)) % len(self.points)
             sources.append((cKDTree(self.points[rows], balanced_tree=False, compact_nodes=False), rows))
         for tree, rows in sources:
-            d, j = tree.query(q, distance_upper_bound=radius, workers=-1)
+            d, j = tree.query(q, distance_upper_bound=radius)
             better = d < dist
             dist[better], ends[better] = d[better], self.ends[rows[j[better]]]
         return dist, ends
@@ -1036,16 +1036,16 @@ class _WarmCache:
 class _Slots(NamedTuple):
     """The block solver's per-slot results (`LoopBatch._solve_slots`, `_block_kernel`)."""
 
-    sol: np.ndarray  # (N, K, S, cmax) each block's unknowns per slot (NaN where not found)
     found: np.ndarray  # (N, K, S)
     dist: np.ndarray  # (N, K, S) distance to the reference of the kept root
-    res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried)
-    end: np.ndarray  # (N, K, S, cmax) where that best start ended
+    res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried; 0: found)
+    end: np.ndarray  # (N, K, S, cmax) each block's unknowns per slot: its kept root where found, else
+    # where the slot's best start ended
     counts: np.ndarray  # (N, 2) unlabelled roots, conflicts
 
     @classmethod
     def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
-        return cls(np.full((N, K, S, cmax), np.nan), np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
+        return cls(np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
                    np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 2), dtype=np.int64))
 
 
@@ -1711,7 +1711,7 @@ class LoopBatch:
         tried = np.zeros((N, B), dtype=bool)
         sources = [self._nearest_cached(p, (B, n))] if warm else []
         if extra is not None and len(extra[0]):
-            dist, j = cKDTree(extra[0]).query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale, workers=-1)
+            dist, j = cKDTree(extra[0]).query(p, distance_upper_bound=WARM_RADIUS_FACTOR * self.scale)
             sources.append((dist, np.where(np.isfinite(dist)[:, None, None], extra[1][np.minimum(j, len(extra[0]) - 1)],
                                            np.nan)))
         for dist, ends in sources:
@@ -1873,7 +1873,7 @@ class LoopBatch:
                 # the nearest solved point: all its slot ends within the continuation radius (roots
                 # and least-squares points alike); farther, its roots only, and only where it is
                 # nearer than the reference position (whose roots are the atlas starts)
-                d, src = cKDTree(q[:a]).query(q[a:b], workers=-1)
+                d, src = cKDTree(q[:a]).query(q[a:b])
                 near = (d <= radius) & (d < best[a:b])
                 starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
                 far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
@@ -1887,7 +1887,7 @@ class LoopBatch:
         margin = np.empty((N, B))
         if N:
             lo, hi, use, unit, pairs, paired, centre = self._slack_args("all")
-            _assemble_kernel(order, slots.sol, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"],
+            _assemble_kernel(order, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"],
                              tb["T"][1], lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
         if warm:
             self._remember(q, slots.end)
@@ -1907,7 +1907,7 @@ class LoopBatch:
                 alive[:] = True
             gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
             _block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
-                          tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.sol, out.found, out.dist, out.res,
+                          tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res,
                           out.end, out.counts)
 
     def blockwise(self, targets: np.ndarray, slot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
