@@ -21,14 +21,20 @@ them (the planar five-bar: x, y). Mechanisms whose actuators drive a rotation of
 (a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
 
 **Solver.** Levenberg-Marquardt on ||r||^2 in compiled kernels, one row (target, start) per
-thread at a time: A = J^T J + lam diag(J^T J), dx = -A^-1 J^T r by Cholesky, accept and lam /= 10
-when ||r|| drops, else lam *= 10; revolute values are wrapped to within pi of the middle of their
-limits. It stops at max|r| <= TOL (a root: the loops close and the target is met) or when it
-stalls (a least-squares point: no root near this start; after 3 steps, an accepted step, or the
-step the linear model predicts, that lowers ||r||^2 by less than STALL of it). The kinematics (all
-joint placements of the tree, frame placements, Jacobian columns w x (p_f - o_j) / w) are
-evaluated in the same kernel, not by per-point Pinocchio calls; a rejected trial evaluates the
-residual only, an accepted one adds the Jacobian from the trial's placements.
+thread at a time: A = J^T J + lam diag(J^T J), dx = -A^-1 J^T r by Cholesky, accepted when ||r||
+drops; lam starts at 1e-8 (Gauss-Newton). A slot's first start (a neighbour's end, else the atlas
+configuration) updates lam by Nielsen's rule: x max(1/3, 1 - (2 rho - 1)^3) after an accepted
+step, rho the actual over the predicted decrease, and x 10, 20, 40, ... (x 2, 4, ... after a first
+accepted step) per rejected trial; the atlas retry and the quasi-random restarts divide lam by 10
+after each accepted step and multiply it by 10 per rejection (long Gauss-Newton steps: they close
+a target's nearly double roots next to a fold and reach more basins). Revolute values are
+wrapped to within pi of the middle of their limits. It stops at max|r| <= TOL (a root: the loops
+close and the target is met) or when it stalls (a least-squares point: no root near this start;
+after 3 steps, an accepted step, or the step the linear model predicts, that lowers ||r||^2 by
+less than STALL of it). The kinematics (all joint placements of the tree, frame placements,
+Jacobian columns w x (p_f - o_j) / w) are evaluated in the same kernel, not by per-point Pinocchio
+calls; a rejected trial evaluates the residual only, an accepted one adds the Jacobian from the
+trial's placements.
 
 **Branches (working modes).** With the end effector fixed the equations split into blocks
 (`blocks`): groups of rows (a closure, the task) that determine a set of unknowns on their own,
@@ -843,10 +849,11 @@ def _block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nsl
                 if not usable:  # an earlier block of this branch choice has no root here
                     continue
                 # a labelling block's root is labelled by the sign of its Jacobian's determinant there;
-                # the restarts explore (lam / 10 per step: Gauss-Newton's long steps reach more
-                # basins), the other starts descend
+                # a slot's first start descends (Nielsen); the atlas retry (a target next to a fold,
+                # its roots nearly double) and the restarts (exploration) keep lam / 10 per step,
+                # whose long Gauss-Newton steps close near-double roots and reach more basins
                 rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0, attempt < 2 * S)
+                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0, attempt < S)
                 if rr < res[i, k, s]:
                     res[i, k, s] = rr
                     for c in range(nc):
