@@ -73,6 +73,14 @@ class FiveBar:
         return cls(A, np.linalg.norm(B - A, axis=1), np.linalg.norm(P - B, axis=1), theta0, phi0)
 
     # -- positions -------------------------------------------------------------------------------
+    def reach(self, P: np.ndarray) -> np.ndarray:
+        """Signed reach slack [m] of each chain at points P (..., 2) -> (..., 2):
+        min(a_i + b_i - |P - A_i|, |P - A_i| - |a_i - b_i|), >= 0 where chain i reaches P (its joints
+        turn freely, so reach is its only limit); its magnitude is the distance to the nearer of
+        chain i's two reach circles."""
+        d = np.linalg.norm(np.asarray(P, dtype=float)[..., None, :] - self.A, axis=-1)
+        return np.minimum(self.a + self.b - d, d - np.abs(self.a - self.b))
+
     def elbows(self, theta: np.ndarray) -> np.ndarray:
         return np.array([self.A[i] + self.a[i] * u(theta[i]) for i in range(2)])
 

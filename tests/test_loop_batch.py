@@ -355,10 +355,8 @@ def test_fivebar_cold_grid_finds_every_reachable_branch():
     lb = LoopBatch.from_robot(robot)
     lo, hi = lb.bounding_box()
     g = np.stack(np.meshgrid(*[np.arange(lo[k], hi[k], 0.01) for k in range(2)], indexing="ij"), -1).reshape(-1, 2)
-    d = [np.linalg.norm(g - five.A[i], axis=1) for i in range(2)]
-    inner = [(d[i] < five.a[i] + five.b[i] - 1e-6) & (d[i] > abs(five.a[i] - five.b[i]) + 1e-6) for i in range(2)]
-    outer = [(d[i] > five.a[i] + five.b[i] + 1e-6) | (d[i] < abs(five.a[i] - five.b[i]) - 1e-6) for i in range(2)]
-    reach, out = inner[0] & inner[1], outer[0] | outer[1]
+    slack = five.reach(g)
+    reach, out = (slack > 1e-6).all(axis=1), (slack < -1e-6).any(axis=1)
     assert reach.sum() > 5000 and out.sum() > 5000
     s = lb.ik(g, warm=False)
     assert not s.found[out].any()

@@ -134,8 +134,7 @@ def test_planar_loci_of_the_five_bar_match_its_closed_forms():
     lo, hi = mech.bounding_box("all")
     dims = np.ceil((hi - lo) / step).astype(int) + 1
     P = np.stack(np.meshgrid(*(lo[k] + step * np.arange(dims[k]) for k in range(2)), indexing="ij"), axis=-1)
-    d = [np.linalg.norm(P - five.A[i], axis=-1) for i in range(2)]
-    reach = [np.minimum(five.a[i] + five.b[i] - d[i], d[i] - abs(five.a[i] - five.b[i])) for i in range(2)]
+    reach = five.reach(P)
 
     def edges(f: np.ndarray, ok: np.ndarray) -> list[tuple[np.ndarray, ...]]:
         """(a, b, f(a), f(b)) along x, then along y, of the grid edges where f changes sign with
@@ -150,8 +149,8 @@ def test_planar_loci_of_the_five_bar_match_its_closed_forms():
     # type I: limb k is chain k (the tip hangs on chain 1, so chain 2's closure is measured from
     # it: where chain 1 cannot reach, chain 2's field is undefined and its edges are not scanned)
     for k in range(2):
-        ok = np.ones(P.shape[:2], dtype=bool) if k == 0 else reach[0] >= 0
-        expected = sum(len(a) for a, *_ in edges(reach[k], ok))
+        ok = np.ones(P.shape[:2], dtype=bool) if k == 0 else reach[..., 0] >= 0
+        expected = sum(len(a) for a, *_ in edges(reach[..., k], ok))
         pts = g.locus.points[(g.locus.kind == 1) & (g.locus.which == k)]
         assert len(pts) == expected > 50
         # each crossing lies on its edge, so within one step of the circle the edge crosses
@@ -161,7 +160,7 @@ def test_planar_loci_of_the_five_bar_match_its_closed_forms():
     # type II: the generic field is det of the inverse Jacobian's normalised rows, +-(P - B_i) / b_i,
     # i.e. +-sin(phi_2 - phi_1), so both interpolate to the same point (to the 1e-12 m solves'
     # rounding over a field difference of order step: 1e-6 m leaves room for nearly flat edges)
-    both = (reach[0] >= 0) & (reach[1] >= 0)
+    both = (reach >= 0).all(axis=-1)
     crossings = []
     for modes in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
         s = np.full(P.shape[:2], np.nan)

@@ -276,19 +276,16 @@ def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
     # is stretched or folded (|P - A_i| = a_i + b_i or |a_i - b_i|, within the grid step)
     sing, _ = drawn["overlays/singular_1"]
     assert np.all(sing[:, 2] == pts[0, 2])
-    d = np.linalg.norm(sing[:, None, :2] - fb.A[None], axis=-1)
-    off = np.minimum(np.abs(d - np.abs(fb.a - fb.b)), np.abs(d - (fb.a + fb.b))).min(axis=1)
-    assert np.all(off <= step)
+    assert np.all(np.abs(fb.reach(sing[:, :2])).min(axis=1) <= step)
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
     lo, hi = mech.bounding_box()
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(2)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-    r = np.linalg.norm(grid[:, None, :] - fb.A[None], axis=-1)  # (N, 2)
-    lo_r, hi_r = np.abs(fb.a - fb.b), fb.a + fb.b
-    inside = np.all((r >= lo_r) & (r <= hi_r), axis=1)
-    clear = np.all((np.abs(r - lo_r) > 1e-6) & (np.abs(r - hi_r) > 1e-6), axis=1)
+    slack = fb.reach(grid)  # (N, 2)
+    inside = np.all(slack >= 0, axis=1)
+    clear = np.all(np.abs(slack) > 1e-6, axis=1)
     got = {tuple(np.round(p[:2], 9)) for p in pts}
     want = {tuple(np.round(p, 9)) for p in grid[inside & clear]}
     assert want and want <= got
