@@ -77,13 +77,8 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
     zs = axes[2][filled[picks.round().astype(int)]] if len(filled) else np.repeat(axes[2][:1], slices_z)
     fig, ax = _figure(slices_z + 1, (4.2, 4.0), [None] * slices_z + ["3d"])
     for a, z in zip(ax[:-1], zs, strict=True):
-        k = int(np.argmin(np.abs(axes[2] - z)))
-        im = a.pcolormesh(X, Y, np.ma.masked_equal(count[:, :, k], 0), vmin=0, vmax=nb, cmap=CONDITIONING_CMAP,
-                          shading="auto")
+        im = _count_map(a, X, Y, count[:, :, int(np.argmin(np.abs(axes[2] - z)))], nb)
         a.set_title(f"z = {z:.3f} m")
-        a.set_aspect("equal")
-        a.set_xlabel("x [m]")
-        a.set_ylabel("y [m]")
     fig.colorbar(im, ax=ax[:-1], shrink=0.8, label=f"{mech.branch_kind}s within limits")
     inside = pts3[(margin >= 0).any(axis=1)]
     sub = inside[:: max(1, len(inside) // 20000)]
@@ -112,18 +107,28 @@ def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singul
     margin = mech.margin(None, limits)(np.stack([X.ravel(), Y.ravel()], axis=1))[:, :-1]
     count = (margin >= 0).sum(axis=1).reshape(X.shape)
     fig, ax = _figure(1, (6.0, 5.0))
-    im = ax[0].pcolormesh(X, Y, np.ma.masked_equal(count, 0), vmin=0, vmax=len(mech.branches),
-                          cmap=CONDITIONING_CMAP, shading="auto")
+    im = _count_map(ax[0], X, Y, count, len(mech.branches))
     fig.colorbar(im, ax=ax[0], shrink=0.8, label=f"{mech.branch_kind}s within limits")
     if singular is not None:
         _singular_scatter(ax[0], singular.points, singular.kind, singular.inside, 2, size=2.0, plane=(0, 1))
         ax[0].legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=7, markerscale=2, ncols=3,
                      title="singular points in / on the workspace", title_fontsize=7)
     ax[0].set_title(f"workspace ({LIMITS_TEXT[limits]})")
-    ax[0].set_aspect("equal")
-    ax[0].set_xlabel("x [m]")
-    ax[0].set_ylabel("y [m]")
     return fig
+
+
+def _xy_plane(ax: Any) -> None:
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+
+
+def _count_map(ax: Any, X: np.ndarray, Y: np.ndarray, count: np.ndarray, branches: int) -> Any:
+    """The number of branches within limits over an x-y grid (none: blank); returns the mesh."""
+    im = ax.pcolormesh(X, Y, np.ma.masked_equal(count, 0), vmin=0, vmax=branches, cmap=CONDITIONING_CMAP,
+                       shading="auto")
+    _xy_plane(ax)
+    return im
 
 
 def _singular_scatter(ax: Any, points: np.ndarray, kind: np.ndarray, select: np.ndarray | None, dims: int,
@@ -157,9 +162,7 @@ def p2us_singular_loci(scan_result: Any) -> Any:
         ax[0].set_title(f"singular loci over the bounding box (step {scan_result.step:g} m)", fontsize=9)
         ax[1].set_title(f"in / on the workspace ({LIMITS_TEXT[scan_result.limits]})", fontsize=9)
         for a in ax:
-            a.set_xlabel("x [m]")
-            a.set_ylabel("y [m]")
-            a.set_aspect("equal")
+            _xy_plane(a)
             a.legend(markerscale=3, fontsize=7, loc="lower left")
         return fig
     fig, ax = _figure(3, (4.6, 4.4), ["3d", None, None])
@@ -226,9 +229,7 @@ def scara_workspace(sp: Any, sing: dict[str, Any]) -> Any:
         ax[1].plot(pts[:, 0], pts[:, 1], ".", color=SCARA_SINGULAR_COLOUR, ms=2,
                    label=f"singular (theta2 = 0): {len(pts)} points")
         ax[1].legend(fontsize=7, loc="upper right")
-    ax[1].set_aspect("equal")
-    ax[1].set_xlabel("x [m]")
-    ax[1].set_ylabel("y [m]")
+    _xy_plane(ax[1])
     ax[1].set_title("task space (reachable points)", fontsize=10)
     fig.colorbar(im, ax=ax, shrink=0.85, label="smallest manipulability radius [m per rad/s]")
     return fig
@@ -309,9 +310,7 @@ def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float | 
         im = a.pcolormesh(X, Y, np.ma.masked_invalid(values), vmin=0.0, vmax=1.0, cmap=INVERSE_KAPPA_CMAP,
                           shading="auto")
         a.set_title(title)
-        a.set_aspect("equal")
-        a.set_xlabel("x [m]")
-        a.set_ylabel("y [m]")
+        _xy_plane(a)
     fig.colorbar(im, ax=ax, shrink=0.8, label="1/\u03ba of J (0 singular, 1 isotropic)")
     fig.suptitle(f"{mech.name}: conditioning, {mech.branch_kind} {branch}, {LIMITS_TEXT.get(limits, limits)}")
     return fig
