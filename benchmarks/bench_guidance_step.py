@@ -1,19 +1,35 @@
 """One guidance control step (force in, joint command out) against the 1 kHz budget, with the
 Pinocchio calls the same step would make measured side by side in one run.
 
-Goal: p99 <= 50 us (a twentieth of the 1 ms period). Run: python benchmarks/bench_guidance_step.py
+Goal: p99 <= 50 us (a twentieth of the 1 ms period).
+Run: python benchmarks/bench_guidance_step.py [--steps 20000] [--generic-steps 5000] [--quick] [--json]
+The JSON holds JSON_KEYS: `rows`, each timed call (ROWS) with its p50_us, p99_us and max_us
+(ROW_KEYS), and the ratio of the two full steps' p99; `machine` is `_timing.calibration()`.
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import numpy as np
 import pinocchio as pin
+from _timing import calibration, dump, machine_line, parse
 
 from kinematics.guidance.controller import Controller, GuidanceParams, ScaraKinematics, SerialKinematics
 from kinematics.mechanisms.scara.closed_form import ScaraParams
 from kinematics.model.robot import load_robot
+
+ROWS = {
+    "step_closed_form": "full step, closed forms (ScaraKinematics)",
+    "ellipse_closed_form": "  of which: ellipse radii + direction (closed form)",
+    "ik_closed_form": "  of which: IK with limits (closed form)",
+    "pinocchio_frames_fk": "Pinocchio framesForwardKinematics",
+    "pinocchio_frame_jacobian": "Pinocchio computeFrameJacobian",
+    "step_generic_pinocchio": "full step, generic Pinocchio path (SerialKinematics)",
+}
+JSON_KEYS = ("steps", "generic_steps", "rows", "ratio_p99_generic_to_closed_form", "goal_met", "machine")
+ROW_KEYS = ("call", "p50_us", "p99_us", "max_us")
 
 
 def timings(fn, n: int) -> np.ndarray:
@@ -26,13 +42,18 @@ def timings(fn, n: int) -> np.ndarray:
     return out / 1e3  # us
 
 
-def row(name: str, us: np.ndarray) -> str:
-    p50, p99, mx = np.percentile(us, 50), np.percentile(us, 99), us.max()
-    return f"  {name:<52} p50 {p50:7.2f} us   p99 {p99:7.2f} us   max {mx:8.1f} us"
+def stats(us: np.ndarray) -> dict[str, float]:
+    return {"p50_us": float(np.percentile(us, 50)), "p99_us": float(np.percentile(us, 99)), "max_us": float(us.max())}
 
 
 def main() -> None:
-    n = 20000
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=20_000, help="control steps timed (closed forms, Pinocchio calls)")
+    ap.add_argument("--generic-steps", type=int, default=5_000, help="control steps timed on the generic path")
+    ap.add_argument("--json", action="store_true", help="print the figures as JSON")
+    args = parse(ap, {"steps": 2_000, "generic_steps": 500})
+    machine = calibration()
+    n = args.steps
     robot = load_robot("scara")
     sp = ScaraParams.from_robot(robot)
     kin = ScaraKinematics(sp)
@@ -55,16 +76,22 @@ def main() -> None:
     gen = SerialKinematics(robot)
     ctrl_g = Controller(gen, GuidanceParams(), q0)
     gen_forces = np.concatenate([forces, np.zeros((n, 1))], axis=1)
-    step_pin = timings(lambda i: ctrl_g.step(gen_forces[i]), 5000)
+    step_pin = timings(lambda i: ctrl_g.step(gen_forces[i % n]), args.generic_steps)
 
+    rows = dict(zip(ROWS, (stats(t) for t in (step, ellipse, ik, pin_fk, pin_jac, step_pin)), strict=True))
+    ratio = rows["step_generic_pinocchio"]["p99_us"] / rows["step_closed_form"]["p99_us"]
+    out = {"steps": n, "generic_steps": args.generic_steps, "rows": [{"call": k, **r} for k, r in rows.items()],
+           "ratio_p99_generic_to_closed_form": ratio, "goal_met": rows["step_closed_form"]["p99_us"] <= 50.0,
+           "machine": machine}
+    if args.json:
+        print(dump(out))
+        return
     print(f"guidance control step, SCARA, {n:,} steps (1 kHz budget: 1000 us; goal p99 <= 50 us)")
-    print(row("full step, closed forms (ScaraKinematics)", step))
-    print(row("  of which: ellipse radii + direction (closed form)", ellipse))
-    print(row("  of which: IK with limits (closed form)", ik))
-    print(row("Pinocchio framesForwardKinematics", pin_fk))
-    print(row("Pinocchio computeFrameJacobian", pin_jac))
-    print(row("full step, generic Pinocchio path (SerialKinematics)", step_pin))
-    print(f"  ratio p99 generic / closed-form step: {np.percentile(step_pin, 99) / np.percentile(step, 99):.1f} x")
+    for key, name in ROWS.items():
+        r = rows[key]
+        print(f"  {name:<52} p50 {r['p50_us']:7.2f} us   p99 {r['p99_us']:7.2f} us   max {r['max_us']:8.1f} us")
+    print(f"  ratio p99 generic / closed-form step: {ratio:.1f} x")
+    print(f"  {machine_line(machine)}")
 
 
 if __name__ == "__main__":

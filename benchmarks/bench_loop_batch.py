@@ -2,7 +2,8 @@
 (kinematics.generic.loop_batch) vs the closed forms (kinematics.mechanisms.p2us.closed_form, the fused scan kernel) vs
 today's per-point Pinocchio solver (kinematics.generic.closedloop), measured side by side in one run.
 
-Run: python benchmarks/bench_loop_batch.py [--points 20000] [--loop 4] [--json]
+Run: python benchmarks/bench_loop_batch.py [--points 20000] [--loop 4] [--quick] [--json]
+The JSON holds JSON_KEYS; `machine` is `_timing.calibration()`.
 
 The generic path runs with each of its two solvers (`LoopBatch(solver=...)`): block by block (the
 default) and all unknowns of a branch at once. Scenarios (all 8 branches of every point, margins
@@ -19,12 +20,11 @@ the sidecar's reference (cold), as `ClosedLoop.solve` does for a new pose.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, calibration, dump, machine_line, parse
 
 from kinematics.errors import ConvergenceError
 from kinematics.generic.closedloop import ClosedLoop
@@ -33,6 +33,13 @@ from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us.scan import bounding_box, scan
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot
+
+JSON_KEYS = ("points", "cores", "load_average", "build_s", "generic_cold_points_per_s", "generic_columns_points_per_s",
+             "generic_warm_points_per_s", "generic_reachable_missed", "generic_reachable_points",
+             "whole_cold_points_per_s", "whole_columns_points_per_s", "whole_warm_points_per_s",
+             "whole_reachable_missed", "closed_form_numpy_points_per_s", "closed_form_scan_kernel_points_per_s",
+             "per_point_solver_points_per_s", "per_point_solver_modes_solved", "per_point_solver_modes_tried",
+             "machine")
 
 
 def columns(lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
@@ -49,7 +56,8 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=20_000)
     ap.add_argument("--loop", type=int, default=4, help="task points for the per-point Pinocchio solver")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
-    args = ap.parse_args()
+    args = parse(ap, {"points": 500, "loop": 1})
+    machine = calibration()
     robot = load_robot("p2us")
     P = read_params(robot.urdf_path)
     lo, hi = bounding_box(P)
@@ -121,9 +129,10 @@ def main() -> None:
         "per_point_solver_points_per_s": 1 / t_loop,
         "per_point_solver_modes_solved": solved,
         "per_point_solver_modes_tried": int(sample.shape[0] * sample.shape[1]),
+        "machine": machine,
     }
     if args.json:
-        print(json.dumps(out))
+        print(dump(out))
         return
     print(f"3-[P2(US)], IK in all 8 working modes; {args.points:,} points; {out['cores']} cores; "
           f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
@@ -141,6 +150,7 @@ def main() -> None:
     print(f"  ratio generic (columns) / per-point   : {out['generic_columns_points_per_s'] * t_loop:14,.0f} x")
     print(f"  ratio scan kernel / generic (columns) : {out['closed_form_scan_kernel_points_per_s'] / out['generic_columns_points_per_s']:14,.0f} x")
     print(f"  LoopBatch.from_robot (atlas search)   : {t_build:.2f} s")
+    print(f"  {machine_line(machine)}")
 
 
 if __name__ == "__main__":

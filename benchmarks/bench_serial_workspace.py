@@ -1,26 +1,31 @@
 """Guaranteed workspace bounds of serial arms: time, configurations, measure and error estimate.
 
-Run: python benchmarks/bench_serial_workspace.py [--robot ur5] [--resolution 400] [--max-points 1e7] [--json]
+Run: python benchmarks/bench_serial_workspace.py [--robot ur5] [--resolution 400] [--max-points 1e7] [--quick] [--json]
 One warm run per robot (the kernels are compiled first on a small run). Default robots: the
 SCARA (area, exact 0.97292658 m^2), the 3R solid-of-revolution test arm (exact 0.331334 m^3) and
 the UR5 (no exact answer); the true error is printed where it is known. The machine (cores,
-uptime load) is recorded beside the figures: the CPU is shared.
+uptime load, `_timing.calibration()`) is recorded beside the figures: the CPU is shared. The JSON
+holds JSON_KEYS: `results`, one row (ROW_KEYS) per robot, and `machine`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import subprocess
 from pathlib import Path
+
+from _timing import calibration, dump, machine_line, parse
 
 from kinematics.analyses.serial_workspace import serial_workspace
 from kinematics.model.robot import load_robot
 
 HERE = Path(__file__).resolve().parent
 ARM3R = HERE.parent / "tests" / "models" / "arm3r_revolved.urdf"
+JSON_KEYS = ("results", "machine")
+ROW_KEYS = ("robot", "mode", "measure", "unit", "bounds", "error_estimate", "true_error", "points_evaluated",
+            "seconds", "cell_m")
 
 
 def _arm3r_exact() -> float:
@@ -47,7 +52,8 @@ def main() -> None:
     ap.add_argument("--resolution", type=int, default=None, help="cells across (default: the library's)")
     ap.add_argument("--max-points", type=float, default=1e7, help="configuration budget per robot")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON")
-    args = ap.parse_args()
+    args = parse(ap, {"resolution": 16, "max_points": 1e5})
+    machine = calibration()
 
     names = args.robot or list(CASES)
     serial_workspace(load_robot("scara"), resolution=16)  # compile the kernels before timing
@@ -73,16 +79,17 @@ def main() -> None:
         }
         rows.append(row)
     uptime = subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
-    machine = {"cores": os.cpu_count(), "load_average": list(os.getloadavg()), "uptime": uptime}
+    machine.update(load_average_end=list(os.getloadavg()), uptime=uptime)
     if args.json:
-        print(json.dumps({"results": rows, "machine": machine}, indent=2))
+        print(dump({"results": rows, "machine": machine}))
         return
     for r in rows:
         true = "" if r["true_error"] is None else f", true error {r['true_error']:.3g}"
         print(f"{r['robot']:>16} ({r['mode']}): {r['measure']:.6g} {r['unit']} +/- {r['error_estimate']:.3g}"
               f" (bounds {r['bounds'][0]:.6g} .. {r['bounds'][1]:.6g}{true}); "
               f"{r['points_evaluated']} configurations, {r['seconds']:.1f} s, cell {r['cell_m'] * 1e3:.2f} mm")
-    print(f"  machine: {os.cpu_count()} cores; {uptime}")
+    print(f"  {machine_line(machine)}")
+    print(f"  at the end: {uptime}")
 
 
 if __name__ == "__main__":

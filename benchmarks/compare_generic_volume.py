@@ -18,8 +18,10 @@ first margin call that compiles the kernels on the first run after a change) is 
 setup_seconds.
 
 Run: python benchmarks/compare_generic_volume.py [--step 0.02] [--rtol 1e-2] [--limits all]
-[--union-only | --slice Y] [--json]
-(minutes to hours: the generic margin runs at ~5·10^4 points/s in the column engine's call pattern)
+[--union-only | --slice Y] [--quick] [--json]
+(minutes to hours: the generic margin runs at ~5·10^4 points/s in the column engine's call pattern;
+--quick: seconds, the plane y = 0 at a coarse step and tolerance). The JSON holds JSON_KEYS, `rows`
+one per mode and the union (ROW_KEYS); `machine` is `_timing.calibration()`.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import os
 import time
 
 import numpy as np
+from _timing import calibration, dump, machine_line, parse
 
 from kinematics.analyses.columns import column_volume
 from kinematics.generic.loop_batch import LoopBatch
@@ -38,6 +41,10 @@ from kinematics.mechanisms.p2us.mechanism import P2USMargin
 from kinematics.mechanisms.p2us.scan import bounding_box
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot
+
+JSON_KEYS = ("step_m", "rtol", "limits", "slice_y_m", "union_only", "measure", "rows", "closed_form", "generic",
+             "setup_seconds", "cores", "load_average_start", "load_average_end", "machine")
+ROW_KEYS = ("mode", "closed_form_m3", "closed_error", "generic_m3", "generic_error", "difference", "within_estimates")
 
 
 def main() -> None:
@@ -49,7 +56,8 @@ def main() -> None:
     ap.add_argument("--slice", type=float, default=None, metavar="Y",
                     help="per-mode areas of the plane y = Y [m] instead of volumes")
     ap.add_argument("--json", action="store_true")
-    a = ap.parse_args()
+    a = parse(ap, {"step": 0.1, "rtol": 0.5, "slice": 0.0})
+    machine = calibration()
     robot = load_robot("p2us")
     P = read_params(robot.urdf_path)
     lo, hi = bounding_box(P)
@@ -102,16 +110,17 @@ def main() -> None:
            "generic": {"seconds": t_generic, "points": gen.points_evaluated, "converged": gen.converged,
                        "points_per_s": gen.points_evaluated / t_generic},
            "setup_seconds": t_setup,
-           "cores": os.cpu_count(), "load_average_start": list(load0), "load_average_end": list(os.getloadavg())}
+           "cores": os.cpu_count(), "load_average_start": list(load0), "load_average_end": list(os.getloadavg()), "machine": machine}
     if a.json:
-        print(json.dumps(out, indent=2))
+        print(dump(out))
         return
     unit = "m^2" if a.slice is not None else "m^3"
     print(f"{'mode':6s} {f'closed form [{unit}]':>20s} {f'generic [{unit}]':>20s} {'difference':>12s}  within")
     for r in rows:
         print(f"{r['mode']:6s} {r['closed_form_m3']:.6f} ± {r['closed_error']:.1e} {r['generic_m3']:.6f} ± "
               f"{r['generic_error']:.1e} {r['difference']:+.2e}  {r['within_estimates']}")
-    print(json.dumps({k: v for k, v in out.items() if k != "rows"}, indent=1))
+    print(json.dumps({k: v for k, v in out.items() if k not in ("rows", "machine")}, indent=1))
+    print(machine_line(machine))
 
 
 if __name__ == "__main__":

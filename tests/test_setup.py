@@ -39,11 +39,6 @@ def test_help_is_instant():
     assert out.strip().splitlines()[-1] == "[]"
 
 
-def test_package_ships_py_typed_and_urdfs():
-    assert (ROOT / "kinematics" / "py.typed").exists()
-    assert (ROOT / "urdf" / "scara.urdf").exists()
-
-
 def test_docs_figures_exist_and_are_generated():
     """Every figure a docs page shows exists, and docs/make_figures.py knows how to draw it."""
     import re
