@@ -280,6 +280,32 @@ def test_robot_delta_translates():
     assert (s.translations, s.rotations, s.point_translations) == (2, 0, 2)
     assert turn <= 1e-9
     assert all(f.axis[0] == 0 for f in s.freedoms)  # in the y-z plane (its joints turn about x)
+    # The limbs' constraint wrenches, dually: the parallelogram limb holds the platform's three
+    # rotations (couples) and its x translation (a force along x); the 3R limb, planar about x,
+    # two out-of-plane couples and the x force. The old split called the in-plane couple a force
+    # along a line 3.2e6 m away.
+    kinds = [sorted(w.type for w in lb.wrenches) for lb in s.limbs]
+    assert kinds == [["couple"] * 3 + ["force"], ["couple"] * 2 + ["force"]]
+    assert _max_work(s, robot, q) <= FD_SIN_TOL
+
+
+def _max_work(s: mob.ScrewAnalysis, robot, q: np.ndarray) -> float:
+    """Largest |W . T| / (L |W~| |T~|) of a reported constraint wrench W (rebuilt from its type,
+    axis and point) on a finite-difference twist T, both scaled ((f; m_E / L), (v_E / L; w)):
+    0 for a wrench reciprocal to every motion the solver finds."""
+    from kinematics.generic.serial import forward_kinematics
+
+    E = forward_kinematics(robot, q).position
+    T, _ = _fd_twists(robot, q)
+    L = s.length
+    worst = 0.0
+    for w in (w for lb in s.limbs for w in lb.wrenches):
+        W = np.r_[0, 0, 0, w.axis] if w.type == "couple" else np.r_[w.axis, np.cross(w.point - E, w.axis)]
+        for t in T.T:
+            work = W[:3] @ t[:3] + W[3:] @ t[3:]
+            norm = L * np.linalg.norm(np.r_[W[:3], W[3:] / L]) * np.linalg.norm(np.r_[t[:3] / L, t[3:]])
+            worst = max(worst, abs(work) / norm)
+    return worst
 
 
 @needs_gepetto
@@ -312,7 +338,8 @@ def test_pendulum_rotates_about_its_hinge():
 
 def test_translation_threshold_is_scale_and_origin_free():
     """A rotation whose axis is d from the end-effector point E is a translation iff d > L /
-    TRANSLATION_RTOL, wherever the model sits and whatever its size."""
+    TRANSLATION_RTOL, and a force whose line is d from E a couple, wherever the model sits and
+    whatever its size."""
     for L, origin in ((0.1, np.zeros(3)), (1.0, np.array([3e4, -2e4, 1e4])), (1e3, np.zeros(3))):
         E = origin + L * np.array([0.3, 0.1, -0.2])
         for factor, kind in ((1e-3, "rotation"), (1e-1, "rotation"), (10.0, "translation")):
@@ -324,3 +351,9 @@ def test_translation_threshold_is_scale_and_origin_free():
             assert np.allclose(axes, [[1, 0, 0]], rtol=0, atol=1e-12)
             if kind == "rotation":
                 assert np.allclose(f.point, p, rtol=1e-9, atol=1e-9 * abs(origin).max(initial=L))
+            wrench = np.r_[1.0, 0, 0, np.cross(p, [1.0, 0, 0])]  # (f; m_O): a force along x through p
+            (w,) = mob.classify_wrenches(wrench[:, None], E, L)
+            assert w.type == {"rotation": "force", "translation": "couple"}[kind], (L, factor)
+            if w.type == "force":  # the line's point nearest E
+                nearest = p + (E - p)[0] * np.array([1.0, 0, 0])
+                assert np.allclose(w.point, nearest, rtol=1e-9, atol=1e-9 * abs(origin).max(initial=L))

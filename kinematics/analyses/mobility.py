@@ -35,6 +35,8 @@ TRANSLATION_RTOL = 1e-6
 |w| L <= TRANSLATION_RTOL |v_E| (L: the model's `length_scale`): while E travels L the body turns
 by at most 1e-6 rad, i.e. a rotation's axis would be more than 10^6 L away (110 km for
 robot_delta, L = 0.11 m). E counts as moving along a freedom when |v_E| > TRANSLATION_RTOL L |w|.
+Dually a wrench (f; m_E), m_E the moment about E, is a pure couple when |f| L <= TRANSLATION_RTOL
+|m_E| (a force's line would be more than 10^6 L away).
 
 Why 1e-6: the analysed pose is closed only to the solver's tolerance eps (1e-12 m), and a tangent
 space computed eps off the loop manifold is off by about kappa(K) eps / L (kappa: the condition
@@ -376,21 +378,44 @@ class ScrewAnalysis:
         }
 
 
-def _classify_wrenches(W: np.ndarray, limb: str) -> list[Wrench]:
-    """Split a wrench system (columns) into pure couples and forces, couples first."""
-    if W.shape[1] == 0:
+def classify_wrenches(W: np.ndarray, point: np.ndarray, length: float, limb: str = "",
+                      rtol: float = TRANSLATION_RTOL) -> list[Wrench]:
+    """Split a wrench system into pure couples and forces, couples first: the dual of
+    `classify_twists`.
+
+    The wrenches are moved to `point` (m_E = m_O - E x f) and scaled to (f; m_E / L), both [N];
+    in an orthonormal basis of that space the SVD of the force block orders the basis wrenches by
+    |f|. Those with |f| L <= rtol |m_E| are couples about m_E; the others are forces along f,
+    through the point of their line nearest E (E + f x m_E / |f|^2).
+
+    Args:
+        W: 6 x k wrenches (f; m_O) spanning the system, independent columns [N; N m].
+        point: the end-effector point E [m] (world).
+        length: the model's length scale L [m].
+        limb: the limb's name, kept on each wrench.
+        rtol: see TRANSLATION_RTOL.
+    """
+    k = W.shape[1]
+    if k == 0:
         return []
-    couples = _orth(W @ _null(W[:3], scale=1.0), scale=1.0)  # combinations with zero force
-    rest = W - couples @ (couples.T @ W)
-    forces = _orth(rest, scale=1.0)  # W has orthonormal columns
+    f = W[:3]
+    mE = W[3:] - np.cross(point, f.T).T
+    U, _, _ = np.linalg.svd(np.vstack([f, mE / length]), full_matrices=False)
+    Q = U[:, :k]
+    _, sf, Vt = np.linalg.svd(Q[:3], full_matrices=True)
+    sf = np.concatenate([sf, np.zeros(k - sf.size)])
+    B = Q @ Vt.T  # basis wrenches ordered by |f| descending, scaled (f; m_E / L)
     out = []
-    for c in couples.T:
-        m = c[3:] / np.linalg.norm(c[3:])
-        out.append(Wrench("couple", _canonical(m), None, c / np.linalg.norm(c), limb))
-    for w in forces.T:
-        f, m = w[:3], w[3:]
-        nf = np.linalg.norm(f)
-        out.append(Wrench("force", _canonical(f / nf), np.cross(f, m) / nf**2, w / np.linalg.norm(w), limb))
+    for col in B[:, sf <= rtol].T:
+        m = col[3:] * length
+        vec = np.concatenate([col[:3], m + np.cross(point, col[:3])])  # back to (f; m_O)
+        out.append(Wrench("couple", _canonical(m / np.linalg.norm(m)), None, vec / np.linalg.norm(vec), limb))
+    for col in B[:, sf > rtol][:, ::-1].T:
+        fo, m = col[:3], col[3:] * length
+        nf2 = float(fo @ fo)
+        vec = np.concatenate([fo, m + np.cross(point, fo)])
+        out.append(Wrench("force", _canonical(fo / np.sqrt(nf2)), point + np.cross(fo, m) / nf2,
+                          vec / np.linalg.norm(vec), limb))
     return out
 
 
@@ -459,6 +484,11 @@ def screw_analysis(robot: Robot, q: np.ndarray) -> ScrewAnalysis:
     over the limb's joint rates. The limb's constraint wrenches are the reciprocal of that space.
     """
     graph = joint_graph(robot, q)
+    ee = robot.frame_id(robot.loops.end_effector if robot.loops is not None else robot.tool_frame)
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    E = data.oMf[ee].translation.copy()
+    length = length_scale(robot, q)
     limbs: list[Limb] = []
     all_wrenches: list[Any] = []
     groups = _components(graph)
@@ -485,17 +515,13 @@ def screw_analysis(robot: Robot, q: np.ndarray) -> ScrewAnalysis:
             T = _orth(P[0])
         W = _null(T.T, scale=1.0) if T.shape[1] else np.eye(6)
         name = f"limb {len(limbs) + 1}"
-        wrenches = tuple(_classify_wrenches(W, name))
+        wrenches = tuple(classify_wrenches(W, E, length, name))
         all_wrenches.extend(wrenches)
         limbs.append(Limb(name, tuple(e.name for e in edges), len(paths), T.shape[1], wrenches))
     Wall = np.array([w.vector for w in all_wrenches]).T if all_wrenches else np.zeros((6, 0))
     union = _orth(Wall)
     twists = _null(union.T, scale=1.0) if union.shape[1] else np.eye(6)
-    ee = robot.frame_id(robot.loops.end_effector if robot.loops is not None else robot.tool_frame)
-    data = robot.model.createData()
-    pin.framesForwardKinematics(robot.model, data, q)
-    length = length_scale(robot, q)
-    freedoms, point_axes = classify_twists(twists, data.oMf[ee].translation.copy(), length)
+    freedoms, point_axes = classify_twists(twists, E, length)
     return ScrewAnalysis(tuple(limbs), union.shape[1], tuple(freedoms), tuple(point_axes), length)
 
 
