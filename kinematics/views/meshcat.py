@@ -907,8 +907,9 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspa
 
     scene = scene or Scene()
     loop = ClosedLoop(robot)
-    q = loop.reference if actuators is None else loop.solve(np.asarray(actuators, dtype=float)).q
+    q = closed_loop_pose(robot, loop, actuators)
     scene.add_robot(robot, q)
+    _check_closed(scene, robot, loop, q)
     if workspace or singularities:
         import pinocchio as pin
 
@@ -939,6 +940,36 @@ def _facing(robot: Any, q: np.ndarray) -> tuple[float, float, float]:
     side = np.cross(z, n)
     d = n - 0.4 * side / np.linalg.norm(side) + 0.3 * z
     return (float(d[0]), float(d[1]), float(d[2]))
+
+
+def closed_loop_pose(robot: Any, loop: Any, actuators: np.ndarray | None) -> np.ndarray:
+    """The configuration a closed-loop model is drawn at: assembled from `actuators` [rad or m],
+    else the sidecar's reference configuration (the neutral one where the sidecar names none,
+    e.g. a Gepetto `robot.yaml`, which most Gepetto models are not assembled at).
+
+    ASSEMBLY HOOK -- the single place the view's pose is chosen. When
+    `kinematics.generic.assembly.assemble(robot, values=None) -> Assembly` (fields q, values,
+    residual, start_gap, source, description) is on main, a model whose sidecar has no
+    `reference` should be drawn at `assemble(robot).q` here (and its `description` shown).
+    """
+    if actuators is not None:
+        return np.asarray(loop.solve(np.asarray(actuators, dtype=float)).q)
+    return np.asarray(loop.reference)
+
+
+OPEN_LOOP_RTOL = 1e-6
+"""A drawn closed-loop pose is flagged as open when its largest closure error exceeds this
+fraction of the model's length scale: above what a hand-typed reference (6-8 digits) leaves,
+far below the solver's assemblies (1e-12 m)."""
+
+
+def _check_closed(scene: Scene, robot: Any, loop: Any, q: np.ndarray) -> None:
+    from kinematics.generic.serial import length_scale
+
+    gap = float(np.abs(loop.residual(q)[0]).max()) if loop.n_constraints else 0.0
+    if gap > OPEN_LOOP_RTOL * length_scale(robot, q):
+        scene.warnings.append(f"{robot.name}: the loops are not closed at the drawn pose (largest closure error "
+                              f"{gap:.3g} m or rad); give actuator values with --q to assemble it")
 
 
 def _embed(mech: Any, points: np.ndarray, at: np.ndarray) -> np.ndarray:
