@@ -17,6 +17,14 @@ def _choices(valid: Iterable[str], limit: int = 60) -> str:
     return shown
 
 
+def closest(name: str, valid: Iterable[str], n: int = 3) -> tuple[str, ...]:
+    """The names of `valid` nearest `name` by `difflib`'s similarity ratio (>= 0.6), best first:
+    what a misspelt joint, frame or robot name was most likely meant to be."""
+    import difflib
+
+    return tuple(difflib.get_close_matches(name, list(valid), n=n, cutoff=0.6))
+
+
 class KinematicsError(Exception):
     """Root of every error the toolkit raises on purpose."""
 
@@ -38,7 +46,9 @@ class UnknownNameError(KinematicsError, LookupError):
     def __init__(self, name: str, valid: Sequence[str]) -> None:
         self.name = name
         self.valid = tuple(valid)
-        super().__init__(f"unknown {self.kind} {name!r}; valid: {_choices(self.valid)}")
+        self.closest = closest(name, self.valid)
+        hint = f" (did you mean {' or '.join(map(repr, self.closest))}?)" if self.closest else ""
+        super().__init__(f"unknown {self.kind} {name!r}{hint}; valid: {_choices(self.valid)}")
 
 
 class UnknownRobotError(UnknownNameError):
@@ -143,3 +153,20 @@ class MissingCapabilityError(UnsupportedRobotError):
         self.available = tuple(sorted(available))
         super().__init__(robot, f"{purpose} needs its mechanism's {capability}, which this robot does not provide "
                                 f"(it provides: {', '.join(self.available) or 'nothing'})")
+
+
+class MissingRangeError(UnsupportedRobotError):
+    """A command needs the range of joints whose URDF `<limit>` gives none (no `lower`/`upper`).
+
+    Attributes:
+        joints: the joints that lack a range, in model order.
+        purpose: what needed them.
+    """
+
+    def __init__(self, robot: str, joints: Sequence[str], purpose: str) -> None:
+        self.joints = tuple(joints)
+        self.purpose = purpose
+        example = " ".join(f"--range {j}=LO:HI" for j in self.joints[:2])
+        super().__init__(robot, f"{purpose} needs the range of {', '.join(self.joints)}, which the URDF does not give "
+                                f"(its <limit> has no lower/upper); give them on the command line ({example}, "
+                                "in rad or m), as `ranges:` in a loop sidecar, or as load_robot(..., ranges=...)")

@@ -85,7 +85,9 @@ def test_spherical_substitution_rssr(tmp_path):
 
 
 @pytest.mark.parametrize(("kind", "names"), [("UJOINT_XY", ("s_X", "s_Y")), ("UJOINT_YZ", ("s_Y", "s_Z")),
-                                             ("UJOINT_ZX", ("s_Z", "s_X")), ("CARDAN", ("s_X", "s_Y"))])
+                                             ("UJOINT_ZX", ("s_Z", "s_X")), ("UJOINT_ZY", ("s_Z", "s_Y")),
+                                             ("UJOINT_XZ", ("s_X", "s_Z")), ("UJOINT_YX", ("s_Y", "s_X")),
+                                             ("CARDAN", ("s_X", "s_Y"))])
 def test_universal_joint_substitutions(tmp_path, kind, names):
     (tmp_path / "rssr.urdf").write_text(RSSR_URDF)
     (tmp_path / "robot.yaml").write_text(RSSR_YAML.replace("SPHERICAL", kind))
@@ -131,7 +133,8 @@ def test_tool_frame_becomes_the_end_effector(tmp_path):
      "fixed joint in the URDF"),
     (GOOD + "joint_name: [nope]\njoint_type: [SPHERICAL]\n", UnknownJointError, "unknown joint 'nope'"),
     (GOOD.replace("closedloop1_B", "nowhere"), UnknownFrameError, "unknown frame 'nowhere'"),
-    (GOOD.replace("'mot2'", "'motor_2'"), UnknownJointError, "unknown joint 'motor_2'; valid: mot1"),
+    (GOOD.replace("'mot2'", "'motor_2'"), UnknownJointError,
+     r"unknown joint 'motor_2' \(did you mean 'mot2'\?\); valid: mot1"),
     (GOOD.replace("closedloop1_B", "free3") + "joint_name: [free3]\njoint_type: [SPHERICAL]\n",
      GepettoFormatError, "names 'free3', the frame of a joint substituted by SPHERICAL"),
     ("closed_loop: [[a, b]\n", GepettoFormatError, "malformed YAML"),

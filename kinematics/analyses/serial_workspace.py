@@ -460,10 +460,9 @@ def _setup(robot: Robot, kin: BatchedKinematics) -> _Setup:
     keep = [k for k, v in enumerate(chain_v) if moving[v]]
     if not keep:
         raise UnsupportedRobotError(robot.name, f"no joint moves frame {kin.frame!r}: its workspace is a point")
-    for k in keep:
-        d = robot.dofs[dof_idx[k]]
-        if d.kind == "prismatic" and not (math.isfinite(d.lower) and math.isfinite(d.upper)):
-            raise UnsupportedRobotError(robot.name, f"prismatic joint {d.name!r} has no finite limits")
+    # every joint that moves the point is an actuator: a workspace needs its range (a continuous
+    # joint's is a full turn)
+    robot.require_ranges([robot.dofs[dof_idx[k]].name for k in keep], "a workspace")
     lo = np.array([lo_all[dof_idx[k]] for k in keep])
     hi = np.array([hi_all[dof_idx[k]] for k in keep])
     kinds = [robot.dofs[dof_idx[k]].kind for k in keep]

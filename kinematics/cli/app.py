@@ -58,7 +58,7 @@ def _out(args: argparse.Namespace, payload: dict[str, Any], human: Callable[[], 
 def _load(args: argparse.Namespace) -> Any:
     from kinematics.model.robot import load_robot
 
-    return load_robot(args.robot)
+    return load_robot(args.robot, ranges=dict(getattr(args, "range", None) or ()))
 
 
 def _is_parallel(robot: Any) -> bool:
@@ -70,6 +70,8 @@ def _is_parallel(robot: Any) -> bool:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """Joints, limits, frames, parameters and the two-parser check."""
+    import numpy as np
+
     from kinematics.cli.report import key_values, table
     from kinematics.generic.serial import plane
     from kinematics.model.robot import parser_agreement
@@ -106,7 +108,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         "dof": robot.nv,
         "joint_coordinates": robot.nv,
         "mobility": mobility,
-        "joints": [{"name": d.name, "type": d.kind, "lower": d.lower, "upper": d.upper} for d in robot.dofs],
+        "joints": [{"name": d.name, "type": d.kind, "lower": d.lower, "upper": d.upper, "range_given": d.range_given}
+                   for d in robot.dofs],
         "tool_frame": robot.tool_frame,
         "frames": list(robot.frame_names),
         "planar": axes is not None,
@@ -131,9 +134,13 @@ def cmd_info(args: argparse.Namespace) -> int:
             "",
             table(
                 ["joint", "type", "lower", "upper", "unit"],
-                [(d.name, d.kind, d.lower, d.upper, unit[d.kind]) for d in robot.dofs],
+                [(d.name, d.kind, *(v if np.isfinite(v) or d.kind == "continuous" else "none given"
+                                     for v in (d.lower, d.upper)), unit[d.kind]) for d in robot.dofs],
             ),
         ]
+        if robot.unranged:
+            parts += ["", (f"{len(robot.unranged)} joint(s) without a range in the URDF (<limit> without lower/upper): "
+                           "unbounded; a command that needs the range of one asks for it (--range JOINT=LO:HI)")]
         if params and sources:
             parts += ["", "parameters (read from the URDF and its sidecar; source of each number):",
                       table(["parameter", "value", "source"], [(k, v, sources.get(k, "")) for k, v in params.items()])]
@@ -467,6 +474,19 @@ def _number(text: str) -> float:
     return v
 
 
+def _joint_range(text: str) -> tuple[str, tuple[float, float]]:
+    """`JOINT=LO:HI` -> (joint, (lo, hi)), both finite with lo < hi."""
+    name, sep, pair = text.partition("=")
+    lo, colon, hi = pair.partition(":")
+    try:
+        a, b = float(lo), float(hi)
+    except ValueError:
+        a = b = float("nan")
+    if not (sep and colon and name) or not (abs(a) <= MAX_MAGNITUDE and abs(b) <= MAX_MAGNITUDE and a < b):
+        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r}")
+    return name, (a, b)
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)
@@ -506,6 +526,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     def robot_arg(p: argparse.ArgumentParser) -> None:
         p.add_argument("robot", metavar="ROBOT", help=ROBOT_HELP)
+        p.add_argument("--range", action="append", type=_joint_range, metavar="JOINT=LO:HI",
+                       help="give or replace a joint's range [rad or m] (repeat per joint): for URDFs whose "
+                            "<limit> has no lower/upper")
 
     def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint") -> None:
         p.add_argument("--q", nargs="+", type=_number, required=required, metavar="Q",

@@ -16,7 +16,7 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     """The configuration to analyse and a description of where it came from.
 
     Loop robots: --position (the mechanism family's closed forms), --q (actuated values, closed-loop solve)
-    or the sidecar's reference; serial robots: --q (every joint) or a seeded random regular
+    or the sidecar's reference (closed first where it is open, `kinematics.generic.assembly`); serial robots: --q (every joint) or a seeded random regular
     configuration within the ranges (`mobility.regular_configuration`).
     """
     if robot.loops is None:
@@ -45,8 +45,8 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     if args.q is not None:
         from kinematics.cli.parallel import actuated_arg
 
-        return loop.solve(actuated_arg(args, robot)).q, f"actuators at {list(args.q)}"
-    return loop.reference, "the sidecar's reference configuration"
+        return loop.solve(actuated_arg(args, robot), fallback=True).q, f"actuators at {list(args.q)}"
+    return loop.assembly.q, loop.assembly.description
 
 
 def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:

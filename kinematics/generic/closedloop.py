@@ -8,12 +8,15 @@ actuated joints held:
     dv_p = -lstsq(K_p, e),   q <- integrate(q, [0; dv_p])   (backtracking if |e| grows)
 
 Newton from an arbitrary start diverges or lands on another assembly, so the default start is
-the sidecar's `reference` configuration, moved to the target by predictor-corrector continuation:
+the sidecar's `reference` configuration (closed first where it is open: `assembly.assemble`),
+moved to the target by predictor-corrector continuation:
 the actuated values walk there in steps; each step is predicted along the loop manifold's
 tangent (dv_p = -K_p^+ K_a da), capped so the passive joints move at most MAX_PASSIVE_STEP,
 corrected by Newton, and rejected (step halved) if the correction drifts far from the prediction,
 the sign of a jump to another branch. A path that crosses a singularity may still end on the
-other branch; a warm start `q0` from a nearby solution skips the walk. Non-convergence raises
+other branch; a warm start `q0` from a nearby solution skips the walk. Where the continuation gets
+stuck, `solve(..., fallback=True)` closes the loops by `assembly.assemble` with the actuators held
+at the target (projection, then restarts: possibly another assembly mode). Non-convergence raises
 ConvergenceError.
 
 With the loops closed, K_a v_a + K_p v_p = 0 gives v_p = -K_p^+ K_a v_a, and the end-effector's
@@ -23,7 +26,7 @@ world-aligned twist is (J_a - J_p K_p^+ K_a) v_a: the constrained Jacobian.
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -36,6 +39,9 @@ from kinematics.errors import (
 )
 from kinematics.model.loops import LoopSpec
 from kinematics.model.robot import Robot, matrix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from kinematics.generic.assembly import Assembly
 
 TOLERANCE = 1e-12
 """Default loop-closure tolerance: largest constraint error [m] (or [rad] for 6d closures)."""
@@ -129,28 +135,41 @@ class ClosedLoop:
         return self.robot.configuration(values)
 
     @functools.cached_property
-    def reference(self) -> np.ndarray:
-        """The sidecar's assembled configuration (neutral where it names no value)."""
-        values = np.zeros(self.robot.nv)
-        for name, value in self.spec.reference.items():
-            values[self.robot.joint_names.index(name)] = value
-        return self.robot.configuration(values)
+    def assembly(self) -> Assembly:
+        """The closed configuration every default starts from: the sidecar's reference (the
+        neutral pose where it names no value), closed by `kinematics.generic.assembly.assemble`
+        where it is open (its `description` says which).
 
-    def newton(self, q: np.ndarray, tol: float = TOLERANCE, max_iter: int = 30) -> tuple[np.ndarray, float, int]:
-        """Close the loops from `q` by moving the passive joints only.
+        Raises:
+            AssemblyError: no closed configuration was found.
+        """
+        from kinematics.generic.assembly import assemble
+
+        return assemble(self.robot, loop=self)
+
+    @property
+    def reference(self) -> np.ndarray:
+        """`assembly.q`: a closed configuration at (or found from) the sidecar's reference."""
+        return self.assembly.q
+
+    def newton(self, q: np.ndarray, tol: float = TOLERANCE, max_iter: int = 30,
+               free: np.ndarray | None = None) -> tuple[np.ndarray, float, int]:
+        """Close the loops from `q` by moving the passive joints only (or the velocity indices
+        `free`): Gauss-Newton with minimum-norm steps, halved while the residual grows.
 
         Returns (q, residual, iterations); the residual is above `tol` if it failed.
         """
+        cols = self.passive_v if free is None else np.asarray(free, dtype=int)
         e, K = self.residual(q)
         err = float(np.max(np.abs(e))) if e.size else 0.0
         it = 0
         while err > tol and it < max_iter:
             it += 1
-            dv_p = -np.linalg.lstsq(K[:, self.passive_v], e, rcond=None)[0]
+            dv_p = -np.linalg.lstsq(K[:, cols], e, rcond=None)[0]
             step = 1.0
             while True:
                 v = np.zeros(self.model.nv)
-                v[self.passive_v] = step * dv_p
+                v[cols] = step * dv_p
                 q_new = pin.integrate(self.model, q, v)
                 e_new, K_new = self.residual(q_new)
                 err_new = float(np.max(np.abs(e_new)))
@@ -163,13 +182,17 @@ class ClosedLoop:
         return q, err, it
 
     def solve(self, actuated: np.ndarray, q0: np.ndarray | None = None, tol: float = TOLERANCE,
-              max_iter: int = 30) -> LoopSolution:
+              max_iter: int = 30, fallback: bool = False) -> LoopSolution:
         """Passive joints, full configuration and end-effector pose for given actuated values.
 
         Args:
             actuated: one value per actuated joint, in the sidecar's order [m or rad].
             q0: warm start (a closed configuration near the answer); default: continuation from
                 the sidecar's reference configuration.
+            fallback: where the continuation gets stuck, close the loops by `assembly.assemble`
+                with the actuators held at `actuated` (projection, then restarts) instead of
+                raising: a closed configuration at those values, possibly of another assembly mode
+                than a path from the reference reaches.
 
         Raises:
             ConvergenceError: the loops could not be closed to `tol` (no assembly there, or the
@@ -193,13 +216,18 @@ class ClosedLoop:
         q, err, it = self.newton(q, tol, max_iter)
         total += it
         if err > tol:
-            raise ConvergenceError("closing the loops at the reference configuration", total, err, tol)
+            raise ConvergenceError(f"closing the loops at {self.assembly.description}", total, err, tol)
         s, ds = 0.0, 0.25
         while s < 1.0:
             if ds < 1e-6:
-                raise ConvergenceError(
-                    f"closing the loops at actuated values {target.tolist()} (stuck at {s:.4f} of the way "
-                    "from the reference: no assembly there, or a singularity on the way)", total, err, tol)
+                what = (f"closing the loops at actuated values {target.tolist()} (continuation from "
+                        f"{self.assembly.description}, at actuated values {np.round(start, 6).tolist()}, stuck "
+                        f"{s:.4f} of the way" + (", and projection with the actuators held found no closed pose"
+                                                 if fallback else "") + ": no assembly there, or a singularity on "
+                        "the way)")
+                if not fallback:
+                    raise ConvergenceError(what, total, err, tol)
+                return self._assemble_held(target, total, what, err, tol)
             s_next = min(1.0, s + ds)
             step = self._predict(q, (s_next - s) * (target - start))
             if step is None:
@@ -215,6 +243,23 @@ class ClosedLoop:
             else:
                 ds *= 0.5
         return self._solution(q, err, total)
+
+    def _assemble_held(self, target: np.ndarray, total: int, what: str, err: float, tol: float) -> LoopSolution:
+        """The fallback of a stuck continuation: `assemble` from the reference pose with the
+        actuators moved to `target` and held (projection, then restarts). It may land on another
+        assembly mode than the continuation would have; ConvergenceError (`what`) if it fails."""
+        from kinematics.generic.assembly import AssemblyError, assemble
+
+        values = self.robot.values_from_configuration(self.reference)
+        values[self.actuated_dofs] = target
+        try:
+            a = assemble(self.robot, values, hold=self.spec.actuated, loop=self)
+        except AssemblyError:
+            raise ConvergenceError(what, total, err, tol) from None
+        q, err, it = self.newton(a.q, tol)  # polish to the solver's tolerance
+        if err > tol:
+            raise ConvergenceError(what, total + it, err, tol)
+        return self._solution(q, err, total + it)
 
     def _predict(self, q: np.ndarray, da: np.ndarray) -> tuple[np.ndarray, float] | None:
         """First-order step of every joint for an actuated change `da` along the loop manifold,

@@ -1133,7 +1133,7 @@ class LoopBatch:
         loop = ClosedLoop(robot)
         q, err, _ = loop.newton(loop.reference)
         if err > 1e-9:
-            raise UnsupportedRobotError(robot.name, f"the sidecar's reference configuration does not close "
+            raise UnsupportedRobotError(robot.name, f"{loop.assembly.description} does not close "
                                         f"(residual {err:.2e} m)")
         G = loop.constrained_jacobian(q)  # 6 x n_actuated
         n_act = len(loop.actuated_dofs)
@@ -1205,7 +1205,8 @@ class LoopBatch:
                    bool(self.translational), float(self.scale))
         self._m = int(sum(3 if t == 0 else 6 for t in ctype) + (3 if self.translational else 0) + len(self.task_axes))
         lo, hi = robot.lower, robot.upper
-        self._centre = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+        ranged = np.isfinite(lo) & np.isfinite(hi)
+        self._centre = np.where(ranged, 0.5 * (np.where(ranged, lo, 0.0) + np.where(ranged, hi, 0.0)), 0.0)
         # structural pattern: the columns each residual row can depend on
         self._nzc, self._nzn = _sparsity(self.row_dependencies())
 

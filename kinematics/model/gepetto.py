@@ -10,14 +10,16 @@ The format (all lists; order matters where two lists pair up)::
     joint_name: [joint, ...]                  # optional: URDF joints whose model is replaced ...
     joint_type: [SPHERICAL, ...]              # ... by this one (paired with joint_name)
 
-Supported substitutions (the URDF joint's origin is kept; its axis is ignored):
+Supported substitutions (the URDF joint's origin is kept; its axis is ignored; the revolutes
+that replace it are passive and get no range, like the format's free joints):
 
 * ``SPHERICAL``: three revolutes about the joint frame's x, y and z axes through its origin,
   named ``<joint>_X``, ``<joint>_Y``, ``<joint>_Z`` (Pinocchio's spherical joint has a quaternion
   configuration, which this toolkit's one-value-per-freedom joint table does not model; the
   x-y-z chain is singular only when the ``_Y`` angle is +/-90 deg).
-* ``UJOINT_XY``, ``UJOINT_YZ``, ``UJOINT_ZX`` (and the older ``CARDAN`` = ``UJOINT_XY``): two
-  revolutes about the named axes, ``<joint>_<A>`` then ``<joint>_<B>``.
+* ``UJOINT_<A><B>`` for any ordered pair of distinct axes A, B of X, Y, Z (``UJOINT_ZY``,
+  ``UJOINT_XZ``, ...; the older ``CARDAN`` = ``UJOINT_XY``): two revolutes about the named
+  axes, ``<joint>_<A>`` then ``<joint>_<B>``.
 * ``FIXED``: the joint is locked at its zero value.
 
 Refused, each with a `GepettoFormatError` that names the key and what is wrong: the older
@@ -39,7 +41,7 @@ from typing import Any
 
 import pinocchio as pin
 
-from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError
+from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError, closest
 from kinematics.model.loops import Closure, LoopSpec
 
 FILENAME = "robot.yaml"
@@ -52,9 +54,7 @@ LEGACY_KEYS: tuple[str, ...] = ("name_closedloop", "closed_loop_number")
 
 SUBSTITUTIONS: dict[str, str] = {
     "SPHERICAL": "XYZ",
-    "UJOINT_XY": "XY",
-    "UJOINT_YZ": "YZ",
-    "UJOINT_ZX": "ZX",
+    **{f"UJOINT_{a}{b}": f"{a}{b}" for a in "XYZ" for b in "XYZ" if a != b},
     "CARDAN": "XY",
     "FIXED": "",
 }
@@ -64,7 +64,6 @@ CLOSURE_TYPES: dict[str, str] = {"3d": "point", "6d": "6d"}
 """Gepetto closure types (case-insensitive) -> this toolkit's closure types."""
 
 _AXES = {"X": "1 0 0", "Y": "0 1 0", "Z": "0 0 1"}
-_PI = "3.141592653589793"
 
 
 class GepettoFormatError(ModelFileError):
@@ -165,8 +164,10 @@ def read_gepetto(path: str | os.PathLike[str]) -> GepettoSpec | None:
         raise GepettoFormatError(p, f"a joint is listed twice: {names}", "joint_name")
     for t in jtypes:
         if t not in SUBSTITUTIONS:
-            raise GepettoFormatError(p, f"unsupported joint type {t!r}; valid: {', '.join(SUBSTITUTIONS)}",
-                                     "joint_type")
+            hint = closest(t, SUBSTITUTIONS)
+            raise GepettoFormatError(p, f"unsupported joint type {t!r}"
+                                     + (f" (did you mean {' or '.join(map(repr, hint))}?)" if hint else "")
+                                     + f"; valid: {', '.join(SUBSTITUTIONS)}", "joint_type")
     for m in motors:
         if m in names:
             raise GepettoFormatError(p, f"motor {m!r} is substituted ({jtypes[names.index(m)]}) in joint_name; "
@@ -219,23 +220,25 @@ def substitute_joints(root: ET.Element, spec: GepettoSpec) -> ET.Element:
             if k == 0 and origin is not None:
                 j.append(copy.deepcopy(origin))
             ET.SubElement(j, "axis", xyz=_AXES[axis])
-            ET.SubElement(j, "limit", lower=f"-{_PI}", upper=_PI, effort="1", velocity="1")
+            ET.SubElement(j, "limit", effort="1", velocity="1")  # no range: unbounded
             elements.append(j)
         for offset, el in enumerate(elements):
             out.insert(index + offset, el)
     return out
 
 
-def build_model(urdf_path: str | os.PathLike[str], spec: GepettoSpec) -> pin.Model:
-    """The Pinocchio model (fixed base) of the URDF with `spec`'s joint substitutions applied."""
-    from kinematics.model.robot import build_model as build_plain
-    from kinematics.model.robot import check_urdf_file
+def build_model(urdf_path: str | os.PathLike[str], spec: GepettoSpec) -> tuple[pin.Model, ET.Element]:
+    """The Pinocchio model (fixed base) of the URDF with `spec`'s joint substitutions applied,
+    and the URDF tree it was built from."""
+    from kinematics.model.urdf_file import build_model as build_plain
+    from kinematics.model.urdf_file import check_urdf_file
 
+    root = check_urdf_file(urdf_path)
     if not spec.substitutions:
-        return build_plain(urdf_path)
-    root = substitute_joints(check_urdf_file(urdf_path), spec)
+        return build_plain(urdf_path), root
+    root = substitute_joints(root, spec)
     try:
-        return pin.buildModelFromXML(ET.tostring(root, encoding="unicode"))
+        return pin.buildModelFromXML(ET.tostring(root, encoding="unicode")), root
     except (ValueError, RuntimeError) as exc:
         raise ModelFileError(urdf_path, f"Pinocchio cannot parse it after the substitutions of {spec.path}: "
                              f"{exc}") from None

@@ -11,6 +11,7 @@ A sidecar `<robot>.loops.yaml` sits next to `<robot>.urdf` (in the spirit of Gep
       - {name: S_1_2, type: point, frame1: tip_1_2, frame2: anchor_1_2}   # 3 equations
       - {name: W, type: 6d, frame1: a, frame2: b}                         # 6 equations (weld)
     reference: {slider_1: 0.24, ...} # optional: an assembled configuration (the solver's start)
+    ranges: {slider_1: [0.1, 0.5]}   # optional: joint ranges [rad or m] the URDF does not give
 
 `point` closes a spherical joint (positions equal), `6d` a rigid weld (placements equal).
 """
@@ -55,6 +56,7 @@ class LoopSpec:
     end_effector: str
     mechanism: str | None = None
     reference: dict[str, float] = field(default_factory=dict)
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -125,6 +127,18 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
             reference[str(name)] = float(value)
         except (TypeError, ValueError):
             raise InvalidInputError(f"reference {name}", f"not a number: {value!r}") from None
+    ranges = {}
+    raw_ranges = raw.get("ranges") or {}
+    if not isinstance(raw_ranges, dict):
+        raise ModelFileError(path, f"ranges: expected a mapping joint: [lower, upper], got {raw_ranges!r}")
+    for name, pair in raw_ranges.items():
+        if name not in joints:
+            raise UnknownJointError(str(name), joints)
+        try:
+            lo, hi = (float(v) for v in pair)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"ranges {name}", f"expected [lower, upper], got {pair!r}") from None
+        ranges[str(name)] = (lo, hi)
     return LoopSpec(
         path=Path(path),
         actuated=actuated,
@@ -132,4 +146,5 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
         end_effector=frame(raw["end_effector"]),
         mechanism=raw.get("mechanism"),
         reference=reference,
+        ranges=ranges,
     )

@@ -14,10 +14,7 @@ from __future__ import annotations
 import functools
 import importlib.metadata
 import os
-import tempfile
-import xml.etree.ElementTree as ET
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, NamedTuple
@@ -27,11 +24,18 @@ import pinocchio as pin
 
 from kinematics.errors import (
     InvalidInputError,
+    MissingRangeError,
     ModelFileError,
     UnknownFrameError,
+    UnknownJointError,
     UnknownRobotError,
     UnsupportedRobotError,
 )
+from kinematics.model.urdf_file import build_model, check_urdf_file, missing_range_sides
+
+__all__ = ["BUILTIN", "ERD_ALIASES", "URDF_DIR", "Dof", "ParserAgreement", "Robot", "apply_ranges", "build_model",
+           "check_urdf_file", "erd_catalogue", "erd_robots_dir", "load_robot", "matrix", "missing_range_sides",
+           "parser_agreement", "robot_names", "urdf_in"]
 
 if TYPE_CHECKING:  # pragma: no cover
     from kinematics.model.loops import LoopSpec
@@ -73,7 +77,11 @@ def matrix(J: object, ncols: int) -> np.ndarray:
 
 
 class Dof(NamedTuple):
-    """One degree of freedom: joint name, kind, indices into q and v, limits [rad] or [m]."""
+    """One degree of freedom: joint name, kind, indices into q and v, limits [rad] or [m].
+
+    A side of the range that the URDF does not give (a `<limit>` without `lower` or `upper`) is
+    -inf or +inf: no range is never read as [0, 0].
+    """
 
     name: str
     kind: JointKind
@@ -81,6 +89,11 @@ class Dof(NamedTuple):
     idx_v: int
     lower: float
     upper: float
+
+    @property
+    def range_given(self) -> bool:
+        """True for a continuous joint (a full turn by definition) or a finite [lower, upper]."""
+        return self.kind == "continuous" or bool(np.isfinite(self.lower) and np.isfinite(self.upper))
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +136,22 @@ class Robot:
         # A joint and a link may share a name: the link (BODY) frame is the one meant.
         body = [i for i in ids if self.model.frames[i].type == pin.FrameType.BODY]
         return (body or ids)[0]
+
+    @property
+    def unranged(self) -> tuple[str, ...]:
+        """Joints whose URDF gives no range (or only one side of it), in model order."""
+        return tuple(d.name for d in self.dofs if not d.range_given)
+
+    def require_ranges(self, joints: Sequence[str], purpose: str) -> None:
+        """Raise `MissingRangeError` naming those of `joints` that have no range.
+
+        Args:
+            joints: joint names the caller needs bounded.
+            purpose: what needs them, for the message (e.g. "a workspace").
+        """
+        missing = [n for n in self.unranged if n in set(joints)]
+        if missing:
+            raise MissingRangeError(self.name, missing, purpose)
 
     @property
     def lower(self) -> np.ndarray:
@@ -208,55 +237,51 @@ def _dof_table(robot: str, model: pin.Model) -> tuple[Dof, ...]:
     return tuple(dofs)
 
 
-# -- file handling ---------------------------------------------------------------------------
-@contextmanager
-def _quiet_stderr() -> Iterator[list[str]]:
-    """Capture C-level stderr (urdfdom prints parse errors there) into the yielded list."""
-    captured: list[str] = []
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        saved = os.dup(2)
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield captured
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            captured.append(tmp.read().decode(errors="replace"))
+# -- resolution --------------------------------------------------------------------------------
+def apply_ranges(model: pin.Model, missing: dict[str, tuple[bool, bool]],
+                 ranges: Mapping[str, tuple[float, float]] | None = None) -> None:
+    """Set `model`'s position limits in place: +/-inf on each side in `missing`, then each joint
+    of `ranges` (name -> (lower, upper) [rad or m]) to its given range.
+
+    Raises:
+        UnknownJointError: a name in `ranges` is not a 1-DOF joint of the model.
+        InvalidInputError: a range that is not finite with lower < upper.
+    """
+    lo = np.array(model.lowerPositionLimit, dtype=float)
+    hi = np.array(model.upperPositionLimit, dtype=float)
+    index = {model.names[j]: model.joints[j].idx_q for j in range(1, model.njoints)
+             if model.joints[j].nq == 1 and model.joints[j].nv == 1}
+    for name, (no_lo, no_hi) in missing.items():
+        if name in index:
+            lo[index[name]] = -np.inf if no_lo else lo[index[name]]
+            hi[index[name]] = np.inf if no_hi else hi[index[name]]
+    for name, pair in (ranges or {}).items():
+        if name not in index:
+            raise UnknownJointError(name, list(index))
+        a, b = (float(v) for v in pair)
+        if not (np.isfinite(a) and np.isfinite(b) and a < b):
+            raise InvalidInputError(f"range of {name}", f"expected finite LO < HI, got [{a}, {b}]")
+        lo[index[name]], hi[index[name]] = a, b
+    model.lowerPositionLimit = lo
+    model.upperPositionLimit = hi
 
 
-def check_urdf_file(path: str | os.PathLike[str]) -> ET.Element:
-    """Return the parsed XML root of a URDF file, or raise `ModelFileError` saying what is wrong."""
-    p = Path(path)
-    if not p.exists():
-        raise ModelFileError(p, "no such file")
-    if not p.is_file():
-        raise ModelFileError(p, "not a file")
-    try:
-        root = ET.parse(p).getroot()
-    except ET.ParseError as exc:
-        raise ModelFileError(p, f"malformed XML ({exc})") from None
-    except OSError as exc:
-        raise ModelFileError(p, f"cannot read ({exc.strerror})") from None
-    if root.tag != "robot":
-        raise ModelFileError(p, f"not a URDF: root element is <{root.tag}>, expected <robot>")
-    return root
+def urdf_in(directory: Path) -> Path:
+    """The URDF of a model folder (as Gepetto's loaders take it): `robot.urdf`, else its only
+    `*.urdf` file.
 
-
-def build_model(path: str | os.PathLike[str]) -> pin.Model:
-    """Parse a URDF with Pinocchio (fixed base); malformed files raise `ModelFileError`."""
-    check_urdf_file(path)
-    with _quiet_stderr() as log:
-        try:
-            model = pin.buildModelFromUrdf(str(path))
-        except (ValueError, RuntimeError) as exc:
-            err: Exception | None = exc
-        else:
-            err = None
-    if err is not None:
-        detail = next((ln.strip() for ln in log[0].splitlines() if "Error" in ln), str(err))
-        raise ModelFileError(path, f"Pinocchio cannot parse it: {detail}")
-    return model
+    Raises:
+        ModelFileError: the folder holds no URDF, or several and none is `robot.urdf`.
+    """
+    if (directory / "robot.urdf").is_file():
+        return directory / "robot.urdf"
+    found = sorted(directory.glob("*.urdf"))
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise ModelFileError(directory, "a folder with no .urdf file in it")
+    raise ModelFileError(directory, f"a folder with {len(found)} URDF files and no robot.urdf; name one of: "
+                                    f"{', '.join(f.name for f in found)}")
 
 
 @functools.cache
@@ -293,22 +318,33 @@ def _default_tool_frame(model: pin.Model) -> str:
     return bodies[-1] if bodies else model.frames[-1].name
 
 
-def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -> Robot:
-    """Load a robot from a built-in name, a URDF path or an example-robot-data name.
+def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
+               ranges: Mapping[str, tuple[float, float]] | None = None) -> Robot:
+    """Load a robot from a built-in name, a URDF path, a model folder or an example-robot-data name.
 
     A loop-closure sidecar next to the URDF (`<stem>.loops.yaml`) is loaded too; failing that, a
     Gepetto-format `robot.yaml` in the same folder (see `kinematics.model.gepetto`), whose joint
-    substitutions change the model built from the URDF.
+    substitutions change the model built from the URDF. A folder stands for its `robot.urdf` (or
+    its only URDF) and names the robot.
+
+    A joint whose `<limit>` gives no `lower`/`upper` has no range on that side (-inf/+inf, see
+    `missing_range_sides`), never [0, 0]; `ranges` (joint -> (lower, upper) [rad or m]) gives or
+    replaces ranges, after the sidecar's `ranges:`.
 
     Raises:
         UnknownRobotError: `spec` is no known name and no existing file.
         ModelFileError: the file is missing or malformed.
         UnknownFrameError: `tool_frame` is not in the model.
+        UnknownJointError: `ranges` names a joint the model does not have.
     """
     text = os.fspath(spec)
     package_dirs: tuple[str, ...] = ()
+    if not text.strip():
+        raise UnknownRobotError(text, robot_names())
     if text in BUILTIN:
         path, name = URDF_DIR / BUILTIN[text], text
+    elif Path(text).is_dir():
+        path, name = urdf_in(Path(text)), Path(text).resolve().name
     elif Path(text).suffix.lower() in (".urdf", ".xml") or os.sep in text or Path(text).exists():
         path, name = Path(text), Path(text).stem
     elif text in erd_catalogue():
@@ -326,11 +362,16 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None) -
     if gepetto is not None:
         from kinematics.model import gepetto as gp
 
-        model = gp.build_model(path, gepetto)
+        model, root = gp.build_model(path, gepetto)
         loops: LoopSpec | None = gp.loop_spec(gepetto, model, tool_frame)
+        if name == "robot":  # Gepetto's files are all robot.urdf: the folder names the robot
+            name = Path(path).resolve().parent.name
     else:
+        root = check_urdf_file(path)
         model = build_model(path)
         loops = find_loop_spec(path, model)
+    given = {**(loops.ranges if loops is not None else {}), **(ranges or {})}
+    apply_ranges(model, missing_range_sides(root), given)
     frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
     robot = Robot(name, Path(path), model, frame, package_dirs, loops)
     robot.frame_id(frame)  # validate

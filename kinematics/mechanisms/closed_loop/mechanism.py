@@ -79,15 +79,32 @@ class GenericClosedLoop(Mechanism):
         return {"closures": len(loops.closures) if loops else 0,
                 "actuated": list(loops.actuated) if loops else [], "end_effector": self.robot.tool_frame}
 
+    def _require_actuator_ranges(self, purpose: str = "a workspace") -> None:
+        loops = self.robot.loops
+        self.robot.require_ranges(loops.actuated if loops else (), purpose)
+
+    def require(self, capability: str, purpose: str) -> None:
+        """As `Mechanism.require`; a margin also needs every actuator's range (checked here, before
+        the solver is compiled, so a missing range is said at once)."""
+        super().require(capability, purpose)
+        if capability == "margin":
+            self._require_actuator_ranges(purpose)
+
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
-        """Sampled, not proved (module docstring)."""
+        """Sampled, not proved (module docstring).
+
+        Raises:
+            MissingRangeError: an actuated joint has no range.
+        """
         self.check_limits(limits)
+        self._require_actuator_ranges()
         lo, hi = self.batch.bounding_box()
         return np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
 
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
-        chosen = self.check_branches(branches)
         self.check_limits(limits)
+        self._require_actuator_ranges()
+        chosen = self.check_branches(branches)
         names = self.branches
         f = self.batch.margin_function([names.index(b) for b in chosen], limits)
         cap = float(self.batch.scale)

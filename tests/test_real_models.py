@@ -1,0 +1,207 @@
+"""Gepetto's parallel robots as people bring them (copies in ../shared/models/gepetto/): folders,
+URDF limits without ranges, unassembled zero poses, every joint substitution of the format."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from kinematics.cli.app import main
+from kinematics.errors import (
+    InvalidInputError,
+    MissingRangeError,
+    ModelFileError,
+    UnknownJointError,
+    UnknownRobotError,
+)
+from kinematics.generic.assembly import OPEN_GAP, AssemblyError, assemble
+from kinematics.model.robot import load_robot
+
+GEPETTO = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
+needs_models = pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"Gepetto's models are not at {GEPETTO}")
+
+MODELS = sorted(p.name for p in GEPETTO.iterdir() if p.is_dir() and list(p.glob("*.urdf"))) if GEPETTO.is_dir() else []
+UNFIXABLE = {"disney_robot"}  # its robot.yaml names a joint its URDF misspells (upstream defect)
+UNASSEMBLED = {"kangaroo_like", "kangaroo_like_2legs", "true_talos_2_legs"}
+"""Models whose closed pose the assembly search does not find (see test_assembly_failures_say_so)."""
+
+
+def _no_range_sides(urdf: Path) -> dict[str, tuple[bool, bool]]:
+    """Independently of the loader: revolute/prismatic joints whose <limit> lacks lower/upper."""
+    out = {}
+    for j in ET.parse(urdf).getroot().iter("joint"):
+        lim = j.find("limit")
+        if j.get("type") in ("revolute", "prismatic"):
+            out[j.get("name")] = (lim is None or "lower" not in lim.attrib, lim is None or "upper" not in lim.attrib)
+    return out
+
+
+def _closure_gap(robot, q) -> float:
+    """Largest closure error at q from frame placements alone (not through the solver's
+    constraint models): positions for a 3D pair, position and rotation (log3) for a 6D one."""
+    model, data = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    worst = 0.0
+    for c in robot.loops.closures:
+        a = data.oMf[robot.frame_id(c.frame1)]
+        b = data.oMf[robot.frame_id(c.frame2)]
+        worst = max(worst, float(np.linalg.norm(a.translation - b.translation)))
+        if c.type == "6d":
+            worst = max(worst, float(np.linalg.norm(pin.log3(a.rotation.T @ b.rotation))))
+    return worst
+
+
+@needs_models
+@pytest.mark.parametrize("name", [m for m in MODELS if m not in UNFIXABLE])
+def test_every_model_folder_loads_and_ranges_are_never_zero(name):
+    folder = GEPETTO / name
+    robot = load_robot(folder)
+    assert robot.name == name  # the folder names the robot (every Gepetto file is robot.urdf)
+    sides = _no_range_sides(robot.urdf_path)
+    for d in robot.dofs:
+        if d.name in sides:  # a joint of the file itself (substituted ones are checked below)
+            no_lo, no_hi = sides[d.name]
+            assert (d.lower == -np.inf) == no_lo and (d.upper == np.inf) == no_hi, d
+            assert d.range_given == (not no_lo and not no_hi)
+        assert not (d.lower == 0.0 and d.upper == 0.0), f"{d.name} read as [0, 0]"
+
+
+@needs_models
+def test_universal_joint_zy_of_battobot():
+    robot = load_robot(GEPETTO / "battobot_6d")
+    names = robot.joint_names
+    i = names.index("left_spherical_ankle_1_Z")
+    assert names[i + 1] == "left_spherical_ankle_1_Y"  # Z first, then Y, at one origin
+    m = robot.model
+    jz, jy = m.getJointId("left_spherical_ankle_1_Z"), m.getJointId("left_spherical_ankle_1_Y")
+    assert m.parents[jy] == jz
+    assert np.allclose(m.jointPlacements[jy].homogeneous, np.eye(4), atol=0)
+    data = m.createData()
+    q = pin.neutral(m)
+    pin.computeJointJacobians(m, data, q)
+    axis_z = pin.getJointJacobian(m, data, jz, pin.LOCAL)[3:, m.joints[jz].idx_v]
+    axis_y = pin.getJointJacobian(m, data, jy, pin.LOCAL)[3:, m.joints[jy].idx_v]
+    np.testing.assert_allclose(axis_z, [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(axis_y, [0, 1, 0], atol=1e-15)
+    assert "left_spherical_ankle_1_Z" in robot.unranged  # a substituted joint is passive, unbounded
+
+
+@needs_models
+def test_misspelt_joint_names_offer_the_closest():
+    with pytest.raises(UnknownJointError) as info:
+        load_robot(GEPETTO / "disney_robot")
+    assert info.value.name == "left_spherical_free_foot"
+    assert info.value.closest[0] == "left_sĥerical_free_foot"  # the URDF's own (misspelt) name
+    assert "did you mean 'left_sĥerical_free_foot'" in str(info.value)
+
+
+def test_model_folders(tmp_path):
+    src = Path(__file__).parent / "models" / "fivebar_gepetto"
+    one = tmp_path / "one"
+    shutil.copytree(src, one)
+    (one / "robot.urdf").rename(one / "five.urdf")
+    assert load_robot(one).urdf_path.name == "five.urdf"  # the only URDF of a folder
+    shutil.copy(one / "five.urdf", one / "other.urdf")
+    with pytest.raises(ModelFileError, match="2 URDF files and no robot.urdf; name one of: five.urdf, other.urdf"):
+        load_robot(one)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ModelFileError, match="a folder with no .urdf file"):
+        load_robot(tmp_path / "empty")
+    with pytest.raises(UnknownRobotError, match="unknown robot ''"):
+        load_robot("")  # not the current folder
+
+
+def test_ranges_from_the_caller_and_the_sidecar(tmp_path):
+    models = Path(__file__).parent / "models"
+    robot = load_robot(models / "fivebar_gepetto", ranges={"mot1": (-1.0, 2.0)})
+    d = robot.dofs[robot.joint_names.index("mot1")]
+    assert (d.lower, d.upper) == (-1.0, 2.0)
+    with pytest.raises(UnknownJointError, match="did you mean 'mot1'"):
+        load_robot(models / "fivebar_gepetto", ranges={"mot_1": (-1.0, 1.0)})
+    for bad in [(1.0, -1.0), (0.0, np.inf), (np.nan, 1.0)]:
+        with pytest.raises(InvalidInputError):
+            load_robot(models / "fivebar_gepetto", ranges={"mot1": bad})
+    for f in ("fourbar.urdf", "fourbar.loops.yaml"):
+        shutil.copy(models / f, tmp_path / f)
+    side = tmp_path / "fourbar.loops.yaml"
+    first = load_robot(tmp_path / "fourbar.urdf").joint_names[0]
+    side.write_text(side.read_text() + f"ranges: {{{first}: [-0.5, 0.25]}}\n")
+    d = load_robot(tmp_path / "fourbar.urdf").dofs[0]
+    assert (d.lower, d.upper) == (-0.5, 0.25)
+
+
+@needs_models
+@pytest.mark.parametrize("name", [m for m in MODELS if m not in UNFIXABLE | UNASSEMBLED
+                                  and (GEPETTO / m / "robot.yaml").exists()])
+def test_assembly_closes_every_open_model(name):
+    robot = load_robot(GEPETTO / name)
+    q0 = robot.configuration(np.zeros(robot.nv))
+    a = assemble(robot)
+    # every one of these is exported open at q = 0 (the gap measured independently of the solver)
+    assert _closure_gap(robot, q0) > 1e-3 and a.found and a.start_gap > 1e-3
+    # closure tolerance 1e-10 (assembly.TOLERANCE) on the solver's errors; measured through frame
+    # placements, rotations add the log3's rounding (~1e-15 per unit), so 1e-9 leaves margin
+    assert _closure_gap(robot, a.q) <= 1e-9
+    assert np.all(robot.within_limits(a.values, 1e-9))
+    if a.found:
+        assert "a closed pose found from the neutral pose" in a.description
+        assert f"{a.start_gap:.3g}" in a.description
+
+
+def test_a_closed_reference_is_kept():
+    robot = load_robot("p2us")
+    a = assemble(robot)
+    assert not a.found and a.start_gap <= OPEN_GAP and a.stage == 1
+    assert a.description == "the sidecar's reference configuration"
+    assert a.moved <= 1e-6  # Newton only polishes a reference closed to ~1e-9 m
+
+
+@needs_models
+def test_assembly_holds_the_given_actuators():
+    robot = load_robot(GEPETTO / "robot_delta")
+    start = np.zeros(robot.nv)
+    for name, value in zip(robot.loops.actuated, (0.2, -0.1), strict=True):
+        start[robot.joint_names.index(name)] = value
+    a = assemble(robot, start, hold=robot.loops.actuated)
+    for name, value in zip(robot.loops.actuated, (0.2, -0.1), strict=True):
+        assert a.values[robot.joint_names.index(name)] == pytest.approx(value, abs=1e-15)
+    assert _closure_gap(robot, a.q) <= 1e-9
+    assert "robot_delta" not in a.description and "given joint values" in a.description
+
+
+@needs_models
+@pytest.mark.parametrize("name", sorted(UNASSEMBLED))
+def test_assembly_failures_say_so(name):
+    with pytest.raises(AssemblyError, match=f"assembling {name} from the neutral pose"):
+        assemble(load_robot(GEPETTO / name))
+
+
+@needs_models
+def test_cli_ranges_and_poses(capsys):
+    fb = str(GEPETTO / "5bar_linkage")
+    assert main(["info", fb, "--json"]) == 0
+    joints = json.loads(capsys.readouterr().out)["joints"]
+    mot1 = next(j for j in joints if j["name"] == "mot1")
+    assert mot1["lower"] is None and mot1["upper"] is None and mot1["range_given"] is False
+    assert main(["info", fb]) == 0
+    assert "none given" in capsys.readouterr().out
+    # a workspace needs the actuators' ranges: said at once, naming them and the option
+    assert main(["workspace-volume", fb]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mot1, mot2" in err and "--range mot1=LO:HI" in err
+    with pytest.raises(MissingRangeError) as info:
+        from kinematics.mechanisms import mechanism_of
+
+        mechanism_of(load_robot(fb)).require("margin", "a workspace")
+    assert info.value.joints == ("mot1", "mot2")
+    assert main(["info", fb, "--range", "mot1=1:0"]) == 2
+    assert "finite LO < HI" in capsys.readouterr().err
+    # mobility without --q analyses a closed pose and says which
+    assert main(["mobility", fb]) == 0
+    assert "a closed pose found from the neutral pose (q = 0) (closure gap 1.57" in capsys.readouterr().out
