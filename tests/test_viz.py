@@ -409,10 +409,31 @@ def test_robot_delta_without_meshes_is_drawn_as_its_skeleton(capsys, tmp_path):
     _, T = _skeleton_nodes(out.read_text(), robot.name)
     for c in robot.loops.closures:
         assert np.linalg.norm(T[f"closures/{c.name}_1"][:3, 3] - T[f"closures/{c.name}_2"][:3, 3]) <= 1e-11
-    # the default pose (the sidecar names no reference: q = 0) is open, says so, and the closure
-    # balls show the gaps
+    # the default: the sidecar names no reference, and q = 0 is open; drawn at the pose
+    # generic.assembly finds from it, and says so
     code, _, err = run(capsys, "show", str(urdf), "--export", str(out))
-    assert code == 0 and "the loops are not closed at the drawn pose" in err
+    assert code == 0 and "drawn at a closed pose found from the neutral pose" in err and "not closed" not in err
+    from kinematics.generic.assembly import assemble
+
+    _check_skeleton(out.read_text(), robot, assemble(robot).q)
+    # at an open pose the closure balls of a pair stand apart, each at its own frame
+    scene = viz.Scene()
+    scene.add_robot(robot, robot.configuration(np.zeros(robot.nv)))
+    _check_skeleton(scene.html(), robot, robot.configuration(np.zeros(robot.nv)))
+
+
+@pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"{GEPETTO} absent (Gepetto's example-parallel-robots)")
+def test_a_model_that_does_not_assemble_is_drawn_open(capsys, tmp_path):
+    """kangaroo_like: generic.assembly finds no closed pose (tests/test_real_models.py); the view
+    draws the neutral pose and says both that and how far open the loops are."""
+    from kinematics.model.robot import load_robot
+
+    robot = load_robot(GEPETTO / "kangaroo_like")
+    out = tmp_path / "kangaroo.html"
+    code, _, err = run(capsys, "show", str(GEPETTO / "kangaroo_like"), "--export", str(out))
+    assert code == 0, err
+    assert "no closed pose found" in err and "drawn open at the neutral pose" in err
+    assert "the loops are not closed at the drawn pose (largest closure error 3.14" in err
     _check_skeleton(out.read_text(), robot, robot.configuration(np.zeros(robot.nv)))
 
 

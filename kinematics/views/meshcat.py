@@ -907,8 +907,9 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspa
 
     scene = scene or Scene()
     loop = ClosedLoop(robot)
-    q = closed_loop_pose(robot, loop, actuators)
+    q, note = closed_loop_pose(robot, loop, actuators)
     scene.add_robot(robot, q)
+    scene.warnings += [note] if note else []
     _check_closed(scene, robot, loop, q)
     if workspace or singularities:
         import pinocchio as pin
@@ -942,25 +943,38 @@ def _facing(robot: Any, q: np.ndarray) -> tuple[float, float, float]:
     return (float(d[0]), float(d[1]), float(d[2]))
 
 
-def closed_loop_pose(robot: Any, loop: Any, actuators: np.ndarray | None) -> np.ndarray:
-    """The configuration a closed-loop model is drawn at: assembled from `actuators` [rad or m],
-    else the sidecar's reference configuration (the neutral one where the sidecar names none,
-    e.g. a Gepetto `robot.yaml`, which most Gepetto models are not assembled at).
+def closed_loop_pose(robot: Any, loop: Any, actuators: np.ndarray | None) -> tuple[np.ndarray, str | None]:
+    """The configuration a closed-loop model is drawn at, and what the reader must know about it.
 
-    ASSEMBLY HOOK -- the single place the view's pose is chosen. When
-    `kinematics.generic.assembly.assemble(robot, values=None) -> Assembly` (fields q, values,
-    residual, start_gap, source, description) is on main, a model whose sidecar has no
-    `reference` should be drawn at `assemble(robot).q` here (and its `description` shown).
+    The single place the view's pose is chosen: assembled from `actuators` [rad or m] (the loops
+    closed with them held; `ClosedLoop.solve(..., fallback=True)`), else `ClosedLoop.assembly`,
+    the sidecar's reference closed by `kinematics.generic.assembly.assemble` where it is open (the
+    neutral pose where the sidecar names none, e.g. a Gepetto `robot.yaml`: most Gepetto models
+    are exported open at q = 0). Where no closed pose is found the start is drawn, open.
+
+    Returns:
+        (Pinocchio configuration, a warning or None).
     """
+    from kinematics.generic.assembly import AssemblyError
+
     if actuators is not None:
-        return np.asarray(loop.solve(np.asarray(actuators, dtype=float)).q)
-    return np.asarray(loop.reference)
+        return np.asarray(loop.solve(np.asarray(actuators, dtype=float), fallback=True).q), None
+    try:
+        found = loop.assembly
+    except AssemblyError as exc:
+        values = np.zeros(robot.nv)
+        for name, value in loop.spec.reference.items():
+            values[robot.joint_names.index(name)] = value
+        where = "its sidecar's reference" if loop.spec.reference else "the neutral pose (q = 0)"
+        return robot.configuration(values), f"{robot.name}: no closed pose found ({exc}); drawn open at {where}"
+    note = f"{robot.name}: drawn at {found.description}" if found.found else None
+    return np.asarray(found.q), note
 
 
 OPEN_LOOP_RTOL = 1e-6
 """A drawn closed-loop pose is flagged as open when its largest closure error exceeds this
 fraction of the model's length scale: above what a hand-typed reference (6-8 digits) leaves,
-far below the solver's assemblies (1e-12 m)."""
+far below the assemblies' 1e-10 (`generic.assembly.TOLERANCE`)."""
 
 
 def _check_closed(scene: Scene, robot: Any, loop: Any, q: np.ndarray) -> None:
@@ -969,7 +983,7 @@ def _check_closed(scene: Scene, robot: Any, loop: Any, q: np.ndarray) -> None:
     gap = float(np.abs(loop.residual(q)[0]).max()) if loop.n_constraints else 0.0
     if gap > OPEN_LOOP_RTOL * length_scale(robot, q):
         scene.warnings.append(f"{robot.name}: the loops are not closed at the drawn pose (largest closure error "
-                              f"{gap:.3g} m or rad); give actuator values with --q to assemble it")
+                              f"{gap:.3g} m or rad)")
 
 
 def _embed(mech: Any, points: np.ndarray, at: np.ndarray) -> np.ndarray:
