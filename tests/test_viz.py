@@ -112,9 +112,12 @@ def test_missing_meshes_are_skipped_and_reported(tmp_path, capsys):
     code, text, err = run(capsys, "show", str(urdf), "--export", str(out), "--json")
     assert code == 0 and out.exists()
     assert "not drawn: link base: meshes/base.stl" in err and "l1.dae" in err
+    assert "2 visual(s) not drawn, mesh file missing; its kinematic skeleton is drawn instead" in err
     import json
 
     assert len(json.loads(text)["skipped_visuals"]) == 2
+    objects, _ = _skeleton_nodes(out.read_text(), "arm")  # the primitives are there, the skeleton too
+    assert sum(p.startswith("joints/") for p in objects) == 2
 
 
 def test_show_export_and_errors(capsys, tmp_path):
@@ -291,3 +294,229 @@ def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
     assert want and want <= got
     assert not ({tuple(np.round(p, 9)) for p in grid[~inside & clear]} & got)
     assert np.all(cond <= 1.0) and np.any(cond > 0)  # conditioning of some branch at every drawn point
+
+
+# -- skeletons -------------------------------------------------------------------------------------
+GEPETTO = Path("/work/shared/models/gepetto")
+MODELS = Path(__file__).parent / "models"
+
+SKELETON_ATOL = 1e-12
+"""Skeleton transforms travel as float64 (meshcat packs a transform as a list of Python floats),
+so a node sits where Pinocchio puts its joint or frame up to the products of the transform's
+construction: a few ulps of coordinates of at most 1 m (~1e-16)."""
+
+
+def _scene_commands(page: str) -> list[dict]:
+    """The meshcat commands inlined in an exported page, unpacked."""
+    import base64
+    import re
+
+    import umsgpack
+
+    return [umsgpack.unpackb(base64.b64decode(b)) for b in re.findall(r'atob\("([^"]+)"\)', page)]
+
+
+def _skeleton_nodes(page: str, name: str) -> tuple[dict[str, dict], dict[str, np.ndarray]]:
+    """(path -> set_object command, path -> 4 x 4 transform) of the nodes under `<name>_skeleton/`,
+    paths relative to it."""
+    root = f"/meshcat/{name}_skeleton/"
+    objects, transforms = {}, {}
+    for c in _scene_commands(page):
+        path = c.get("path", "")
+        if not path.startswith(root):
+            continue
+        rel = path.removeprefix(root)
+        if c["type"] == "set_object":
+            objects[rel] = c
+        elif c["type"] == "set_transform":
+            transforms[rel] = np.array(c["matrix"], dtype=float).reshape(4, 4).T  # column-major
+    return objects, transforms
+
+
+def _expected_skeleton(robot, q):
+    """From Pinocchio alone: joint origins and world axes (the URDF axis turned by the joint's
+    placement), and the link segments (each joint's parent origin -> its origin, each closure or
+    end-effector frame's joint origin -> the frame), zero-length ones apart."""
+    import xml.etree.ElementTree as ET
+
+    import pinocchio as pin
+
+    from kinematics.generic.serial import length_scale
+
+    model, data = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    axes = {j.get("name"): np.array([float(v) for v in (j.find("axis").get("xyz") if j.find("axis") is not None
+                                                        else "1 0 0").split()])
+            for j in ET.parse(robot.urdf_path).getroot().iter("joint")}
+    joints = []
+    for jid in range(1, model.njoints):
+        a = axes[model.names[jid]]
+        joints.append((data.oMi[jid].translation, data.oMi[jid].rotation @ a / np.linalg.norm(a)))
+    origin = [np.zeros(3)] + [data.oMi[j].translation for j in range(1, model.njoints)]
+    pairs = [(origin[model.parents[j]], origin[j]) for j in range(1, model.njoints)]
+    frames = {robot.frame_id(n) for c in (robot.loops.closures if robot.loops else ()) for n in (c.frame1, c.frame2)}
+    frames.add(robot.frame_id())
+    pairs += [(origin[model.frames[f].parentJoint], data.oMf[f].translation) for f in sorted(frames)]
+    L = length_scale(robot, q)
+    kept = [(a, b) for a, b in pairs if np.linalg.norm(b - a) > 1e-9 * L]
+    return joints, kept, len(pairs) - len(kept), data
+
+
+def _check_skeleton(page: str, robot, q) -> dict[str, dict]:
+    objects, T = _skeleton_nodes(page, robot.name)
+    joints, segments, _, data = _expected_skeleton(robot, q)
+    drawn_joints = sorted((p for p in T if p.startswith("joints/") and p.count("/") == 1),
+                          key=lambda p: int(p.split("/")[1].split("_")[0]))
+    assert len(drawn_joints) == len(joints) == robot.model.njoints - 1
+    for path, (origin, axis) in zip(drawn_joints, joints, strict=True):
+        assert np.abs(T[path][:3, 3] - origin).max() <= SKELETON_ATOL, path
+        assert np.abs(T[path][:3, 1] - axis).max() <= SKELETON_ATOL, path  # local y = the joint's axis
+    links = [T[p] for p in T if p.startswith("links/")]
+    assert len(links) == len(segments)
+    ends = [(M @ [0, -0.5, 0, 1])[:3] for M in links] + [(M @ [0, 0.5, 0, 1])[:3] for M in links]
+    want = [a for a, _ in segments] + [b for _, b in segments]
+    for p in want:  # every expected end drawn, and vice versa (same count)
+        assert min(np.abs(p - e).max() for e in ends) <= SKELETON_ATOL
+    assert np.abs(T["end_effector"][:3, 3] - data.oMf[robot.frame_id()].translation).max() <= SKELETON_ATOL
+    for c in robot.loops.closures if robot.loops else ():
+        for k, frame in ((1, c.frame1), (2, c.frame2)):
+            ball = T[f"closures/{c.name}_{k}"][:3, 3]
+            assert np.abs(ball - data.oMf[robot.frame_id(frame)].translation).max() <= SKELETON_ATOL
+    return objects
+
+
+@pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"{GEPETTO} absent (Gepetto's example-parallel-robots)")
+def test_robot_delta_without_meshes_is_drawn_as_its_skeleton(capsys, tmp_path):
+    """Issue 32: `show robot_delta` drew an empty floor (its 9 meshes are not shipped). Now its
+    skeleton: 14 joints, 14 + 7 frame segments (6 closure frames + the end effector) less the
+    zero-length ones, 6 closure balls pairwise together (the loops are closed at actuators 0 0)."""
+    from kinematics.generic.closedloop import ClosedLoop
+    from kinematics.model.robot import load_robot
+
+    urdf = GEPETTO / "robot_delta" / "robot.urdf"
+    robot = load_robot(urdf)
+    out = tmp_path / "delta.html"
+    code, _, err = run(capsys, "show", str(urdf), "--q", "0", "0", "--export", str(out))
+    assert code == 0, err
+    assert "9 visual(s) not drawn, mesh file missing; its kinematic skeleton is drawn instead" in err
+    assert "not closed" not in err
+    q = ClosedLoop(robot).solve(np.zeros(2)).q  # the pose `show --q 0 0` draws (the same solve)
+    objects = _check_skeleton(out.read_text(), robot, q)
+    _, segments, degenerate, _ = _expected_skeleton(robot, q)
+    assert len(segments) + degenerate == 14 + 7 and len(segments) >= 14
+    balls = [p for p in objects if p.startswith("closures/")]
+    assert len(balls) == 6
+    _, T = _skeleton_nodes(out.read_text(), robot.name)
+    for c in robot.loops.closures:
+        assert np.linalg.norm(T[f"closures/{c.name}_1"][:3, 3] - T[f"closures/{c.name}_2"][:3, 3]) <= 1e-11
+    # the default: the sidecar names no reference, and q = 0 is open; drawn at the pose
+    # generic.assembly finds from it, and says so
+    code, _, err = run(capsys, "show", str(urdf), "--export", str(out))
+    assert code == 0 and "drawn at a closed pose found from the neutral pose" in err and "not closed" not in err
+    from kinematics.generic.assembly import assemble
+
+    _check_skeleton(out.read_text(), robot, assemble(robot).q)
+    # at an open pose the closure balls of a pair stand apart, each at its own frame
+    scene = viz.Scene()
+    scene.add_robot(robot, robot.configuration(np.zeros(robot.nv)))
+    _check_skeleton(scene.html(), robot, robot.configuration(np.zeros(robot.nv)))
+
+
+@pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"{GEPETTO} absent (Gepetto's example-parallel-robots)")
+def test_a_model_that_does_not_assemble_is_drawn_open(capsys, tmp_path):
+    """kangaroo_like: generic.assembly finds no closed pose (tests/test_real_models.py); the view
+    draws the neutral pose and says both that and how far open the loops are."""
+    from kinematics.model.robot import load_robot
+
+    robot = load_robot(GEPETTO / "kangaroo_like")
+    out = tmp_path / "kangaroo.html"
+    code, _, err = run(capsys, "show", str(GEPETTO / "kangaroo_like"), "--export", str(out))
+    assert code == 0, err
+    assert "no closed pose found" in err and "drawn open at the neutral pose" in err
+    assert "the loops are not closed at the drawn pose (largest closure error 3.14" in err
+    _check_skeleton(out.read_text(), robot, robot.configuration(np.zeros(robot.nv)))
+
+
+def test_four_bar_skeleton_reaches_its_closure_frames(capsys, tmp_path):
+    """tests/models/fourbar.urdf (no visuals): the closure frames sit at the coupler's and the
+    rocker's ends, off their joints' origins, so each has a segment of its own."""
+    from kinematics.generic.closedloop import ClosedLoop
+    from kinematics.model.robot import load_robot
+
+    urdf = MODELS / "fourbar.urdf"
+    robot = load_robot(urdf)
+    out = tmp_path / "fourbar.html"
+    code, _, err = run(capsys, "show", str(urdf), "--export", str(out))
+    assert code == 0 and "no visuals; its kinematic skeleton is drawn instead" in err and "not closed" not in err
+    q = ClosedLoop(robot).reference
+    _check_skeleton(out.read_text(), robot, q)
+    _, segments, degenerate, _ = _expected_skeleton(robot, q)
+    # ground -> rocker, crank -> coupler, and the two closure frames (one is the end effector);
+    # ground -> crank has no length (the crank turns about the world origin)
+    assert (len(segments), degenerate) == (4, 1)
+
+
+def test_serial_urdf_without_visuals_shows_joint_axes(capsys, tmp_path):
+    """A URDF with no <visual> at all: prismatic joints as arrows, revolute ones as cylinders, on
+    unaligned and negative axes, at `show`'s default pose."""
+    from kinematics.model.robot import load_robot
+
+    urdf = MODELS / "prismatic_chain_batched.urdf"
+    robot = load_robot(urdf)
+    out = tmp_path / "chain.html"
+    code, _, err = run(capsys, "show", str(urdf), "--export", str(out))
+    assert code == 0 and "no visuals; its kinematic skeleton is drawn instead" in err
+    objects = _check_skeleton(out.read_text(), robot, robot.configuration(viz.default_pose(robot)))
+    kinds = {d.name: d.kind for d in robot.dofs}
+    for jid in range(1, robot.model.njoints):
+        name = robot.model.names[jid]
+        path = f"joints/{jid - 1}_{name}"
+        arrow = {f"{path}/shaft", f"{path}/head"} <= set(objects)
+        assert arrow == (kinds[name] == "prismatic") and (path in objects) == (not arrow), name
+    assert sum(k == "prismatic" for k in kinds.values()) == 3
+
+
+def test_skeleton_flag(capsys, tmp_path, scara):
+    """`--skeleton` draws it over a robot whose visuals are all there (only then), and a guidance
+    run moves it with the robot."""
+    out = tmp_path / "scara.html"
+    for flag in ([], ["--skeleton"]):
+        code, _, err = run(capsys, "show", "scara", "--q", "0.3", "-1.0", *flag, "--export", str(out))
+        assert code == 0 and "skeleton" not in err
+        objects, _ = _skeleton_nodes(out.read_text(), "scara")
+        assert bool(objects) == bool(flag)
+    _check_skeleton(out.read_text(), scara, scara.configuration([0.3, -1.0]))
+    import umsgpack
+
+    s = viz.scara_view(scara, [0.3, -1.0], guide=2, scene=viz.Scene(skeleton=True))
+    tracks = {t["path"] for n in _walk(s._window.tree) if n.animation is not None
+              for t in umsgpack.unpackb(n.animation)["animations"]}
+    drawn = {f"/meshcat/scara_skeleton/{p}" for p in viz.skeleton_transforms(s.skeletons["scara"])}
+    assert drawn and drawn <= tracks
+
+
+@pytest.mark.skipif(BROWSER is None and not REQUIRE, reason="no headless Chromium here (.ci/run installs it)")
+@pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"{GEPETTO} absent (Gepetto's example-parallel-robots)")
+def test_robot_delta_skeleton_in_a_real_browser(tmp_path):
+    """The skeleton is what the browser shows of robot_delta: measured (SwiftShader, 800 x 600)
+    2.4 % of the view, and per part colour (within 0.25 of it, Lambert shading aside) 4448 link,
+    2349 ground, 1846 joint, 308 end-effector and 101 closure-ball pixels. Thresholds: half the
+    cover, 30 pixels of each part."""
+    from kinematics.model.robot import load_robot
+
+    assert BROWSER is not None, "KINEMATICS_REQUIRE_BROWSER=1 but chromium-headless-shell is missing"
+    robot = load_robot(GEPETTO / "robot_delta" / "robot.urdf")
+    scene = viz.closed_loop_view(robot, np.zeros(2))
+    empty = viz.Scene()  # the same camera, legend and warnings: only the skeleton differs
+    empty.camera(*scene.camera_pose)
+    empty.legend, empty.warnings = list(scene.legend), list(scene.warnings)
+    scene.screenshot(tmp_path / "robot.png", browser=BROWSER)
+    empty.screenshot(tmp_path / "empty.png", browser=BROWSER)
+    from matplotlib.image import imread
+
+    a, b = imread(tmp_path / "robot.png")[..., :3], imread(tmp_path / "empty.png")[..., :3]
+    mask = np.abs(a - b).max(axis=-1) > 0.1  # as _robot_pixels
+    assert mask.mean() > 0.012, f"the skeleton covers {mask.mean():.1%} of the view"
+    for part in ("ground", "link", "revolute", "closure", "end_effector"):
+        rgb = np.array(viz.SKELETON_STYLE[part][0])
+        assert (np.linalg.norm(a[mask] - rgb, axis=-1) < 0.25).sum() >= 30, part

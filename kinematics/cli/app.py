@@ -734,6 +734,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="closed loops: grid step [m] (default 0.02; 0.05 for a generic closed loop, whose solver is "
                         "slower)")
     serial_args(p)
+    p.add_argument("--skeleton", action="store_true",
+                   help="also draw the kinematic skeleton: joints along their axes, links joint to joint, loop-closure "
+                        "frames, the end effector (drawn anyway for a robot whose mesh files are missing)")
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")

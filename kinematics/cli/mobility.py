@@ -74,6 +74,13 @@ def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | Non
     return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": "; ".join(reasons)}
 
 
+def _freedom(f: Any) -> str:
+    """'translation [axis]' or 'rotation [axis] through [point] m, pitch h m/rad'."""
+    if f.type == "translation":
+        return f"translation {fmt(f.axis, 3)}"
+    return f"rotation {fmt(f.axis, 3)} through {fmt(f.point, 4)} m, pitch {f.pitch:.3g} m/rad"
+
+
 def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
     from kinematics.analyses.mobility import analyse
 
@@ -109,7 +116,9 @@ def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
             table(["limb", "sub-chains", "twist rank", "constraint wrenches"],
                   [(lb.name, lb.paths, lb.twist_rank,
                     "; ".join(f"{w.type} {fmt(w.axis, 3)}" for w in lb.wrenches) or "-") for lb in s.limbs]),
-            "platform freedoms: " + ("; ".join(f"{f.type} {fmt(f.axis, 3)}" for f in s.freedoms) or "none"),
+            "platform freedoms: " + ("; ".join(map(_freedom, s.freedoms)) or "none"),
+            (f"end-effector point: {s.point_translations} translation(s)"
+             + (f" {'; '.join(fmt(a, 3) for a in s.point_axes)}" if s.point_axes else "")),
         ]
         if rep.notes:
             parts += ["", "notes:"] + [f"  - {note}" for note in rep.notes]

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
-    scene = viz.Scene(live=not args.export)
+    scene = viz.Scene(live=not args.export, skeleton=args.skeleton)
     try:
         if kind in ("p2us", "delta"):
             if args.guide is not None:

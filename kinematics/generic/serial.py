@@ -111,3 +111,29 @@ def frame_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None) -> np.
 def task_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None, task: Task = "auto") -> np.ndarray:
     """The rows of `frame_jacobian` that make up `task` (see `task_rows`)."""
     return frame_jacobian(robot, q, frame)[list(task_rows(robot, task))]
+
+
+DEFAULT_LENGTH = 1.0
+"""`length_scale` of a model whose key points all coincide (e.g. one revolute with its tool at
+the joint origin) [m]: any positive length serves, there being no size to compare with."""
+
+
+def key_points(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """World positions [m] (n, 3) at configuration q of every joint origin, then every loop-closure
+    frame (both of each pair) and the tool (end-effector) frame."""
+    model = robot.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    frames = [robot.frame_id(n) for c in (robot.loops.closures if robot.loops else ()) for n in (c.frame1, c.frame2)]
+    frames.append(robot.frame_id())
+    points = [data.oMi[j].translation for j in range(1, model.njoints)] + [data.oMf[f].translation for f in frames]
+    return np.array(points, dtype=float).reshape(-1, 3)
+
+
+def length_scale(robot: Robot, q: np.ndarray) -> float:
+    """The model's size at configuration q [m]: the diagonal of the axis-aligned bounding box of
+    its `key_points` (DEFAULT_LENGTH if that is 0). Origin-independent, so tolerances relative to
+    it do not change when a robot is placed elsewhere in the world."""
+    p = key_points(robot, q)
+    size = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0)))
+    return size if size > 0 else DEFAULT_LENGTH

@@ -23,6 +23,7 @@ import base64
 import html as html_lib
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -105,12 +106,16 @@ class Scene:
     Args:
         live: start meshcat's server (print `url`, keep the process alive while viewing);
             default records in memory for `html()` / `export()`.
+        skeleton: draw every robot's kinematic skeleton, not only those whose visuals are missing.
     """
 
-    def __init__(self, live: bool = False) -> None:
+    def __init__(self, live: bool = False, skeleton: bool = False) -> None:
         import meshcat
 
         self.live = live
+        self.skeleton = skeleton
+        """Draw every robot's kinematic skeleton (`add_skeleton`) over its visuals; without it the
+        skeleton is drawn only for a robot with visuals missing or none at all."""
         self._proc = None
         if live:
             import contextlib
@@ -125,6 +130,8 @@ class Scene:
             self.vis = meshcat.Visualizer(window=self._window)
         self.robots: dict[str, Any] = {}
         self.configurations: dict[str, np.ndarray] = {}
+        self.skeletons: dict[str, Skeleton] = {}
+        """Robot name -> the skeleton drawn for it (`add_skeleton`)."""
         self.skipped: list[str] = []
         """Visuals not drawn (missing mesh files), one line each."""
         self.warnings: list[str] = []
@@ -238,7 +245,9 @@ class Scene:
                   colour: Sequence[float] | None = None) -> Any:
         """Draw `robot` (a `kinematics.model.robot.Robot`) at configuration q from its URDF visuals, in
         the URDF's material colours (or one `colour`). Visuals whose mesh file is missing are left
-        out (listed in `skipped` and `warnings`); the primitives that exist are drawn."""
+        out (listed in `skipped` and `warnings`); the primitives that exist are drawn, and so is the
+        robot's kinematic skeleton (`add_skeleton`), as for a URDF with no visuals at all or a
+        scene made with `skeleton=True`."""
         import pinocchio as pin
         from pinocchio.visualize import MeshcatVisualizer
 
@@ -246,7 +255,10 @@ class Scene:
         visual, skipped = visual_model(robot)
         if skipped:
             self.skipped += skipped
-            self.warnings.append(f"{name}: {len(skipped)} visual(s) not drawn, mesh file missing")
+            self.warnings.append(f"{name}: {len(skipped)} visual(s) not drawn, mesh file missing; "
+                                 "its kinematic skeleton is drawn instead")
+        elif not visual.ngeoms and not self.skeleton:
+            self.warnings.append(f"{name}: the URDF has no visuals; its kinematic skeleton is drawn instead")
         if colour is not None:
             for g in visual.geometryObjects:
                 g.meshColor = np.array([*colour[:3], 1.0])
@@ -259,7 +271,55 @@ class Scene:
         self.robots[name] = viz
         self.configurations[name] = qa.copy()
         self._include(_corners(visual, viz.visual_data))
+        if self.skeleton or skipped or not visual.ngeoms:
+            self.add_skeleton(robot, qa, name)
         return viz
+
+    def add_skeleton(self, robot: Any, q: np.ndarray, name: str | None = None) -> Skeleton:
+        """Draw what the kinematics knows of `robot` at configuration q, under `<name>_skeleton`:
+        each link as a thin rod from its joint's origin to its child joints' origins and to its
+        loop-closure and end-effector frames (`links/`), each joint at its origin along its axis,
+        a short cylinder if revolute, an arrow if prismatic (`joints/`), each closure frame as a
+        ball (`closures/`, both frames of a pair the same colour: apart where a loop is open) and
+        the end effector as a larger ball. Sizes are fractions of the model's length scale L
+        (SKELETON_SIZE); every object's transform puts it exactly (float64) where Pinocchio has
+        the joint or frame."""
+        import meshcat.geometry as mg
+
+        name = name or robot.name
+        sk = skeleton(robot, q)
+        L = sk.length
+        root = self.vis[f"{name}_skeleton"]
+        material = {key: mg.MeshLambertMaterial(color=_hex(rgb)) for key, (rgb, _) in SKELETON_STYLE.items()}
+        for path, matrix in skeleton_transforms(sk).items():
+            kind = path.split("/", 1)[0]
+            node = root[path]
+            if kind == "links":
+                ground = path.split("_", 1)[1].startswith("world->")
+                node.set_object(mg.Cylinder(1.0, SKELETON_SIZE["link"] * L), material["ground" if ground else "link"])
+            elif kind == "joints" and sk.joint(path).kind == "revolute":
+                node.set_object(mg.Cylinder(SKELETON_SIZE["joint_length"] * L, SKELETON_SIZE["joint_radius"] * L),
+                                material["revolute"])
+            elif kind == "joints":  # an arrow along +axis: shaft and head, in the joint's node
+                shaft, head = SKELETON_SIZE["arrow_length"] * L, SKELETON_SIZE["arrow_head"] * L
+                node["shaft"].set_object(mg.Cylinder(shaft, SKELETON_SIZE["joint_radius"] * L / 2), material["prismatic"])
+                node["shaft"].set_transform(_translation(0.0, shaft / 2, 0.0))
+                node["head"].set_object(mg.Cylinder(head, radiusTop=0.0, radiusBottom=SKELETON_SIZE["joint_radius"] * L),
+                                        material["prismatic"])
+                node["head"].set_transform(_translation(0.0, shaft + head / 2, 0.0))
+            elif kind == "closures":
+                node.set_object(mg.Sphere(SKELETON_SIZE["closure"] * L), material["closure"])
+            else:
+                node.set_object(mg.Sphere(SKELETON_SIZE["end_effector"] * L), material["end_effector"])
+            node.set_transform(matrix)
+        self.skeletons[name] = sk
+        self._include(sk.points())
+        grounded = [label.startswith("world->") for label, _, _ in sk.segments]
+        used = {"ground": any(grounded), "link": not all(grounded), "revolute": any(j.kind == "revolute" for j in sk.joints),
+                "prismatic": any(j.kind == "prismatic" for j in sk.joints), "closure": bool(sk.closures),
+                "end_effector": True}
+        self.legend += [(f"skeleton: {label}", _css(rgb)) for key, (rgb, label) in SKELETON_STYLE.items() if used[key]]
+        return sk
 
     def animate(self, name: str, qs: np.ndarray, fps: float = 30.0, trace: np.ndarray | None = None) -> None:
         """Animate robot `name` through configurations qs (one per frame); optional tool trace."""
@@ -273,6 +333,10 @@ class Scene:
                 with anim.at_frame(self.vis, k) as frame:
                     viz.viewer = frame
                     viz.display(q)
+                    if name in self.skeletons:  # the skeleton moves with the robot
+                        sk = skeleton(self.skeletons[name].robot, q)
+                        for path, matrix in skeleton_transforms(sk).items():
+                            frame[f"{name}_skeleton/{path}"].set_transform(matrix)
         finally:
             viz.viewer = saved
         if trace is not None:
@@ -527,6 +591,156 @@ def _hex(rgb: Sequence[float]) -> int:
     return (r << 16) | (g << 8) | b
 
 
+# -- skeletons ------------------------------------------------------------------------------------
+SKELETON_SIZE = {
+    "link": 0.005,  # rod radius
+    "joint_length": 0.08,  # revolute cylinder, along the axis
+    "joint_radius": 0.015,
+    "arrow_length": 0.10,  # prismatic arrow's shaft
+    "arrow_head": 0.04,
+    "closure": 0.02,  # ball radius
+    "end_effector": 0.03,
+}
+"""Skeleton sizes as fractions of the model's length scale L (`generic.serial.length_scale`, the
+diagonal of the bounding box of its joints and frames): robot_delta (L = 0.11 m) gets 0.55 mm rods,
+9 mm joint cylinders, 3.3 mm end-effector ball -- rods a few pixels wide, joints distinct where
+they sit 0.01 m apart."""
+
+SKELETON_STYLE: dict[str, tuple[tuple[float, float, float], str]] = {
+    "ground": ((0.62, 0.62, 0.68), "ground link (world origin to the root joints)"),
+    "link": ((0.25, 0.25, 0.30), "links"),
+    "revolute": ((0.95, 0.55, 0.10), "revolute joints (along the axis)"),
+    "prismatic": ((0.15, 0.45, 0.85), "prismatic joints (arrow along the axis)"),
+    "closure": ((0.80, 0.10, 0.60), "loop-closure frames"),
+    "end_effector": ((0.10, 0.65, 0.25), "end effector"),
+}
+"""Skeleton part -> (RGB, legend label)."""
+
+_SEGMENT_MIN = 1e-9
+"""A link segment shorter than this fraction of L is not drawn (a U or S joint's cross: its joint
+origins coincide); a zero-length rod has no direction to draw."""
+
+
+@dataclass(frozen=True, eq=False)
+class SkeletonJoint:
+    """A joint of the skeleton: name, "revolute" or "prismatic", world origin [m] and unit axis."""
+
+    name: str
+    kind: str
+    origin: np.ndarray
+    axis: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Skeleton:
+    """What the kinematics knows of a robot at one configuration, for drawing.
+
+    Attributes:
+        robot: the robot.
+        joints: every joint, in model order.
+        segments: (label "parent->child", start, end) [m]: from each body's joint origin to its
+            child joints' origins and to its closure / end-effector frames (zero-length ones left out).
+        closures: (closure name, frame1 position, frame2 position) [m].
+        end_effector: the end-effector frame's position [m].
+        length: the model's length scale L [m].
+    """
+
+    robot: Any
+    joints: tuple[SkeletonJoint, ...]
+    segments: tuple[tuple[str, np.ndarray, np.ndarray], ...]
+    closures: tuple[tuple[str, np.ndarray, np.ndarray], ...]
+    end_effector: np.ndarray
+    length: float
+
+    def joint(self, path: str) -> SkeletonJoint:
+        """The joint drawn at node path `joints/<k>_<name>`."""
+        return self.joints[int(path.split("/", 1)[1].split("_", 1)[0])]
+
+    def points(self) -> np.ndarray:
+        """Every point of the skeleton [m] (n, 3)."""
+        pts = [j.origin for j in self.joints] + [p for _, a, b in self.segments for p in (a, b)]
+        pts += [p for _, a, b in self.closures for p in (a, b)] + [self.end_effector]
+        return np.array(pts, dtype=float).reshape(-1, 3)
+
+
+def skeleton(robot: Any, q: np.ndarray) -> Skeleton:
+    """The skeleton of `robot` at Pinocchio configuration q (see `Scene.add_skeleton`). A joint's
+    axis is its motion's world direction: the angular part of its Jacobian column for a revolute
+    joint, the linear part for a prismatic one."""
+    import pinocchio as pin
+
+    from kinematics.generic.serial import length_scale
+    from kinematics.model.robot import matrix
+
+    model = robot.model
+    data = model.createData()
+    q = np.asarray(q, dtype=float)
+    pin.computeJointJacobians(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    L = length_scale(robot, q)
+    joints = []
+    for jid in range(1, model.njoints):
+        col = matrix(pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED), model.nv)[:, model.joints[jid].idx_v]
+        revolute = bool(np.linalg.norm(col[3:]) > 0)
+        axis = col[3:] if revolute else col[:3]
+        joints.append(SkeletonJoint(model.names[jid], "revolute" if revolute else "prismatic",
+                                    data.oMi[jid].translation.copy(), axis / np.linalg.norm(axis)))
+    origin = [np.zeros(3)] + [j.origin for j in joints]  # body b's joint origin (0: the world's)
+    frames = [(c.name, robot.frame_id(c.frame1), robot.frame_id(c.frame2)) for c in
+              (robot.loops.closures if robot.loops is not None else ())]
+    ee = robot.frame_id()
+    ends: list[tuple[int, str, np.ndarray]] = [(int(model.parents[j]), model.names[j], origin[j])
+                                               for j in range(1, model.njoints)]
+    for fid in sorted({f for _, a, b in frames for f in (a, b)} | {ee}):
+        ends.append((int(model.frames[fid].parentJoint), model.frames[fid].name, data.oMf[fid].translation.copy()))
+    parent_name = ["world"] + list(model.names)[1:]
+    segments = tuple((f"{parent_name[b]}->{label}", origin[b], end) for b, label, end in ends
+                     if np.linalg.norm(end - origin[b]) > _SEGMENT_MIN * L)
+    closures = tuple((n, data.oMf[a].translation.copy(), data.oMf[b].translation.copy()) for n, a, b in frames)
+    return Skeleton(robot, tuple(joints), segments, closures, data.oMf[ee].translation.copy(), L)
+
+
+def skeleton_transforms(sk: Skeleton) -> dict[str, np.ndarray]:
+    """Node path (under `<robot>_skeleton/`) -> 4 x 4 world transform of every skeleton object.
+
+    Joints: the joint's origin, local y (meshcat's cylinder axis) along the joint's axis. Links: a
+    cylinder of height 1 scaled along y to the segment, centred on it, so that local (0, -1/2, 0)
+    and (0, 1/2, 0) land on its ends. Balls: their frames' positions."""
+    out: dict[str, np.ndarray] = {}
+    for k, j in enumerate(sk.joints):
+        out[f"joints/{k}_{_node_name(j.name)}"] = _along_y(j.axis, j.origin)
+    for k, (label, a, b) in enumerate(sk.segments):
+        out[f"links/{k}_{_node_name(label)}"] = _along_y(b - a, (a + b) / 2)
+    for name, a, b in sk.closures:
+        out[f"closures/{_node_name(name)}_1"] = _translation(*a)
+        out[f"closures/{_node_name(name)}_2"] = _translation(*b)
+    out["end_effector"] = _translation(*sk.end_effector)
+    return out
+
+
+def _node_name(name: str) -> str:
+    return name.replace("/", "_")
+
+
+def _translation(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def _along_y(d: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """A transform taking local y to the vector d (its length a scale along y) and the local x, z
+    to unit vectors normal to it (right-handed), with its origin at `at`."""
+    y = np.asarray(d, dtype=float)
+    u = y / np.linalg.norm(y)
+    e = np.eye(3)[int(np.argmin(np.abs(u)))]  # the world axis least along d
+    x = np.cross(u, e)
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, np.cross(x, u), at
+    return T
+
+
 # -- ready-made views -------------------------------------------------------------------------------
 NEAR_SINGULAR = 1e-2
 """A pose is flagged "at or near a singularity" when r_min < NEAR_SINGULAR * r_max: the ellipse
@@ -693,8 +907,10 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspa
 
     scene = scene or Scene()
     loop = ClosedLoop(robot)
-    q = loop.reference if actuators is None else loop.solve(np.asarray(actuators, dtype=float)).q
+    q, note = closed_loop_pose(robot, loop, actuators)
     scene.add_robot(robot, q)
+    scene.warnings += [note] if note else []
+    _check_closed(scene, robot, loop, q)
     if workspace or singularities:
         import pinocchio as pin
 
@@ -706,8 +922,68 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspa
         if mech.task_dim == 2:  # look down on a planar workspace
             scene.fit_camera(direction=(0.4, -0.6, 1.0))
             return scene
-    scene.fit_camera()
+    scene.fit_camera(direction=_facing(robot, q) if robot.name in scene.skeletons else (1.0, -1.4, 0.9))
     return scene
+
+
+def _facing(robot: Any, q: np.ndarray) -> tuple[float, float, float]:
+    """A camera direction for a skeleton: a planar mechanism seen from in front of its plane
+    (along the normal, turned 22 deg sideways and 17 deg up so the joints' cylinders show as
+    cylinders); a spatial one from the usual (1, -1.4, 0.9)."""
+    from kinematics.generic.serial import common_axis
+
+    n = common_axis(robot.model, q)
+    if n is None:
+        return (1.0, -1.4, 0.9)
+    z = np.array([0.0, 0.0, 1.0])
+    if abs(n[2]) > 0.9:  # a horizontal plane: from above
+        return (0.4, -0.6, 1.0)
+    side = np.cross(z, n)
+    d = n - 0.4 * side / np.linalg.norm(side) + 0.3 * z
+    return (float(d[0]), float(d[1]), float(d[2]))
+
+
+def closed_loop_pose(robot: Any, loop: Any, actuators: np.ndarray | None) -> tuple[np.ndarray, str | None]:
+    """The configuration a closed-loop model is drawn at, and what the reader must know about it.
+
+    The single place the view's pose is chosen: assembled from `actuators` [rad or m] (the loops
+    closed with them held; `ClosedLoop.solve(..., fallback=True)`), else `ClosedLoop.assembly`,
+    the sidecar's reference closed by `kinematics.generic.assembly.assemble` where it is open (the
+    neutral pose where the sidecar names none, e.g. a Gepetto `robot.yaml`: most Gepetto models
+    are exported open at q = 0). Where no closed pose is found the start is drawn, open.
+
+    Returns:
+        (Pinocchio configuration, a warning or None).
+    """
+    from kinematics.generic.assembly import AssemblyError
+
+    if actuators is not None:
+        return np.asarray(loop.solve(np.asarray(actuators, dtype=float), fallback=True).q), None
+    try:
+        found = loop.assembly
+    except AssemblyError as exc:
+        values = np.zeros(robot.nv)
+        for name, value in loop.spec.reference.items():
+            values[robot.joint_names.index(name)] = value
+        where = "its sidecar's reference" if loop.spec.reference else "the neutral pose (q = 0)"
+        return robot.configuration(values), f"{robot.name}: no closed pose found ({exc}); drawn open at {where}"
+    note = f"{robot.name}: drawn at {found.description}" if found.found else None
+    return np.asarray(found.q), note
+
+
+OPEN_LOOP_RTOL = 1e-6
+"""A drawn closed-loop pose is flagged as open when its largest closure error exceeds this
+fraction of the model's length scale: above what a hand-typed reference (6-8 digits) leaves,
+far below the assemblies' 1e-10 (`generic.assembly.TOLERANCE`)."""
+
+
+def _check_closed(scene: Scene, robot: Any, loop: Any, q: np.ndarray) -> None:
+    from kinematics.generic.serial import length_scale
+
+    gap = float(np.abs(loop.residual(q)[0]).max()) if loop.n_constraints else 0.0
+    if gap > OPEN_LOOP_RTOL * length_scale(robot, q):
+        scene.warnings.append(f"{robot.name}: the loops are not closed at the drawn pose (largest closure error "
+                              f"{gap:.3g} m or rad)")
 
 
 def _embed(mech: Any, points: np.ndarray, at: np.ndarray) -> np.ndarray:
