@@ -1,4 +1,4 @@
-"""Shared fixtures: loaded robots are cached per session (loading parses XML)."""
+"""Shared fixtures (loaded robots are cached per session: loading parses XML) and test helpers."""
 
 from __future__ import annotations
 
@@ -6,6 +6,12 @@ import numpy as np
 import pytest
 
 from kinematics.model.robot import Robot, load_robot
+
+# The commands of the command line, written out by hand from the README's quick tour and the pages of
+# docs/design.md (usable-workspace, dexterity, synthesize, workspace-mesh), not read
+# from the parser that the CLI tests check.
+COMMANDS = ("info", "fk", "ik", "jacobian", "manipulability", "mobility", "workspace-volume", "singularities",
+            "sweep", "usable-workspace", "dexterity", "synthesize", "workspace-mesh", "guide", "show", "urdf")
 
 
 @pytest.fixture(scope="session")

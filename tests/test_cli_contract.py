@@ -5,6 +5,7 @@ before any work; stdout closed early, a full disk and Ctrl-C end quietly."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -14,6 +15,8 @@ from pathlib import Path
 import pytest
 
 from kinematics.cli.app import main
+
+from .conftest import COMMANDS
 
 MODELS = Path(__file__).parent / "models"
 FOURBAR = str(MODELS / "fourbar.urdf")
@@ -28,20 +31,38 @@ URDF = ["urdf", "p2us", "-o", "d.urdf"]
 NUMBER = "expected a number"
 FINITE = "must be finite"
 POSITIVE = "must be positive"
-CASES: list[tuple[list[str], str]] = [
+# What a message must say, written out from the robots' files (not from the code under test): the
+# joints of urdf/scara.urdf and of example-robot-data's UR5, the eight working-mode labels of the
+# parallel robots (one sign per limb) and the SCARA's two elbows.
+SCARA_DOF = "scara has 2 degrees of freedom (joint1, joint2), got {} value(s)"
+UR5_DOF = ("ur5 has 6 degrees of freedom (shoulder_pan_joint, shoulder_lift_joint, elbow_joint, wrist_1_joint, "
+           "wrist_2_joint, wrist_3_joint), got {} value(s)")
+MODES8 = "valid: +++, ++-, +-+, +--, -++, -+-, --+, ---"
+ELBOWS = "valid: up, down"
+
+
+def unknown_mode(label: str, valid: str = MODES8) -> tuple[str, str]:
+    """The needles of an unknown working mode: the label given and every valid one."""
+    return f"unknown mode {label!r}", valid
+
+
+# A needle is a text, or a tuple of texts, that the one error line must contain.
+CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     # the command itself
     (["nosuchcommand"], "invalid choice"),
     (["--bogus"], "unrecognized arguments"),
     (["info"], "required: ROBOT"),
     (["info", "nosuchbot"], "unknown robot"),
     (["info", "nodir/x.urdf"], "no such file"),
-    (["info", "adir"], "adir"),
+    (["info", "adir"], "adir: a folder with no .urdf file in it"),
     (["info", "scara", "--frame", "x"], "unrecognized arguments"),
+    (["info", "scara", "--range", "joint1=1:0"], "expected JOINT=LO:HI with finite LO < HI, got 'joint1=1:0'"),
+    (["info", "scara", "--range", "nojoint=0:1"], ("unknown joint 'nojoint'", "valid: joint1, joint2")),
     # fk
     (["fk", "scara"], "needs joint values"),
     (["fk", "scara", "--q"], "expected at least one argument"),
-    (["fk", "scara", "--q", "0"], "2"),
-    (["fk", "scara", "--q", "0", "0", "0"], "2"),
+    (["fk", "scara", "--q", "0"], SCARA_DOF.format(1)),
+    (["fk", "scara", "--q", "0", "0", "0"], SCARA_DOF.format(3)),
     (["fk", "scara", "--q", "zero", "0"], NUMBER),
     (["fk", "scara", "--q", "nan", "0"], FINITE),
     (["fk", "scara", "--q", "inf", "0"], FINITE),
@@ -57,7 +78,7 @@ CASES: list[tuple[list[str], str]] = [
     (["fk", "p2us", "--q", "0.3", "nan", "0.2"], FINITE),
     (["fk", "p2us", "--q", "1e308", "0.2", "0.2"], FINITE),
     (["fk", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
-    (["fk", "ur5", "--q", "0", "0"], "6"),
+    (["fk", "ur5", "--q", "0", "0"], UR5_DOF.format(2)),
     # ik
     (["ik", "scara"], "required: --position"),
     (["ik", "scara", "--position", "0.1"], "give X Y"),
@@ -73,29 +94,29 @@ CASES: list[tuple[list[str], str]] = [
     (["ik", "nodir/x.urdf", "--position", "0", "0"], "no such file"),
     # jacobian
     (["jacobian", "scara"], "needs joint values"),
-    (["jacobian", "scara", "--q", "0"], "2"),
+    (["jacobian", "scara", "--q", "0"], SCARA_DOF.format(1)),
     (["jacobian", "scara", "--q", "0", "nan"], FINITE),
     (["jacobian", "scara", "--q", "0", "0", "--task", "bogus"], "invalid choice"),
     (["jacobian", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
-    (["jacobian", "ur5", "--q", "0", "0", "0"], "6"),
+    (["jacobian", "ur5", "--q", "0", "0", "0"], UR5_DOF.format(3)),
     (["jacobian", "p2us"], "X Y Z"),
     (["jacobian", "p2us", "--position", "0", "0"], "expected 3 arguments"),
     (["jacobian", "p2us", "--position", "0", "0", "nan"], FINITE),
     (["jacobian", "p2us", "--position", "0", "0", "1e308"], FINITE),
-    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], "unknown mode"),
-    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "++"], "unknown mode"),
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "++"], unknown_mode("++")),
     (["jacobian", "p2us", "--q", "0.3", "0.3", "0.3"], "--position"),
     (["jacobian", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
     # manipulability
     (["manipulability", "scara"], "required: --q"),
-    (["manipulability", "scara", "--q", "0"], "2"),
+    (["manipulability", "scara", "--q", "0"], SCARA_DOF.format(1)),
     (["manipulability", "scara", "--q", "0", "inf"], FINITE),
     (["manipulability", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
     (["manipulability", "p2us", "--q", *["0"] * 18], "serial robot"),
     (["manipulability", "nosuchbot", "--q", "0"], "unknown robot"),
     # mobility
     (["mobility", "nosuchbot"], "unknown robot"),
-    (["mobility", "scara", "--q", "0"], "2"),
+    (["mobility", "scara", "--q", "0"], SCARA_DOF.format(1)),
     (["mobility", "scara", "--q", "0", "nan"], FINITE),
     (["mobility", "scara", "--position", "0", "0", "0"], "serial"),
     (["mobility", "p2us", "--q", "0.3"], "3 actuated"),
@@ -103,12 +124,12 @@ CASES: list[tuple[list[str], str]] = [
     (["mobility", "p2us", "--position", "0", "0", "nan"], FINITE),
     (["mobility", "p2us", "--position", "1e308", "1e308", "1e308"], FINITE),
     (["mobility", "p2us", "--position", "0", "0", "-0.45", "--q", "0.2", "0.2", "0.2"], "not both"),
-    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], "unknown mode"),
-    (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], "unknown mode"),
+    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
+    (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], unknown_mode("zzz")),
     # workspace-volume
     (["workspace-volume", "nosuchbot"], "unknown robot"),
     (["workspace-volume", str(MODELS / "rssr.urdf")], "1-dimensional"),
-    (["workspace-volume", "delta", "--modes", "+0+"], "+0+"),
+    (["workspace-volume", "delta", "--modes", "+0+"], unknown_mode("+0+")),
     (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
     (["workspace-volume", "ur5", "--max-points", "10"], "at least 1000"),
     (["workspace-volume", "ur5", "--max-points", "1e12"], "over the 200,000,000 limit"),
@@ -127,9 +148,9 @@ CASES: list[tuple[list[str], str]] = [
     (["workspace-volume", "p2us", "--step", "x"], NUMBER),
     (["workspace-volume", "p2us", "--step", "1e-9"], "over the 200,000,000 limit"),
     (["workspace-volume", "scara", "--step", "1e-7"], "over the 200,000,000 limit"),
-    (["workspace-volume", "p2us", "--modes", "zzz"], "unknown mode"),
-    (["workspace-volume", "p2us", "--modes", "+++", "up"], "unknown mode"),
-    (["workspace-volume", "scara", "--modes", "zzz"], "unknown mode"),
+    (["workspace-volume", "p2us", "--modes", "zzz"], unknown_mode("zzz")),
+    (["workspace-volume", "p2us", "--modes", "+++", "up"], unknown_mode("up")),
+    (["workspace-volume", "scara", "--modes", "zzz"], unknown_mode("zzz", ELBOWS)),
     (["workspace-volume", "p2us", "--limits", "some"], "invalid choice"),
     (["workspace-volume", "p2us", "--rtol", "-1"], POSITIVE),
     (["workspace-volume", "p2us", "--rtol", "nan"], POSITIVE),
@@ -153,7 +174,7 @@ CASES: list[tuple[list[str], str]] = [
     (["singularities", "ur5", "--modes", "+++"], "working modes"),
     (["singularities", "p2us", "--step", "0"], POSITIVE),
     (["singularities", "p2us", "--step", "1e-9"], "over the 200,000,000 limit"),
-    (["singularities", "p2us", "--modes", "zzz"], "unknown mode"),
+    (["singularities", "p2us", "--modes", "zzz"], unknown_mode("zzz")),
     (["singularities", "p2us", "--limits", "x"], "invalid choice"),
     (["singularities", "p2us", "--plot", "s.foo"], "unknown suffix"),
     (["singularities", "p2us", "--plot", "adir"], "is a directory"),
@@ -164,7 +185,7 @@ CASES: list[tuple[list[str], str]] = [
     (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "deg"], NUMBER),
     (["singularities", "scara", "--plot", "s"], "unknown suffix"),
-    (["singularities", "scara", "--modes", "zzz"], "unknown mode"),
+    (["singularities", "scara", "--modes", "zzz"], unknown_mode("zzz", ELBOWS)),
     # sweep
     (["sweep", "p2us"], "give at least one"),
     (["sweep", "scara", "--param", "b=0.3"], "3-[P2(US)]"),
@@ -177,7 +198,7 @@ CASES: list[tuple[list[str], str]] = [
     (["sweep", "p2us", "--param", "b=0.3", "--param", "b=0.4"], "twice"),
     (["sweep", "p2us", "--param", "b=0.3:0.4:100000000"], "over the 200,000,000 limit"),
     (["sweep", "p2us", "--param", "b=0.3:0.4:1000", "--param", "d=0.02:0.03:1000"], "over the 200,000,000 limit"),
-    (["sweep", "p2us", "--param", "L=-1"], "L"),
+    (["sweep", "p2us", "--param", "L=-1"], "L: must be a positive length [m], got -1.0"),
     ([*SWEEP, "--workers", "-1"], "at least 1"),
     ([*SWEEP, "--workers", "0"], "at least 1"),
     ([*SWEEP, "--workers", "100000"], "limit"),
@@ -189,14 +210,14 @@ CASES: list[tuple[list[str], str]] = [
     ([*SWEEP, "--out", "adir"], "is a directory"),
     ([*SWEEP, "--out", "table.txt"], "unknown suffix"),
     ([*SWEEP, "--out", "nodir/t.csv"], "does not exist"),
-    ([*SWEEP, "--scheduler", "notascheme://x"], "--scheduler"),
+    ([*SWEEP, "--scheduler", "notascheme://x"], "--scheduler: cannot reach 'notascheme://x'"),
     # guide
     (["guide"], "required: --experiment"),
     (["guide", "--experiment", "4"], "invalid choice"),
     (["guide", "--experiment", "one"], "invalid int"),
     ([*EXP, "--robot", "p2us"], "planar 2R arm"),
     ([*EXP, "--robot", "nosuchbot"], "unknown robot"),
-    ([*EXP, "--robot", "ur5"], "ur5"),
+    ([*EXP, "--robot", "ur5"], "ur5: a planar 2R arm needs two revolute joints"),
     ([*EXP, "--force", "nan"], FINITE),
     ([*EXP, "--force", "1e308"], FINITE),
     ([*EXP, "--mass", "0"], POSITIVE),
@@ -227,7 +248,7 @@ CASES: list[tuple[list[str], str]] = [
     ([*SHOW, "--position", "0", "0", "nan"], FINITE),
     ([*SHOW, "--position", "1e308", "1e308", "1e308"], FINITE),
     ([*SHOW, "--position", "0", "0"], "expected 3 arguments"),
-    ([*SHOW, "--mode", "zzz", "--position", "0", "0", "-0.45"], "unknown mode"),
+    ([*SHOW, "--mode", "zzz", "--position", "0", "0", "-0.45"], unknown_mode("zzz")),
     ([*SHOW, "--guide", "4"], "invalid choice"),
     ([*SHOW, "--guide", "1"], "planar arms"),
     ([*SHOW, "--limits", "x"], "invalid choice"),
@@ -238,14 +259,14 @@ CASES: list[tuple[list[str], str]] = [
     (["show", "p2us", "--export", "v.png"], "unknown suffix"),
     (["show", "p2us", "--export", "adir"], "is a directory"),
     (["show", "p2us", "--export", "nodir/v.html"], "does not exist"),
-    (["show", "scara", "--export", "v.html", "--position", "0", "0", "0"], "--q"),
-    (["show", "scara", "--export", "v.html", "--q", "0"], "2"),
+    (["show", "scara", "--export", "v.html", "--position", "0", "0", "0"], "--position: give a serial robot's joint values with --q"),
+    (["show", "scara", "--export", "v.html", "--q", "0"], SCARA_DOF.format(1)),
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),
     (["show", "ur5", "--export", "v.html", "--guide", "1"], "planar arms"),
     (["show", "scara", "--export", "v.html", "--mesh", "nofile.stl"], "no such file"),
     (["show", "scara", "--export", "v.html", "--mesh", "m.obj"], "unknown suffix"),
-    (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], "+0+"),
+    (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], unknown_mode("+0+")),
     # urdf
     (["urdf", "p2us"], "required: -o/--output"),
     (["urdf", "scara", "-o", "d.urdf"], "invalid choice"),
@@ -253,19 +274,24 @@ CASES: list[tuple[list[str], str]] = [
     (["urdf", "p2us", "-o", "d.txt"], "unknown suffix"),
     (["urdf", "p2us", "-o", "nodir/d.urdf"], "does not exist"),
     ([*URDF, "--b", "nan"], FINITE),
-    ([*URDF, "--b", "-1"], "b"),
-    ([*URDF, "--d", "0"], "d"),
+    ([*URDF, "--b", "-1"], "b: must be a positive length [m], got -1.0"),
+    ([*URDF, "--d", "0"], "d: must be a positive length [m], got 0.0"),
     ([*URDF, "--L", "-1"], "positive length"),
     ([*URDF, "--L", "1e308"], FINITE),
     ([*URDF, "--beta", "x"], NUMBER),
     ([*URDF, "--alpha", "0", "120"], "expected 3 arguments"),
-    ([*URDF, "--stroke", "0.6", "0.1"], "stroke"),
+    ([*URDF, "--stroke", "0.6", "0.1"], ("stroke: need finite lower < upper", "got (0.6, 0.1)")),
     ([*URDF, "--stroke", "0.1"], "expected 2 arguments"),
     ([*URDF, "--theta", "nan", "1"], FINITE),
-    ([*URDF, "--phi", "1", "-1"], "phi"),
+    ([*URDF, "--phi", "1", "-1"], ("phi_limits: need finite lower < upper", "got (1.0, -1.0)")),
     ([*URDF, "--theta-zero", "inf"], FINITE),
-    ([*URDF, "--rod-spacing", "-0.05"], "rod"),
-    (["urdf", "delta", "-o", "d.urdf", "--forearm", "-1"], "positive length"),
+    ([*URDF, "--rod-spacing", "-0.05"], "rod_spacing: must be a positive length [m], got -0.05"),
+    (["urdf", "delta", "-o", "d.urdf", "--forearm", "-1"], "lb: must be a positive length [m], got -1.0"),
+    (["urdf", "delta", "-o", "d.urdf", "--upper-arm", "-1"], "la: must be a positive length [m], got -1.0"),
+    (["urdf", "delta", "-o", "d.urdf", "--cone", "95", "--degrees"], ("cone half-angle must be within (0, 90) degrees",
+                                                                      "got 95.0")),
+    (["urdf", "delta", "-o", "d.urdf", "--elbow-socket", "200", "--degrees"], ("within (-180, 180] degrees", "got 200.0")),
+    (["urdf", "delta", "-o", "d.urdf", "--platform-socket", "90", "--degrees"], ("within [0, 90) degrees", "got 90.0")),
     (["urdf", "delta", "-o", "d.urdf", "--L", "0.3"], "p2us only"),
     (["urdf", "delta", "-o", "d.urdf", "--design", "results"], "p2us only"),
     # usable-workspace and workspace-mesh
@@ -273,7 +299,7 @@ CASES: list[tuple[list[str], str]] = [
     (["usable-workspace", "p2us", "--shape", "cone"], "invalid choice"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5"], ">= 1"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "nan"], POSITIVE),
-    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], "unknown mode"),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz")),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
     (["usable-workspace", "scara", "--shape", "cube"], "spatial task space"),
@@ -283,23 +309,23 @@ CASES: list[tuple[list[str], str]] = [
     (["workspace-mesh", "p2us", "-o", "nodir/m.stl"], "does not exist"),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "-1"], POSITIVE),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "1e-9"], "200,000,000"),
-    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], "unknown mode"),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz")),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--limits", "none"], "invalid choice"),
     # dexterity
     (["dexterity", "nosuchbot"], "unknown robot"),
-    (["dexterity", "scara", "--mode", "zzz"], "unknown mode"),
-    (["dexterity", "delta", "--mode", "up"], "unknown mode"),
+    (["dexterity", "scara", "--mode", "zzz"], unknown_mode("zzz", ELBOWS)),
+    (["dexterity", "delta", "--mode", "up"], unknown_mode("up")),
     (["dexterity", "scara", "--samples", "0"], "at least 16"),
     (["dexterity", "scara", "--samples", "1e6"], "expected a whole number"),
     (["dexterity", "scara", "--samples", "100000000000"], "at most"),
-    (["dexterity", "scara", "--replicates", "1"], "replicates"),
+    (["dexterity", "scara", "--replicates", "1"], "need at least 2 independent replicates for an error bar, got 1"),
     (["dexterity", "scara", "--seed", "x"], "expected a whole number"),
-    (["dexterity", "scara", "--limits", "actuators"], "actuators"),
+    (["dexterity", "scara", "--limits", "actuators"], ("unknown choice 'actuators'", "valid: all")),
     (["dexterity", "scara", "--step", "0"], POSITIVE),
     (["dexterity", "scara", "--plot", "k.foo"], "unknown suffix"),
     (["dexterity", "scara", "--export", "k.png"], "unknown suffix"),
     (["dexterity", "scara", "--export", "nodir/k.html"], "does not exist"),
-    (["dexterity", "ur5"], "ur5"),
+    (["dexterity", "ur5"], ("ur5: dexterity over the workspace needs its mechanism's ik", "(it provides: fk, velocity)")),
     # synthesize
     (["synthesize", "p2us"], "give at least one"),
     (["synthesize", "scara", "--param", "b=0.3:0.4"], "3-[P2(US)]"),
@@ -312,7 +338,7 @@ CASES: list[tuple[list[str], str]] = [
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "2"], ">= 4"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--generations", "0"], "generations >= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "100000"], "limit"),
-    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], "unknown mode"),
+    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz")),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--kappa-max", "0.5"], ">= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--cube-cells", "1"], "cube_cells"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--gci-samples", "4"], "at least 16"),
@@ -337,9 +363,23 @@ def _listing(root: Path) -> set[str]:
     return {str(p.relative_to(root)) for p in root.rglob("*")}
 
 
-def test_enough_cases():
-    assert len(CASES) >= 150
-    assert len({tuple(a) for a, _ in CASES}) == len(CASES)  # no case counted twice
+def _options_with_values(capsys, command: str) -> set[str]:
+    """The options of `kinematics COMMAND --help`'s usage that take a value (`--opt METAVAR`)."""
+    assert main([command, "--help"]) == 0
+    usage = capsys.readouterr().out.split("\n\n")[0]
+    return set(re.findall(r"(?<![\w-])(--?[a-z][\w-]*) [A-Z{]", usage))
+
+
+def test_every_command_and_every_option_with_a_value_has_a_case(capsys):
+    """The table covers what its comment says: every command, and every option that takes a value
+    (an option shared by several commands, such as --range, at least once), with no case twice."""
+    assert len({tuple(a) for a, _ in CASES}) == len(CASES)
+    for command in COMMANDS:
+        argvs = [a for a, _ in CASES if a[0] == command]
+        assert argvs, f"no case for {command}"
+    given = {arg for a, _ in CASES for arg in a}
+    missing = {(c, o) for c in COMMANDS for o in _options_with_values(capsys, c) if o not in given}
+    assert not missing, sorted(missing)
 
 
 @pytest.mark.parametrize(("argv", "needle"), CASES, ids=[" ".join(a)[:60] for a, _ in CASES])
@@ -349,7 +389,8 @@ def test_bad_input(argv, needle, capsys, workdir):
     out, err = capsys.readouterr()
     assert code == 2, (argv, out, err)
     assert err.count("\n") == 1 and err.endswith("\n"), err  # exactly one line
-    assert needle in err, err
+    for text in (needle,) if isinstance(needle, str) else needle:
+        assert text in err, (text, err)
     assert "Traceback" not in err and "Warning" not in err
     assert out == ""
     assert _listing(workdir) == before  # nothing written, nothing left behind

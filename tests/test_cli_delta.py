@@ -90,8 +90,8 @@ def test_urdf_generator(capsys, tmp_path):
 @pytest.mark.parametrize(("argv", "needle"), [
     (["urdf", "delta", "--L", "0.4"], "applies to p2us only"),
     (["urdf", "p2us", "--forearm", "0.4"], "applies to delta only"),
-    (["urdf", "delta", "--alpha", "0", "0", "1"], "coincide"),
-    (["urdf", "delta", "--cone", "95", "--degrees"], "cone"),
+    (["urdf", "delta", "--alpha", "0", "0", "1"], "alpha: limbs 1 and 2 coincide"),
+    (["urdf", "delta", "--cone", "95", "--degrees"], "cone half-angle must be within (0, 90) degrees; got 95.0"),
     (["urdf", "delta", "--forearm", "-1"], "positive length"),
     (["ik", "delta", "--position", "0", "0"], "X Y Z"),
     (["fk", "delta", "--q", "0.1", "0.2"], "3 actuated joints"),

@@ -132,9 +132,9 @@ def test_sweep_parsing():
 
 def test_sweep_cli_errors(capsys):
     code, _, err = run(capsys, "sweep", "p2us")
-    assert code == 2 and "--param" in err
+    assert code == 2 and "--param: give at least one" in err
     code, _, err = run(capsys, "sweep", "p2us", "--param", "L=-0.3")
-    assert code == 2 and "L" in err
+    assert code == 2 and "L: must be a positive length [m], got -0.3" in err
 
 
 def _free_port() -> int:
