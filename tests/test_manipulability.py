@@ -98,10 +98,31 @@ def test_singular_flag_is_scale_free(params):
     assert ellipsoid(tiny).singular
 
 
-def test_vectorised_shapes(params):
-    grid = np.zeros((4, 5, 2))
+def test_vectorised_over_a_grid_of_stretched_poses(params):
+    """A (4, 5) grid of stretched poses (theta2 = 0, theta1 anywhere), derived by hand: with
+    x = l1 c1 + l2 c12, y = l1 s1 + l2 s12, at theta2 = 0 J = (-s1, c1)^T (l1 + l2, l2), rank one:
+    radii 0 and sqrt((l1 + l2)^2 + l2^2), the long axis +/-(-s1, c1), the collapsed one +/-(c1, s1).
+
+    Tolerances: the closed form takes a square root of sums of the same O(1) products and the
+    cosine and sine of theta1 + pi/2 (|theta1| <= 3): a few roundings of 1.1e-16 each, so 1e-15.
+    """
+    l1, l2 = params.l1, params.l2
+    assert (l1, l2) == (0.4, 0.3)  # urdf/scara.urdf
+    t1 = np.linspace(-3.0, 3.0, 20).reshape(4, 5)
+    grid = np.stack([t1, np.zeros_like(t1)], axis=-1)
     e = sc.manipulability(params, grid)
     assert e.radii.shape == (4, 5, 2) and e.directions.shape == (4, 5, 2, 2) and e.singular.shape == (4, 5)
+    np.testing.assert_allclose(e.radii[..., 0], 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(e.radii[..., 1], np.hypot(l1 + l2, l2), rtol=1e-15)  # 0.7616 m
+    long_axis = np.stack([-np.sin(t1), np.cos(t1)], axis=-1)
+    collapsed = np.stack([np.cos(t1), np.sin(t1)], axis=-1)
+    for d, want in ((e.directions[..., 1, :], long_axis), (e.directions[..., 0, :], collapsed)):
+        # unit and parallel to the expected axis (either sign): the 2D cross product is the sine
+        # of the angle between them, first order in any error (a dot product would be second)
+        np.testing.assert_allclose(np.linalg.norm(d, axis=-1), 1.0, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(d[..., 0] * want[..., 1] - d[..., 1] * want[..., 0], 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(e.yoshikawa, 0.0, rtol=0, atol=1e-15)
+    assert e.singular.all() and np.all(e.condition_number == np.inf)
 
 
 def test_rejects_bad_jacobians():
