@@ -131,10 +131,16 @@ def test_chunks_and_threads_do_not_change_results(ur5, rng):
 
 def test_single_configuration_and_convenience_functions(ur5, rng):
     q = ur5.configuration(random_values(ur5, 1, rng)[0])
+    fid = ur5.frame_id("wrist_2_link")
     poses = batched_fk(ur5, q, "wrist_2_link")
     J = batched_jacobian(ur5, q[None], "wrist_2_link")
-    ref = pin.computeFrameJacobian(ur5.model, ur5.data, q, ur5.frame_id("wrist_2_link"), pin.LOCAL_WORLD_ALIGNED)
+    data = ur5.model.createData()
+    pin.framesForwardKinematics(ur5.model, data, q)
+    M = data.oMf[fid]
+    ref = pin.computeFrameJacobian(ur5.model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
     assert poses.position.shape == (1, 3) and J.shape == (1, 6, 6)
+    assert np.abs(poses.position[0] - M.translation).max() <= TOL
+    assert np.abs(poses.rotation[0] - M.rotation).max() <= TOL
     assert np.abs(J[0] - ref).max() <= TOL
     assert np.all(J[0][:, 5] == 0.0) and np.linalg.norm(J[0][:, 4]) > 0.5  # wrist 3 does not move it
 
