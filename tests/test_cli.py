@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from kinematics.cli.app import main
+from kinematics.model.robot import load_robot
 
 from .conftest import COMMANDS, write_2r_urdf
 
@@ -58,8 +59,20 @@ def test_fk_planar_and_spatial(capsys):
     assert code == 0 and data["position"] == pytest.approx([0.7, 0.0])
     code, deg, _ = run_json(capsys, "fk", "scara", "--q", "90", "0", "--degrees")
     assert deg["position"] == pytest.approx([0.0, 0.7], abs=1e-15)
-    code, data, _ = run_json(capsys, "fk", "ur5", "--q", "0", "0", "0", "0", "0", "0")
-    assert len(data["position"]) == 3 and len(data["rotation"]) == 3
+    q = [0.1, -1.2, 1.0, 0.3, 0.2, 0.1]
+    code, data, _ = run_json(capsys, "fk", "ur5", "--q", *map(repr, q))
+    assert code == 0 and data["frame"] == "tool0"  # the UR's flange frame
+    # Pinocchio on the same URDF, read here (six revolute joints: q is the configuration)
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(load_robot("ur5").urdf_path))
+    assert model.nq == 6
+    pose = model.createData()
+    pin.framesForwardKinematics(model, pose, np.array(q))
+    M = pose.oMf[model.getFrameId("tool0")]
+    # JSON carries repr-exact floats; the CLI and this call compose the same placements: ~1e-16
+    np.testing.assert_allclose(data["position"], M.translation, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data["rotation"], M.rotation, rtol=0, atol=1e-12)
 
 
 def test_ik_json_and_exit_codes(capsys):
