@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from kinematics.cli.app import main
+from kinematics.errors import UnknownChoiceError
 from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us import paper_b as pb
 from kinematics.mechanisms.p2us.closed_form import P2USParams
@@ -63,7 +64,7 @@ def test_convention_round_trips_through_the_sidecar(tmp_path, rng):
         # the rod-rail range is not a bound on the u_theta coordinate: the URDF leaves that joint free
         lim = 'lower="-3.1415926535897931"' if conv == "rod-rail" else f'lower="{P.theta_limits[0]!r}"'
         assert lim in urdf.read_text().split('name="u_theta_1_1"')[1].split("</joint>")[0]
-    with pytest.raises(Exception, match="choice"):
+    with pytest.raises(UnknownChoiceError, match=r"unknown choice 'azimuth'; valid: elevation, rod-rail"):
         P2USParams(theta_convention="azimuth")
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from kinematics.analyses import sweep as sw
 from kinematics.analyses.workspace import p2us_volume_monte_carlo
-from kinematics.errors import SweepError
+from kinematics.errors import InvalidInputError, SweepError
 from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, ik
 
 
@@ -80,9 +80,9 @@ def test_failing_task_is_one_error_naming_the_design(client):
 
 
 def test_sizes_checked_before_any_design():
-    with pytest.raises(Exception, match="over the 200,000,000 limit"):
+    with pytest.raises(InvalidInputError, match=r"needs 10,000,000,000 designs, over the 200,000,000 limit"):  # 1e5 x 1e5
         sw.designs(P2USParams(), [sw.Axis.parse("b=0.3:0.4:100000"), sw.Axis.parse("d=0.02:0.03:100000")])
-    with pytest.raises(Exception, match="--workers: gives 0"):
+    with pytest.raises(InvalidInputError, match="--workers: gives 0 worker processes; at least 1 is needed"):
         sw.run([sw.Axis.parse("b=0.3")], workers=0)
 
 
