@@ -341,25 +341,6 @@ def default_branch(mech: Mechanism) -> str:
 
 
 # -- the 3-[P2(US)] (kept for callers holding parameters) ---------------------------------------------
-def condition_slack(params: object, points: np.ndarray, q: np.ndarray, kappa_max: float) -> np.ndarray:
-    """1/kappa - 1/kappa_max per point (dimensionless) of the 3-[P2(US)] with actuator values q:
-    >= 0 iff kappa <= kappa_max; -1 where q is undefined (NaN) or the pose is singular."""
-    from kinematics.mechanisms.p2us.mechanism import P2US
-
-    bad = np.isnan(q).any(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        v = P2US(params).velocity(points, np.where(bad[:, None], 0.0, q))  # type: ignore[arg-type]
-    return condition_slack_of(v, ~bad, kappa_max)
-
-
-def p2us_usable_field(params: object, mode: str = "---", kappa_max: float = KAPPA_MAX,
-                      limits: str = "all") -> Field:
-    """u(p) for the 3-[P2(US)] in `mode` (a MODES label, or "union"): `usable_field` of its mechanism."""
-    from kinematics.mechanisms.p2us.mechanism import P2US
-
-    return usable_field(P2US(params), mode, kappa_max, limits)  # type: ignore[arg-type]
-
-
 def p2us_usable(params: object, shape: str, *, mode: str = "---", kappa_max: float = KAPPA_MAX,
                 step: float = 0.01, spacing: float | None = None) -> UsableShape:
     """The largest `shape` in the usable workspace of a 3-[P2(US)] (see the module doc)."""

@@ -65,9 +65,6 @@ def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all"
     return np.where(limbs.reach[..., None] & np.isfinite(out), out, np.minimum(reach, 0.0)[..., None])
 
 
-_MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in cf.MODES])  # (8, 3)
-
-
 class Delta(Mechanism):
     """Clavel's 3-RUU Delta robot of a given design."""
 

@@ -44,7 +44,6 @@ WORKING_MODE = "---"
 """The paper's accepted root on every limb (the platform below the carriages), in our labels."""
 
 _TABLE2 = "Table 2"
-_EQ30 = "eq. 30 (limits)"
 _COMMON = {
     "d": "Table 2 (platform radius; only b - d enters a translating platform's kinematics)",
     "beta": "Table 2 (rail angle)",
