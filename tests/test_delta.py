@@ -325,3 +325,6 @@ def test_invalid_parameters_rejected():
     for bad in ({"lb": -1.0}, {"R": float("nan")}, {"theta_limits": (1.0, 0.5)}, {"rod_spacing": 0.0}):
         with pytest.raises(InvalidInputError):
             P.replace(**bad)
+    # a valid change: that parameter changed, every other one kept
+    D = dl.DeltaParams(R=0.25, r=0.04)
+    assert D.replace(lb=0.7, cone=0.5) == dl.DeltaParams(R=0.25, r=0.04, lb=0.7, cone=0.5)

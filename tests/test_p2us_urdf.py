@@ -120,6 +120,10 @@ def test_invalid_designs_rejected():
     for bad in ({"L": -1.0}, {"b": float("nan")}, {"stroke": (0.6, 0.1)}, {"phi_limits": (-2.0, 2.0)}):
         with pytest.raises(InvalidInputError):
             P2USParams().replace(**bad)
+    # a valid change: that parameter changed, every other one kept
+    results = P2USParams(b=0.478, L=0.4, theta_convention="rod-rail")
+    assert results.replace(L=0.38, stroke=(0.2, 0.5)) == P2USParams(b=0.478, L=0.38, stroke=(0.2, 0.5),
+                                                                    theta_convention="rod-rail")
 
 
 @pytest.mark.parametrize(("change", "parameter"), [

@@ -46,6 +46,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import asdict, dataclass
+from dataclasses import replace as _replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -151,8 +152,8 @@ class DeltaParams:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
     def replace(self, **changes: Any) -> DeltaParams:
-        """A copy with some parameters changed (validated)."""
-        return DeltaParams(**{**asdict(self), **changes})
+        """A copy with some parameters changed (`dataclasses.replace`, validated by `__post_init__`)."""
+        return _replace(self, **changes)
 
     # Derived geometry, shape (3, 3): row i belongs to limb i.
     @functools.cached_property
