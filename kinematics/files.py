@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 OUTPUT_SUFFIXES: dict[str, tuple[str, ...]] = {
     "figure": (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff"),
@@ -38,33 +38,56 @@ def check_output(path: str, option: str, kind: str) -> None:
         raise InvalidInputError(option, f"{path!r}: directory {parent!r} is not writable")
 
 
-def write_atomic(path: str, content: str | bytes | Callable[[str], None], option: str) -> None:
+Content = str | bytes | Callable[[str], None]
+"""What `write_atomic` writes: text, bytes, or a function that writes a given path."""
+
+
+def write_atomic(path: str, content: Content, option: str) -> None:
     """Write `content` to `path` through a temporary file beside it and a rename, so no reader
     ever sees a half-written file and nothing is left behind on any failure (an interrupt
     included). `content` is text, bytes, or a function that writes a given path (the temporary
     path keeps the suffix, so suffix-driven writers such as savefig and numpy.save work). An
     OSError becomes an InvalidInputError naming the CLI `option`."""
+    write_atomic_files([(path, content)], option)
+
+
+def write_atomic_files(files: Sequence[tuple[str, Content]], option: str) -> None:
+    """Write several files as one (a URDF and its sidecar): every `(path, content)` goes to a
+    temporary file beside its target first (as in `write_atomic`), and only when all are complete
+    are they renamed over their targets. A failure while writing any of them (a writer raising, a
+    full disk, an interrupt) leaves every target as it was and no temporary file behind. A target
+    that is a directory is refused before anything is written, the one way a rename in the same
+    directory fails after another succeeded. An OSError becomes an InvalidInputError naming `option`."""
     import os
     import secrets
 
     from kinematics.errors import InvalidInputError
 
-    parent, name = os.path.split(path)
-    ext = os.path.splitext(name)[1]
-    tmp = os.path.join(parent, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp{ext}")
+    for path, _ in files:
+        if os.path.isdir(path):
+            raise InvalidInputError(option, f"cannot write {path}: it is a directory")
+    tmps: list[str] = []
+    path = ""
     try:
-        if callable(content):
-            content(tmp)
-        elif isinstance(content, bytes):
-            with open(tmp, "xb") as fb:
-                fb.write(content)
-        else:
-            with open(tmp, "x", encoding="utf-8") as f:
-                f.write(content)
-        os.replace(tmp, path)
+        for path, content in files:
+            parent, name = os.path.split(path)
+            ext = os.path.splitext(name)[1]
+            tmp = os.path.join(parent, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp{ext}")
+            tmps.append(tmp)
+            if callable(content):
+                content(tmp)
+            elif isinstance(content, bytes):
+                with open(tmp, "xb") as fb:
+                    fb.write(content)
+            else:
+                with open(tmp, "x", encoding="utf-8") as f:
+                    f.write(content)
+        for (path, _), tmp in zip(files, tmps, strict=True):
+            os.replace(tmp, path)
     except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        for tmp in tmps:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
         if isinstance(exc, OSError):
             raise InvalidInputError(option, f"cannot write {path}: {exc.strerror or exc}") from None
         raise

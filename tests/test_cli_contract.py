@@ -4,6 +4,7 @@ before any work; stdout closed early, a full disk and Ctrl-C end quietly."""
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 import signal
@@ -476,12 +477,80 @@ def test_write_atomic_leaves_nothing_on_failure(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         write_atomic(str(target), interrupted, "--out")
     (tmp_path / "sub").mkdir()
-    with pytest.raises(InvalidInputError, match="--out: cannot write"):  # rename onto a directory
+    with pytest.raises(InvalidInputError, match="--out: cannot write"):  # a directory in the way
         write_atomic(str(tmp_path / "sub"), "x", "--out")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sub", "t.csv"]
     assert target.read_text() == "old"  # the old file is untouched until a new one is complete
     write_atomic(str(target), b"new", "--out")
     assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["sub", "t.csv"]
+
+
+class _FullDisk:
+    """A file being written that the disk fills up under: half of the first write lands, then
+    ENOSPC."""
+
+    def __init__(self, f) -> None:
+        self._f = f
+
+    def write(self, data):
+        self._f.write(data[: len(data) // 2])
+        self._f.flush()
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self._f.close()
+        return False
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
+
+
+def _disk_fills_while_writing(monkeypatch, which: str) -> None:
+    """Every file opened for writing whose name contains `which` fills the disk (both `open`
+    and `io.open`, which pathlib's write_text uses)."""
+    import builtins
+    import io
+
+    real = io.open
+
+    def opener(file, mode="r", *args, **kwargs):
+        f = real(file, mode, *args, **kwargs)
+        return _FullDisk(f) if which in os.fspath(file) and set(mode) & set("wxa") else f
+
+    monkeypatch.setattr(builtins, "open", opener)
+    monkeypatch.setattr(io, "open", opener)
+
+
+@pytest.mark.parametrize("robot", ["p2us", "delta"])
+@pytest.mark.parametrize("failing", [".urdf", ".loops.yaml", "a directory"])
+def test_urdf_pair_is_written_as_one(robot, failing, capsys, workdir, monkeypatch):
+    """`kinematics urdf ROBOT -o FILE` over an existing pair: the disk filling up while the URDF
+    or, after it, the sidecar is written, or a sidecar path that is a directory, is one error
+    line, and both files are left byte for byte as they were, with no temporary file beside them."""
+    assert main(["urdf", robot, "-o", "d.urdf"]) == 0
+    capsys.readouterr()
+    if failing == "a directory":
+        (workdir / "d.loops.yaml").unlink()
+        (workdir / "d.loops.yaml").mkdir()
+    before = {p: p.read_bytes() for p in workdir.iterdir() if p.is_file()}
+    listing = _listing(workdir)
+    with monkeypatch.context() as patch:
+        if failing != "a directory":
+            _disk_fills_while_writing(patch, "d" + failing if failing == ".urdf" else failing)
+        code = main(["urdf", robot, "-o", "d.urdf", "--rod-spacing", "0.07"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    name = "d.urdf" if failing == ".urdf" else "d.loops.yaml"
+    why = "it is a directory" if failing == "a directory" else "No space left on device"
+    assert f"output: cannot write {name}: {why}" in err, err
+    assert _listing(workdir) == listing
+    assert {p: p.read_bytes() for p in before} == before
+    if failing != "a directory":  # the disk has room again: the new pair replaces the old one
+        assert main(["urdf", robot, "-o", "d.urdf", "--rod-spacing", "0.07"]) == 0
+        assert _listing(workdir) == listing and (workdir / "d.urdf").read_bytes() != before[workdir / "d.urdf"]
 
 
 # -- the process boundary: version, pipes, a full disk, Ctrl-C ---------------------------------------

@@ -204,16 +204,18 @@ def sidecar_text(params: DeltaParams, urdf_name: str) -> str:
 def write(params: DeltaParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
     """Write the URDF to `path` and its sidecar beside it; returns both paths.
 
-    Both texts are built before anything is written, so a failure leaves no half-written pair.
+    Both are written as one (`files.write_atomic_files`): on any failure neither file is
+    half-written, and files already there are left as they were.
     """
+    from kinematics.files import write_atomic_files
+
     urdf_path = Path(path)
     side = sidecar_for(urdf_path)
     urdf = urdf_text(params, name or urdf_path.stem)
     loops = sidecar_text(params, urdf_path.name)
     if not urdf_path.parent.is_dir():
         raise ModelFileError(urdf_path.parent, "output directory does not exist")
-    urdf_path.write_text(urdf)
-    side.write_text(loops)
+    write_atomic_files([(str(urdf_path), urdf), (str(side), loops)], "output")
     return urdf_path, side
 
 

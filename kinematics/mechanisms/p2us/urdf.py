@@ -247,7 +247,8 @@ def sidecar_path(urdf_path: str | os.PathLike[str]) -> Path:
 def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
     """Write the URDF to `path` and its sidecar beside it; returns both paths.
 
-    Both texts are built before anything is written, so a failure leaves no half-written pair.
+    Both are written as one (`files.write_atomic_files`): on any failure neither file is
+    half-written, and files already there are left as they were.
     """
     urdf_path = Path(path)
     side = sidecar_path(urdf_path)
@@ -256,10 +257,9 @@ def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = N
     loops = sidecar_text(params, urdf_path.name)
     if not urdf_path.parent.is_dir():
         raise ModelFileError(urdf_path.parent, "output directory does not exist")
-    from kinematics.files import write_atomic
+    from kinematics.files import write_atomic_files
 
-    write_atomic(str(urdf_path), urdf, "output")
-    write_atomic(str(side), loops, "output")
+    write_atomic_files([(str(urdf_path), urdf), (str(side), loops)], "output")
     return urdf_path, side
 
 
