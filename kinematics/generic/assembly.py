@@ -6,7 +6,9 @@ of a metre).
 first that closes every loop to `TOLERANCE` with every ranged joint within its range:
 
 1. Newton on the passive joints from the start (the actuators held): a start that closes, or
-   nearly, stays where it is — a sidecar's reference pose is kept, only polished.
+   nearly, stays where it is — a sidecar's reference pose is kept, only polished (a start that
+   closes to `OPEN_GAP` is kept even outside a range: it is the caller's pose; a pose the search
+   finds is always within the ranges).
 2. Projection: Gauss-Newton with minimum-norm steps on every joint that is not held (the nearest
    closed pose to first order), from the start clipped into the ranges; where that leaves a range,
    again with each step's joint values clipped into their ranges (projected Gauss-Newton).
@@ -177,8 +179,8 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     # 1: the passive joints only (a start that closes stays put)
     passive_free = np.array([v for v in loop.passive_v if v in set(free_v.tolist())], dtype=int)
     q, err, _ = loop.newton(q0, TOLERANCE, MAX_ITER, free=passive_free)
-    if err <= TOLERANCE and within(robot.values_from_configuration(q)):
-        return result(q, err, 1)
+    if err <= TOLERANCE and (gap <= OPEN_GAP or within(robot.values_from_configuration(q))):
+        return result(q, err, 1)  # a start that closes is the caller's pose, ranges or not
     # 2: projection over every free joint
     for clip in (False, True):
         q, err = _project(loop, robot.configuration(np.clip(start, lo, hi)), free_v, clip)
