@@ -21,6 +21,7 @@ from kinematics.errors import (
     UnknownRobotError,
 )
 from kinematics.generic.assembly import OPEN_GAP, AssemblyError, assemble
+from kinematics.generic.closedloop import ClosedLoop
 from kinematics.model.robot import load_robot
 
 GEPETTO = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
@@ -205,3 +206,94 @@ def test_cli_ranges_and_poses(capsys):
     # mobility without --q analyses a closed pose and says which
     assert main(["mobility", fb]) == 0
     assert "a closed pose found from the neutral pose (q = 0) (closure gap 1.57" in capsys.readouterr().out
+
+
+def _robot_delta_reference(robot, n: int) -> dict[str, float]:
+    """robot_delta's workspace area [m^2] per elbow of chain 1 and their union, by counting the
+    centres of an n x n grid, from its geometry alone (not the batched solver): the end effector E
+    is a five-bar's tip (chain 1: A1 -> B1 -> E, chain 2: A2 -> B2 -> E, lengths read at a closed
+    pose); two parallelograms hold its orientation, so free2_rod1 (connecting rod 1 -> effector)
+    turns by minus the rod's turn, and its range [-pi/2, pi/2] is the one joint limit that binds."""
+    from .fivebar import perp
+
+    q = ClosedLoop(robot).reference
+    m = robot.model
+    d = m.createData()
+    pin.forwardKinematics(m, d, q)
+    ax = [1, 2]  # the mechanism's plane is y-z
+
+    def origin(name):
+        return d.oMi[m.getJointId(name)].translation[ax]
+
+    A1, B1, E, A2, B2 = (origin(n_) for n_ in ("mot1_rod1", "free1_rod1", "free2_rod1", "mot1_rod2", "free1_rod2"))
+    a1, b1, a2, b2 = (float(np.linalg.norm(v)) for v in (B1 - A1, E - B1, B2 - A2, E - B2))
+    j = m.getJointId("free2_rod1")
+    s = np.sign(d.oMi[j].rotation[0, 2])  # its axis (local z) along +-x, the plane's normal
+    k = robot.joint_names.index("free2_rod1")
+    q_ref, phi_ref = robot.values_from_configuration(q)[k], np.arctan2(*(E - B1)[::-1])
+    lo, hi = robot.dofs[k].lower, robot.dofs[k].upper
+    box_lo, box_hi = np.minimum(A1, A2) - (a1 + b1), np.maximum(A1, A2) + (a1 + b1)
+    h = (box_hi - box_lo) / n
+    g = [box_lo[i] + h[i] * (np.arange(n) + 0.5) for i in range(2)]
+    P = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1).reshape(-1, 2)
+    r2 = np.linalg.norm(P - A2, axis=1)
+    chain2 = (r2 >= abs(a2 - b2)) & (r2 <= a2 + b2)
+    D = P - A1
+    r = np.linalg.norm(D, axis=1)
+    x = (a1**2 - b1**2 + r**2) / (2 * r)
+    h2 = a1**2 - x**2
+    out = {}
+    for side in (1, -1):  # elbow B1 left / right of A1 -> E (tests/fivebar.py's circles, vectorised)
+        B = A1 + (x / r)[:, None] * D + side * (np.sqrt(np.maximum(h2, 0)) / r)[:, None] * perp(D.T).T
+        phi = np.arctan2((P - B)[:, 1], (P - B)[:, 0])
+        val = (q_ref - s * (phi - phi_ref) + np.pi) % (2 * np.pi) - np.pi
+        out[side] = chain2 & (h2 >= 0) & (val >= lo) & (val <= hi)
+    cell = float(h[0] * h[1])
+    return {"+1": out[1].sum() * cell, "-1": out[-1].sum() * cell, "union": (out[1] | out[-1]).sum() * cell}
+
+
+@needs_models
+def test_robot_delta_workspace_holds_its_geometric_reference(capsys):
+    """robot_delta's equations do not split in the block solver's dependency order as first found
+    (an ancestor of the end effector that moves nothing the task measures), and it was read as
+    not translational from a pose closed to 1e-12 only: its workspace must come out of the generic
+    path and hold an independent reference within the estimate."""
+    path = GEPETTO / "robot_delta"
+    pi = "3.141592653589793"
+    ranges = ["--range", f"mot1_rod1=-{pi}:{pi}", "--range", f"mot1_rod2=-{pi}:{pi}"]
+    assert main(["workspace-volume", str(path), *ranges, "--rtol", "1e-1", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    robot = load_robot(path, ranges={"mot1_rod1": (-np.pi, np.pi), "mot1_rod2": (-np.pi, np.pi)})
+    fine, coarse = _robot_delta_reference(robot, 2400), _robot_delta_reference(robot, 1200)
+    # the grid count's own error: bounded by its change from the coarse grid (first order at
+    # worst in h, so the finer one is at least twice as close)
+    ref_err = {k: abs(fine[k] - coarse[k]) for k in fine}
+    assert abs(data["area_m2"] - fine["union"]) <= data["error_estimate"] + ref_err["union"]
+    modes = data["modes"]
+    assert len(modes) == 2
+    got = sorted((v["area"], v["error_estimate"]) for v in modes.values())
+    want = sorted([(fine["+1"], ref_err["+1"]), (fine["-1"], ref_err["-1"])])
+    for (area, est), (ref, err) in zip(got, want, strict=True):
+        assert abs(area - ref) <= est + err, (area, ref, est, err)
+
+
+def test_equations_that_do_not_split_fall_back_to_the_whole_system(monkeypatch):
+    """Where the block decomposition cannot be built, the batched solver solves every unknown at
+    once instead of refusing the robot; it still finds the five-bar fixture's tip inside reach."""
+    from kinematics.errors import UnsupportedRobotError
+    from kinematics.generic.loop_batch import LoopBatch
+
+    from .fivebar import FiveBar
+
+    def refuse(self):
+        raise UnsupportedRobotError("x", "block 0 of the loop equations uses a joint that no earlier block determines")
+
+    monkeypatch.setattr(LoopBatch, "block_models", property(refuse))
+    robot = load_robot(Path(__file__).parent / "models" / "fivebar_gepetto" / "robot.urdf")
+    batch = LoopBatch.from_robot(robot)
+    assert batch.solver == "whole"
+    five = FiveBar.from_robot(robot)
+    P = np.array([[0.05, 0.35], [0.9, 0.9]])
+    inside = np.all(five.reach(P) > 1e-3, axis=1)  # clear of the reach circles by 1 mm
+    assert inside.tolist() == [True, False]
+    assert batch.ik(P).found.any(axis=1).tolist() == inside.tolist()

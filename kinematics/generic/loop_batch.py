@@ -1131,7 +1131,10 @@ class LoopBatch:
                 raise UnsupportedRobotError(robot.name, f"joint {model.names[jid]!r} has {model.joints[jid].nv} "
                                             "degrees of freedom; the batched loop solver takes 1-DOF joints")
         loop = ClosedLoop(robot)
-        q, err, _ = loop.newton(loop.reference)
+        # closed to rounding (Newton until it stalls): the translational test below compares the
+        # end effector's angular rates with 1e-9 of its linear ones, and a pose closed only to
+        # ~1e-12 m leaves ~1e-9 of spurious rotation in the constrained Jacobian (robot_delta)
+        q, err, _ = loop.newton(loop.reference, tol=0.0)
         if err > 1e-9:
             raise UnsupportedRobotError(robot.name, f"{loop.assembly.description} does not close "
                                         f"(residual {err:.2e} m)")
@@ -1158,6 +1161,12 @@ class LoopBatch:
         ee_pos = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].translation)
         self._anchor = ee_pos[list(self.task_axes)]
         self.blocks = self._find_blocks()
+        if self.solver == "blocks":
+            try:
+                self.block_models  # noqa: B018 - built here so that a failure picks the other solver
+            except UnsupportedRobotError:
+                # the equations do not split in dependency order: every unknown at once instead
+                self.solver = "whole"
         self._find_atlas(seeds, _rng(rng))
         return self
 
@@ -1353,6 +1362,7 @@ class LoopBatch:
         x = rng.uniform(lo, hi, (6, self.n))
         _, J, _ = self.evaluate(np.zeros((6, self.task_dim)), x)
         pattern = np.any(np.abs(J) > 1e-12 * max(self.scale, 1e-300), axis=0)  # (m, n)
+        self._pattern = pattern
         live = pattern.any(axis=1)
         groups = [tuple(i for i in g if live[i]) for g in self._row_groups()]
         groups = [g for g in groups if g]
@@ -1474,8 +1484,11 @@ class LoopBatch:
             pattern[weights == 0.0] = False
             nzc, nzn = _sparsity(pattern)
             free = np.isin(js, blk.cols)
-            held = np.array([i for i, j in enumerate(js) if not free[i] and not (pinned and j == carrier)],
-                            dtype=np.int64)
+            # an ancestor the block's rows do not depend on (a revolute turning the end effector
+            # about its own point, for a position task) is neither solved nor held: the kernel
+            # leaves it at 0, which changes nothing the block measures
+            held = np.array([i for i, j in enumerate(js) if not free[i] and not (pinned and j == carrier)
+                             and (owner[j] >= 0 or self._pattern[list(blk.rows), j].any())], dtype=np.int64)
             own = tuple((int(owner[js[i]]), self.blocks[int(owner[js[i]])].cols.index(int(js[i]))) for i in held)
             if any(o < 0 for o, _ in own):
                 raise UnsupportedRobotError(self.robot.name, f"block {k} of the loop equations uses a joint that no "
