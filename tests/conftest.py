@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from kinematics.model.robot import Robot, load_robot
+
+GEPETTO = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
+"""Gepetto's parallel-robot models, in the shared folder beside the repository (CI has it)."""
 
 # The commands of the command line, written out by hand from the README's quick tour and the pages of
 # docs/design.md (usable-workspace, dexterity, synthesize, workspace-mesh), not read

@@ -13,6 +13,7 @@ from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us.urdf import joint_values_at
 from kinematics.model.robot import load_robot
 
+from .conftest import GEPETTO
 from .test_cli import run, run_json
 from .test_closedloop import workspace_poses
 from .test_parallel import type_two_pose
@@ -190,7 +191,6 @@ def test_surplus_freedoms_of_a_serial_arm_are_redundant():
 
 
 # -- the platform's freedoms against finite differences of the closure solver ------------------
-GEPETTO = Path("/work/shared/models/gepetto")
 needs_gepetto = pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"{GEPETTO} absent (Gepetto's example-parallel-robots)")
 
 FD_STEP = 1e-4

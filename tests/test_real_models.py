@@ -24,7 +24,8 @@ from kinematics.generic.assembly import OPEN_GAP, AssemblyError, assemble
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.model.robot import load_robot
 
-GEPETTO = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
+from .conftest import GEPETTO
+
 needs_models = pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"Gepetto's models are not at {GEPETTO}")
 
 MODELS = sorted(p.name for p in GEPETTO.iterdir() if p.is_dir() and list(p.glob("*.urdf"))) if GEPETTO.is_dir() else []

@@ -18,6 +18,7 @@ import pytest
 from kinematics.model.robot import BUILTIN
 from kinematics.views import meshcat as viz
 
+from .conftest import GEPETTO
 from .test_cli import run
 
 BROWSER = shutil.which("chromium-headless-shell") or shutil.which("chromium")
@@ -297,7 +298,6 @@ def test_closed_loop_view_draws_the_generic_workspace(monkeypatch):
 
 
 # -- skeletons -------------------------------------------------------------------------------------
-GEPETTO = Path("/work/shared/models/gepetto")
 MODELS = Path(__file__).parent / "models"
 
 SKELETON_ATOL = 1e-12
