@@ -27,6 +27,10 @@ OUTPUTS = {"plot": ("--plot", "figure"), "output": ("-o/--output", "urdf"), "exp
 OUTPUTS_BY_COMMAND = {("fk", "out"): ("--out", "poses")}
 """Where one command's option writes another kind of file than OUTPUTS says."""
 
+CLOSED_POSE = (", default: the actuators of its default closed pose (the sidecar's reference, or a pose found from "
+               "the neutral pose; the report says which)")
+"""The closed-loop default of --q (fk, jacobian), for the help."""
+
 ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or example-robot-data name "
               "(ur5, panda, ...)")
 
@@ -181,7 +185,7 @@ def _values(args: argparse.Namespace, robot: Any) -> Any:
     if args.q is None:
         from kinematics.errors import InvalidInputError
 
-        raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom")
+        raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom ({robot.nv})")
     return robot.joint_values(args.q, degrees=args.degrees)
 
 
@@ -530,10 +534,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="give or replace a joint's range [rad or m] (repeat per joint): for URDFs whose "
                             "<limit> has no lower/upper")
 
-    def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint") -> None:
+    def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
+               loops: str = "") -> None:
         p.add_argument("--q", nargs="+", type=_number, required=required, metavar="Q",
                        help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
-                            f"robot, one per actuated joint; p2us: {p2us}")
+                            f"robot, one per actuated joint{loops}; p2us: {p2us}")
         p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
     p = command("info", cmd_info, "joints, limits, frames and parameters of a robot")
@@ -541,7 +546,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("fk", cmd_fk, "forward kinematics: tool position (and rotation)")
     robot_arg(p)
-    q_args(p, required=False)
+    q_args(p, required=False, loops=CLOSED_POSE)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--q-file", metavar="Q.csv|Q.npy",
                    help="serial robots: many configurations (compiled, every core), one per row, one value "
@@ -558,10 +563,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("jacobian", cmd_jacobian, "world-aligned Jacobian at a configuration (p2us, delta: at a position)")
     robot_arg(p)
-    q_args(p, required=False, p2us="not used, give --position")
+    q_args(p, required=False, p2us="not used, give --position", loops=CLOSED_POSE)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
-                   help="task-space rows (default auto: x-y for planar arms, x-y-z otherwise)")
+                   help="task-space rows (default auto: x-y for planar arms, x-y-z for other serial robots, all "
+                        "six for closed loops other than p2us and delta)")
     p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"), help="p2us, delta: platform position [m]")
     p.add_argument("--mode", help="p2us, delta: working mode label such as +++ (default: the first mode within the "
                                   "limits, else the first that assembles)")
