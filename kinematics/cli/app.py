@@ -100,18 +100,17 @@ def cmd_info(args: argparse.Namespace) -> int:
         except UnsupportedRobotError:
             pass
     axes = plane(robot)
-    if _is_parallel(robot):
-        from kinematics.analyses.mobility import grubler
-
-        mobility = grubler(robot).mobility
-    else:
-        mobility = robot.nv
+    mob = _loop_mobility(robot) if robot.loops is not None else None
+    mobility = robot.nv if mob is None else mob["mobility"]
     payload = {
         "name": robot.name,
         "urdf": str(robot.urdf_path),
         "dof": robot.nv,
         "joint_coordinates": robot.nv,
         "mobility": mobility,
+        "grubler_mobility": None if mob is None else mob["grubler"],
+        "mobility_pose": None if mob is None else mob["pose"],
+        "mobility_note": None if mob is None else mob["note"],
         "joints": [{"name": d.name, "type": d.kind, "lower": d.lower, "upper": d.upper, "range_given": d.range_given}
                    for d in robot.dofs],
         "tool_frame": robot.tool_frame,
@@ -130,11 +129,16 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     def human() -> str:
         unit = {"prismatic": "m", "revolute": "rad", "continuous": "rad"}
+        if mob is None:
+            head = f"{robot.nv} degrees of freedom"
+        elif mobility is None:
+            head = f"{robot.nv} joint coordinates, Grübler-Kutzbach count {mob['grubler']} (numeric mobility unknown)"
+        else:
+            head = f"{robot.nv} joint coordinates, mobility {mobility}"
         parts = [
             f"{robot.name}  ({robot.urdf_path})",
-            (f"{robot.nv} joint coordinates, mobility {mobility}" if _is_parallel(robot)
-             else f"{robot.nv} degrees of freedom") + f", tool frame {robot.tool_frame!r}, "
-            + ("planar in " + "-".join(payload["plane_axes"]) if axes else "spatial"),
+            head + f", tool frame {robot.tool_frame!r}, " + ("planar in " + "-".join(payload["plane_axes"]) if axes
+                                                             else "spatial"),
             "",
             table(
                 ["joint", "type", "lower", "upper", "unit"],
@@ -142,6 +146,10 @@ def cmd_info(args: argparse.Namespace) -> int:
                                      for v in (d.lower, d.upper)), unit[d.kind]) for d in robot.dofs],
             ),
         ]
+        if mob is not None:
+            parts += ["", (f"mobility {mobility} = nv - rank of the loop-constraint Jacobian at {mob['pose']}; "
+                           f"Grübler-Kutzbach count {mob['grubler']}" if mobility is not None
+                           else f"mobility: {mob['note']}")]
         if robot.unranged:
             parts += ["", (f"{len(robot.unranged)} joint(s) without a range in the URDF (<limit> without lower/upper): "
                            "unbounded; a command that needs the range of one asks for it (--range JOINT=LO:HI)")]
@@ -166,6 +174,25 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     _out(args, payload, human)
     return EXIT_OK
+
+
+def _loop_mobility(robot: Any) -> dict[str, Any]:
+    """A closed-loop robot's mobility for `info`: the numeric one (nv - rank of the loop-constraint
+    Jacobian) at the default closed pose, beside the Grübler-Kutzbach count; the count alone, with
+    a note, when no closed pose is found."""
+    from kinematics.analyses.mobility import grubler, numeric_mobility
+    from kinematics.errors import ConvergenceError
+    from kinematics.generic.closedloop import ClosedLoop
+
+    count = grubler(robot).mobility
+    try:
+        a = ClosedLoop(robot).assembly
+    except ConvergenceError as exc:
+        return {"mobility": None, "grubler": count, "pose": None,
+                "note": (f"no closed pose found ({exc}), so no numeric mobility; the Grübler-Kutzbach count "
+                         f"{count} alone assumes independent loop constraints (an over-constrained model's "
+                         "are not, and the count can then be wrong, even negative)")}
+    return {"mobility": numeric_mobility(robot, a.q).mobility, "grubler": count, "pose": a.description, "note": None}
 
 
 def _loops_payload(robot: Any) -> dict[str, Any] | None:
