@@ -340,7 +340,8 @@ def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     names = [ROW_NAMES[r] for r in rows]
     payload = {"frame": frame, "configuration": pose.description, "q": pose.actuated,
                "actuated": list(robot.loops.actuated), "position": _frame_position(robot, pose.q, frame),  # type: ignore[union-attr]
-               "rows": names, "jacobian": G, "residual": pose.residual}
+               "rows": names, "jacobian": G, "residual": pose.residual,
+               "joint_values": dict(zip(robot.joint_names, pose.values.tolist(), strict=True))}
 
     def human() -> str:
         return "\n".join([f"{robot.name}, frame {frame!r}, at {pose.description}", _actuators_table(robot, pose.actuated),
