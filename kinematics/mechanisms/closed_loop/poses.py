@@ -68,7 +68,7 @@ def closed_pose(loop: ClosedLoop, actuated: Sequence[float] | np.ndarray | None 
         return ClosedPose(q, values, values[loop.actuated_dofs], float(err), a.description)
     target = np.asarray(actuated, dtype=float).reshape(-1)
     sol = loop.solve(target)
-    where = (f"actuators at {np.round(target, 9).tolist()} (reached by continuation from "
+    where = (f"the actuator values {np.round(target, 9).tolist()} (reached by continuation from "
              f"{loop.assembly.description})")
     return ClosedPose(sol.q, sol.values, sol.values[loop.actuated_dofs], float(sol.residual), where)
 
