@@ -63,6 +63,8 @@ def test_benchmark_runs_at_quick_size(script, tmp_path):
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-3000:]
     out = json.loads(run.stdout, parse_constant=_strict)
+    if out.get("skipped"):  # a benchmark whose inputs are not on this machine says why (e.g. bench_models)
+        pytest.skip(f"{script.name}: {out['skipped']}")
 
     keys = declared(script, "JSON_KEYS") or ()
     assert sorted(set(keys) - set(out)) == [], f"{script.name}: promised keys missing"

@@ -585,6 +585,9 @@ class NumericMobility:
     platform_freedoms: int
     locked_platform_freedoms: int
     serial: bool = False
+    locked_position_freedoms: int = 0
+    """Of the locked platform freedoms, those that move the end effector's origin (the others only
+    turn the frame about it)."""
 
     @property
     def mobility(self) -> int:
@@ -611,7 +614,8 @@ class NumericMobility:
                 "tolerance": self.tolerance, "smallest_kept": self.smallest_kept,
                 "largest_dropped": self.largest_dropped, "gap": self.gap,
                 "platform_freedoms": self.platform_freedoms, "idle": self.idle, "redundant": self.redundant,
-                "locked_platform_freedoms": self.locked_platform_freedoms}
+                "locked_platform_freedoms": self.locked_platform_freedoms,
+                "locked_position_freedoms": self.locked_position_freedoms}
 
 
 def numeric_mobility(robot: Robot, q: np.ndarray, rtol: float = RANK_RTOL) -> NumericMobility:
@@ -641,11 +645,13 @@ def numeric_mobility(robot: Robot, q: np.ndarray, rtol: float = RANK_RTOL) -> Nu
     lock[np.arange(len(actuated)), actuated] = 1.0
     KL = np.vstack([K / (s[0] if s.size and s[0] > 0 else 1.0), lock])
     NL = _null(KL, rtol)
-    locked = 0
+    locked = locked_position = 0
     if NL.size:
         sl = np.linalg.svd(J @ NL, compute_uv=False)
         locked = int(np.sum(sl > rtol * scale))
-    return NumericMobility(model.nv, K.shape[0], rank, rtol, smallest, dropped, platform, locked, robot.loops is None)
+        locked_position = int(np.sum(np.linalg.svd(J[:3] @ NL, compute_uv=False) > rtol * scale))
+    return NumericMobility(model.nv, K.shape[0], rank, rtol, smallest, dropped, platform, locked, robot.loops is None,
+                           locked_position)
 
 
 # -- all three together --------------------------------------------------------------------------
@@ -693,7 +699,17 @@ def analyse(robot: Robot, q: np.ndarray) -> MobilityReport:
         notes.append(f"screw theory finds {s.translations + s.rotations} platform freedoms but the constrained "
                      f"Jacobian {n.platform_freedoms}: the limbs' wrench systems are not a complete description here "
                      "(a singular pose, or constraints that only act at second order)")
-    if n.locked_platform_freedoms > 0:
+    if n.locked_platform_freedoms > 0 and n.locked_position_freedoms == 0 and robot.loops is not None:
+        from kinematics.generic.closedloop import ClosedLoop
+        from kinematics.mechanisms.closed_loop import held_frames
+
+        held = held_frames(ClosedLoop(robot), q)
+        notes.append(f"with the actuators locked the end effector {robot.loops.end_effector!r} keeps "
+                     f"{n.locked_platform_freedoms} freedom(s), all turning it about its own origin (its position "
+                     "is held): a frame on a body the actuators do not hold (e.g. a rod free to spin about its own "
+                     "axis), or a singular configuration (type II / direct-kinematic)"
+                     + (f"; frames the actuators hold here: {', '.join(held)}" if held else ""))
+    elif n.locked_platform_freedoms > 0:
         notes.append(f"with the actuators locked the platform keeps {n.locked_platform_freedoms} freedom(s): "
                      "a singular configuration (type II / direct-kinematic)")
     if np.isfinite(n.gap) and n.gap < 1e3:

@@ -27,6 +27,10 @@ OUTPUTS = {"plot": ("--plot", "figure"), "output": ("-o/--output", "urdf"), "exp
 OUTPUTS_BY_COMMAND = {("fk", "out"): ("--out", "poses")}
 """Where one command's option writes another kind of file than OUTPUTS says."""
 
+CLOSED_POSE = (", default: the actuators of its default closed pose (the sidecar's reference, or a pose found from "
+               "the neutral pose; the report says which)")
+"""The closed-loop default of --q (fk, jacobian), for the help."""
+
 ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or example-robot-data name "
               "(ur5, panda, ...)")
 
@@ -96,18 +100,17 @@ def cmd_info(args: argparse.Namespace) -> int:
         except UnsupportedRobotError:
             pass
     axes = plane(robot)
-    if _is_parallel(robot):
-        from kinematics.analyses.mobility import grubler
-
-        mobility = grubler(robot).mobility
-    else:
-        mobility = robot.nv
+    mob = _loop_mobility(robot) if robot.loops is not None else None
+    mobility = robot.nv if mob is None else mob["mobility"]
     payload = {
         "name": robot.name,
         "urdf": str(robot.urdf_path),
         "dof": robot.nv,
         "joint_coordinates": robot.nv,
         "mobility": mobility,
+        "grubler_mobility": None if mob is None else mob["grubler"],
+        "mobility_pose": None if mob is None else mob["pose"],
+        "mobility_note": None if mob is None else mob["note"],
         "joints": [{"name": d.name, "type": d.kind, "lower": d.lower, "upper": d.upper, "range_given": d.range_given}
                    for d in robot.dofs],
         "tool_frame": robot.tool_frame,
@@ -126,11 +129,16 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     def human() -> str:
         unit = {"prismatic": "m", "revolute": "rad", "continuous": "rad"}
+        if mob is None:
+            head = f"{robot.nv} degrees of freedom"
+        elif mobility is None:
+            head = f"{robot.nv} joint coordinates, Grübler-Kutzbach count {mob['grubler']} (numeric mobility unknown)"
+        else:
+            head = f"{robot.nv} joint coordinates, mobility {mobility}"
         parts = [
             f"{robot.name}  ({robot.urdf_path})",
-            (f"{robot.nv} joint coordinates, mobility {mobility}" if _is_parallel(robot)
-             else f"{robot.nv} degrees of freedom") + f", tool frame {robot.tool_frame!r}, "
-            + ("planar in " + "-".join(payload["plane_axes"]) if axes else "spatial"),
+            head + f", tool frame {robot.tool_frame!r}, " + ("planar in " + "-".join(payload["plane_axes"]) if axes
+                                                             else "spatial"),
             "",
             table(
                 ["joint", "type", "lower", "upper", "unit"],
@@ -138,6 +146,10 @@ def cmd_info(args: argparse.Namespace) -> int:
                                      for v in (d.lower, d.upper)), unit[d.kind]) for d in robot.dofs],
             ),
         ]
+        if mob is not None:
+            parts += ["", (f"mobility {mobility} = nv - rank of the loop-constraint Jacobian at {mob['pose']}; "
+                           f"Grübler-Kutzbach count {mob['grubler']}" if mobility is not None
+                           else f"mobility: {mob['note']}")]
         if robot.unranged:
             parts += ["", (f"{len(robot.unranged)} joint(s) without a range in the URDF (<limit> without lower/upper): "
                            "unbounded; a command that needs the range of one asks for it (--range JOINT=LO:HI)")]
@@ -164,6 +176,25 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _loop_mobility(robot: Any) -> dict[str, Any]:
+    """A closed-loop robot's mobility for `info`: the numeric one (nv - rank of the loop-constraint
+    Jacobian) at the default closed pose, beside the Grübler-Kutzbach count; the count alone, with
+    a note, when no closed pose is found."""
+    from kinematics.analyses.mobility import grubler, numeric_mobility
+    from kinematics.errors import ConvergenceError
+    from kinematics.generic.closedloop import ClosedLoop
+
+    count = grubler(robot).mobility
+    try:
+        a = ClosedLoop(robot).assembly
+    except ConvergenceError as exc:
+        return {"mobility": None, "grubler": count, "pose": None,
+                "note": (f"no closed pose found ({exc}), so no numeric mobility; the Grübler-Kutzbach count "
+                         f"{count} alone assumes independent loop constraints (an over-constrained model's "
+                         "are not, and the count can then be wrong, even negative)")}
+    return {"mobility": numeric_mobility(robot, a.q).mobility, "grubler": count, "pose": a.description, "note": None}
+
+
 def _loops_payload(robot: Any) -> dict[str, Any] | None:
     if robot.loops is None:
         return None
@@ -181,7 +212,7 @@ def _values(args: argparse.Namespace, robot: Any) -> Any:
     if args.q is None:
         from kinematics.errors import InvalidInputError
 
-        raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom")
+        raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom ({robot.nv})")
     return robot.joint_values(args.q, degrees=args.degrees)
 
 
@@ -530,10 +561,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="give or replace a joint's range [rad or m] (repeat per joint): for URDFs whose "
                             "<limit> has no lower/upper")
 
-    def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint") -> None:
+    def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
+               loops: str = "") -> None:
         p.add_argument("--q", nargs="+", type=_number, required=required, metavar="Q",
                        help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
-                            f"robot, one per actuated joint; p2us: {p2us}")
+                            f"robot, one per actuated joint{loops}; p2us: {p2us}")
         p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
     p = command("info", cmd_info, "joints, limits, frames and parameters of a robot")
@@ -541,7 +573,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("fk", cmd_fk, "forward kinematics: tool position (and rotation)")
     robot_arg(p)
-    q_args(p, required=False)
+    q_args(p, required=False, loops=CLOSED_POSE)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--q-file", metavar="Q.csv|Q.npy",
                    help="serial robots: many configurations (compiled, every core), one per row, one value "
@@ -558,10 +590,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("jacobian", cmd_jacobian, "world-aligned Jacobian at a configuration (p2us, delta: at a position)")
     robot_arg(p)
-    q_args(p, required=False, p2us="not used, give --position")
+    q_args(p, required=False, p2us="not used, give --position", loops=CLOSED_POSE)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
-                   help="task-space rows (default auto: x-y for planar arms, x-y-z otherwise)")
+                   help="task-space rows (default auto: x-y for planar arms, x-y-z for other serial robots, all "
+                        "six for closed loops other than p2us and delta)")
     p.add_argument("--position", nargs=3, type=_number, metavar=("X", "Y", "Z"), help="p2us, delta: platform position [m]")
     p.add_argument("--mode", help="p2us, delta: working mode label such as +++ (default: the first mode within the "
                                   "limits, else the first that assembles)")

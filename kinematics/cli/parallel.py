@@ -187,13 +187,24 @@ def actuated_arg(args: argparse.Namespace, robot: Robot) -> np.ndarray:
 
 
 def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    """`kinematics fk p2us|delta --q Q1 Q2 Q3`: both assembly modes (closed form); other loop
-    robots through the Pinocchio closed-loop solver."""
-    q = actuated_arg(args, robot)
+    """`kinematics fk p2us|delta [--q Q1 Q2 Q3]`: both assembly modes (closed form); other loop
+    robots through the Pinocchio closed-loop solver. Without --q: the actuator values of the
+    default closed pose (`ClosedLoop.assembly`: the sidecar's reference, or a pose found)."""
     found = family_of(robot)
     if found is None:
-        return _generic_fk(args, robot, q, out)
+        return _generic_fk(args, robot, out)
+    if args.frame is not None and robot.frame_id(args.frame) != robot.frame_id():
+        raise InvalidInputError("--frame", f"{robot.name}'s fk is its platform position from the closed forms "
+                                f"(frame {robot.tool_frame!r}); another frame is not computed")
     fam, params = found
+    if args.q is None:
+        from kinematics.generic.closedloop import ClosedLoop
+        from kinematics.mechanisms.closed_loop import closed_pose
+
+        pose = closed_pose(ClosedLoop(robot))
+        q, where = pose.actuated, f"the actuator values of {pose.description}"
+    else:
+        q, where = actuated_arg(args, robot), "the given actuator values"
     res = fam.fk(params, q)
     solutions = []
     if res.exists:
@@ -203,26 +214,60 @@ def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             viol = fam.violations(params, q, n)
             solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
     reason = None if res.exists else fam.fk_reason(params, res)
-    payload = {"q": q, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
+    payload = {"q": q, "configuration": where, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
 
     def human() -> str:
-        return _solutions_report(f"actuators q = {q.tolist()} {fam.q_unit}", "position", ["x [m]", "y [m]", "z [m]"], 12,
-                                 solutions, reason)
+        return _solutions_report(f"actuators q = {q.tolist()} {fam.q_unit} ({where})", "position",
+                                 ["x [m]", "y [m]", "z [m]"], 12, solutions, reason)
 
     out(args, payload, human)
     return EXIT_OK if res.exists else EXIT_NO
 
 
-def _generic_fk(args: argparse.Namespace, robot: Robot, q: np.ndarray, out: Out) -> int:
-    from kinematics.generic.closedloop import ClosedLoop
+def _no_position(args: argparse.Namespace, robot: Robot) -> None:
+    """A generic closed loop is posed by its actuators: --position and --mode belong to the closed-form
+    families."""
+    for flag in ("position", "mode"):
+        if getattr(args, flag, None) is not None:
+            raise InvalidInputError(f"--{flag}", f"{robot.name} has no closed forms: give its actuator values with "
+                                    f"--q ({', '.join(robot.loops.actuated)}), or none for its default closed "  # type: ignore[union-attr]
+                                    "pose")
 
-    sol = ClosedLoop(robot).solve(q)
-    payload = {"q": q, "position": sol.pose.translation, "rotation": sol.pose.rotation,
-               "residual": sol.residual, "joint_values": dict(zip(robot.joint_names, sol.values.tolist(), strict=True))}
+
+def _generic_pose(args: argparse.Namespace, robot: Robot) -> tuple[Any, Any]:
+    """(ClosedLoop, ClosedPose): at --q (actuator values), else the default closed pose."""
+    from kinematics.generic.closedloop import ClosedLoop
+    from kinematics.mechanisms.closed_loop import closed_pose
+
+    q = None if args.q is None else actuated_arg(args, robot)
+    loop = ClosedLoop(robot)
+    return loop, closed_pose(loop, q)
+
+
+def _actuators_table(robot: Robot, values: np.ndarray) -> str:
+    kinds = {d.name: d.kind for d in robot.dofs}
+    names = robot.loops.actuated  # type: ignore[union-attr]
+    return table(["actuator", "value", "unit"],
+                 [(n, v, "m" if kinds[n] == "prismatic" else "rad") for n, v in zip(names, values, strict=True)], 12)
+
+
+def _generic_fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    """Any other loop robot: the frame's placement at the closed pose (--q, else the default)."""
+    from kinematics.generic.serial import forward_kinematics
+
+    _no_position(args, robot)
+    frame = robot.model.frames[robot.frame_id(args.frame)].name  # an unknown frame is said before any solve
+    _, pose = _generic_pose(args, robot)
+    placement = forward_kinematics(robot, pose.q, frame)
+    payload = {"frame": frame, "configuration": pose.description, "q": pose.actuated,
+               "actuated": list(robot.loops.actuated), "position": placement.position,  # type: ignore[union-attr]
+               "rotation": placement.rotation, "residual": pose.residual,
+               "joint_values": dict(zip(robot.joint_names, pose.values.tolist(), strict=True))}
 
     def human() -> str:
-        return "\n".join([key_values([("actuators", q), ("position [m]", sol.pose.translation),
-                                      ("loop residual [m]", sol.residual)], 12), "rotation:", matrix(sol.pose.rotation)])
+        return "\n".join([f"{robot.name}, frame {frame!r}, at {pose.description}", _actuators_table(robot, pose.actuated),
+                          "", key_values([("position [m]", placement.position), ("loop residual [m]", pose.residual)], 12),
+                          "rotation:", matrix(placement.rotation)])
 
     out(args, payload, human)
     return EXIT_OK
@@ -276,15 +321,41 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 
 def _generic_jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    from kinematics.generic.closedloop import ClosedLoop
+    """Any other loop robot: the constrained Jacobian (frame twist rows per actuator rate) at the
+    closed pose (--q, else the default); a pose where the rows asked for are not held by the
+    actuators (type II) is refused, saying which rows move and which frames are held."""
+    from kinematics.errors import SingularConfigurationError
+    from kinematics.generic.serial import task_rows
+    from kinematics.mechanisms.closed_loop import constrained_jacobian
+    from kinematics.mechanisms.closed_loop.poses import ROW_NAMES
 
-    q = actuated_arg(args, robot)
-    cl = ClosedLoop(robot)
-    sol = cl.solve(q)
-    G = cl.constrained_jacobian(sol.q)
-    payload = {"q": q, "position": sol.pose.translation, "jacobian": G, "rows": ["x", "y", "z", "wx", "wy", "wz"]}
-    out(args, payload, lambda: "end-effector twist per actuated rate (world axes):\n" + matrix(G, 9))
+    _no_position(args, robot)
+    frame = robot.model.frames[robot.frame_id(args.frame)].name
+    rows = tuple(range(6)) if args.task in ("auto", "full") else task_rows(robot, args.task)
+    loop, pose = _generic_pose(args, robot)
+    try:
+        G = constrained_jacobian(loop, pose.q, frame, rows)
+    except SingularConfigurationError as exc:
+        raise SingularConfigurationError(f"{robot.name}: {exc.what} at {pose.description}", exc.detail) from None
+    names = [ROW_NAMES[r] for r in rows]
+    payload = {"frame": frame, "configuration": pose.description, "q": pose.actuated,
+               "actuated": list(robot.loops.actuated), "position": _frame_position(robot, pose.q, frame),  # type: ignore[union-attr]
+               "rows": names, "jacobian": G, "residual": pose.residual,
+               "joint_values": dict(zip(robot.joint_names, pose.values.tolist(), strict=True))}
+
+    def human() -> str:
+        return "\n".join([f"{robot.name}, frame {frame!r}, at {pose.description}", _actuators_table(robot, pose.actuated),
+                          "", (f"constrained Jacobian: rows {', '.join(names)} of the frame's twist (world axes) "
+                               "per actuator rate (columns in the order above):"), matrix(G, 9)])
+
+    out(args, payload, human)
     return EXIT_OK
+
+
+def _frame_position(robot: Robot, q: np.ndarray, frame: str) -> np.ndarray:
+    from kinematics.generic.serial import forward_kinematics
+
+    return forward_kinematics(robot, q, frame).position
 
 
 URDF_FLAGS: dict[str, dict[str, str]] = {

@@ -27,10 +27,18 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.errors import UnsupportedRobotError
 from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, SingularFields, Velocity
 from kinematics.model.robot import Robot
 
 _AXES = "xyz"
+
+MAX_TASK_DIM = 3
+"""The batched solver's task: the end effector's position, one coordinate per actuator."""
+
+BATCHED = ("margin", "ik", "velocity", "singular_fields")
+"""The capabilities that run on the batched solver (and so need a task of at most MAX_TASK_DIM
+coordinates)."""
 
 
 class GenericClosedLoop(Mechanism):
@@ -52,10 +60,42 @@ class GenericClosedLoop(Mechanism):
 
     @functools.cached_property
     def batch(self) -> Any:
-        """The compiled batched solver (built on first use: compiles kernels, finds the branches)."""
+        """The compiled batched solver (built on first use: compiles kernels, finds the branches).
+
+        Raises:
+            UnsupportedRobotError: more actuators than position coordinates (`check_task`).
+            SingularConfigurationError: the pose the solver picks its task at is a type II
+                singularity (the message says which pose).
+        """
+        from kinematics.errors import SingularConfigurationError
+        from kinematics.generic.closedloop import ClosedLoop
         from kinematics.generic.loop_batch import loop_batch
 
-        return loop_batch(self.robot)
+        self.check_task()
+        try:
+            return loop_batch(self.robot)
+        except SingularConfigurationError as exc:
+            where = ClosedLoop(self.robot).assembly.description  # cached: the pose the solver used
+            raise SingularConfigurationError(
+                f"{self.name}: choosing the task space at {where}",
+                f"{exc} (the batched solver reads what the actuators move from the end effector "
+                f"{self.robot.tool_frame!r} there)") from None
+
+    def check_task(self) -> None:
+        """The batched solver's task is the end effector's position, one coordinate per actuator
+        (at most MAX_TASK_DIM; orientation coordinates are not done): raise UnsupportedRobotError,
+        saying so, for a robot with more actuators, whose end-effector position is redundant."""
+        loops = self.robot.loops
+        n = len(loops.actuated) if loops else 0
+        if loops is not None and n > MAX_TASK_DIM:
+            shown = ", ".join(loops.actuated[:8]) + (", ..." if n > 8 else "")
+            raise UnsupportedRobotError(
+                self.name,
+                f"{n} actuators ({shown}) for the {MAX_TASK_DIM} coordinates of the end effector "
+                f"{self.robot.tool_frame!r}'s position: more actuators than task coordinates, so that position is "
+                f"redundant (up to {n - MAX_TASK_DIM} actuator freedom(s) beyond it), and the batched closed-loop "
+                "solver behind workspaces, IK and singular loci needs exactly one task coordinate per actuator, at "
+                f"most the {MAX_TASK_DIM} of a position (orientation coordinates are not done)")
 
     @property
     def branches(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -84,9 +124,15 @@ class GenericClosedLoop(Mechanism):
         self.robot.require_ranges(loops.actuated if loops else (), purpose)
 
     def require(self, capability: str, purpose: str) -> None:
-        """As `Mechanism.require`; a margin also needs every actuator's range (checked here, before
-        the solver is compiled, so a missing range is said at once)."""
+        """As `Mechanism.require`; what runs on the batched solver also needs at most MAX_TASK_DIM
+        actuators, and a margin every actuator's range (both checked here, before the solver is
+        compiled, so either is said at once)."""
         super().require(capability, purpose)
+        if capability in BATCHED:
+            try:
+                self.check_task()
+            except UnsupportedRobotError as exc:
+                raise UnsupportedRobotError(self.name, f"{purpose} cannot be computed: {exc.problem}") from None
         if capability == "margin":
             self._require_actuator_ranges(purpose)
 
