@@ -19,7 +19,7 @@ mobility, the end-effector position, the Jacobian's shape and rank, the file siz
 `_timing.calibration()` at the start, plus the load average at the end. `--markdown` prints the
 table of docs/models.md (from this run, or from a saved `--json` output with --from-json).
 
-Without the models folder (default /work/shared/models/gepetto) the run is skipped: a reason on
+Without the models folder (default ../shared/models/gepetto beside the repository) the run is skipped: a reason on
 stderr and, with --json, `skipped` set and no rows.
 """
 
@@ -42,7 +42,7 @@ from _timing import calibration, dump, machine_line, parse
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-MODELS = Path("/work/shared/models/gepetto")
+MODELS = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
 COMMANDS = ("info", "fk", "jacobian", "mobility", "workspace-volume", "show")
 QUICK_COMMANDS = ("info", "fk", "mobility")
 RTOL = 1e-2

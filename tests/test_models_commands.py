@@ -26,7 +26,8 @@ from kinematics.generic.assembly import AssemblyError
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.model.robot import load_robot
 
-GEPETTO = Path("/work/shared/models/gepetto")
+from .conftest import GEPETTO
+
 needs_models = pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"Gepetto's models are not at {GEPETTO}")
 MODELS = (sorted(str(p.relative_to(GEPETTO)) for p in GEPETTO.rglob("*") if p.is_dir() and any(p.glob("*.urdf")))
           if GEPETTO.is_dir() else [])

@@ -26,6 +26,7 @@ world-aligned twist is (J_a - J_p K_p^+ K_a) v_a: the constrained Jacobian.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -288,34 +289,53 @@ class ClosedLoop:
         return LoopSolution(q, values, pose, err, iterations)
 
     # -- velocities ------------------------------------------------------------------------------
-    def constrained_jacobian(self, q: np.ndarray) -> np.ndarray:
-        """6 x n_actuated map from actuated joint rates to the end-effector twist [v; w]
-        (world-aligned) at a closed configuration q.
-
-        With N a basis of null(K_p) (passive motions the loops allow with the actuators locked),
-        the end-effector motion is determined by the actuators iff J_p N = 0. A passive freedom
-        that does not move the end effector (a coupler spinning about its own axis between two
-        spherical joints) leaves J_p N = 0 and is harmless; the twist is then the same for every
-        passive rate that closes the loops, and the minimum-norm one, -K_p^+ K_a, is used.
-
-        Raises:
-            SingularConfigurationError: J_p N != 0 (the end effector can move with the actuators
-                locked: a type II singularity).
-        """
+    def passive_null(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(K_p, K_a, N) at q: the loop Jacobian's passive and actuated columns and an orthonormal
+        basis N of null(K_p), the passive motions the loops allow with the actuators locked
+        (singular values <= RANK_RTOL x the largest count as zero). Runs the kinematics at q."""
         _, K = self.residual(q)
         Kp, Ka = K[:, self.passive_v], K[:, self.actuated_v]
-        J = matrix(pin.computeFrameJacobian(self.model, self.data, q, self.ee, pin.LOCAL_WORLD_ALIGNED), self.model.nv)
-        Jp = J[:, self.passive_v]
+        if Kp.size == 0:
+            return Kp, Ka, np.eye(Kp.shape[1])
         _, s, Vt = np.linalg.svd(Kp)  # full Vt: rows beyond len(s) span null(K_p) when K_p is wide
         rank = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
-        N = Vt[rank:].T
-        if N.shape[1]:
-            free = float(np.linalg.norm(Jp @ N, 2))
-            scale = float(np.linalg.norm(Jp, 2))
-            if free > FREE_RTOL * max(scale, 1e-300):
-                raise SingularConfigurationError(
-                    "constrained Jacobian", "the end effector can move with the actuators locked "
-                    f"(type II singularity: |J_p N| / |J_p| = {free / scale:.2e}, "
-                    f"{N.shape[1]} passive freedom(s) with the actuators locked)")
-        dvp = -np.linalg.pinv(Kp, rcond=RANK_RTOL) @ Ka
-        return J[:, self.actuated_v] + Jp @ dvp
+        return Kp, Ka, Vt[rank:].T
+
+    def constrained_jacobian(self, q: np.ndarray, frame: str | None = None,
+                             rows: Sequence[int] | None = None) -> np.ndarray:
+        """len(rows) x n_actuated map from actuated joint rates to rows of a frame's twist [v; w]
+        (world-aligned) at a closed configuration q (default: the end effector, all six rows).
+
+        With N a basis of null(K_p) (passive motions the loops allow with the actuators locked),
+        the rows are determined by the actuators iff J_p N = 0 on them. A passive freedom that
+        does not move them (a coupler spinning about its own axis between two spherical joints)
+        is harmless; the twist is then the same for every passive rate that closes the loops, and
+        the minimum-norm one, -K_p^+ K_a, is used.
+
+        Raises:
+            SingularConfigurationError: J_p N != 0 on these rows (they can move with the actuators
+                locked: a type II singularity, or a frame the actuators never hold).
+            UnknownFrameError: no such frame.
+        """
+        fid = self.ee if frame is None else self.robot.frame_id(frame)
+        sel = list(range(6)) if rows is None else list(rows)
+        Kp, Ka, N = self.passive_null(q)
+        J = matrix(pin.getFrameJacobian(self.model, self.data, fid, pin.LOCAL_WORLD_ALIGNED), self.model.nv)
+        Jp = J[:, self.passive_v]
+        ratio = free_ratio(Jp[sel], N)
+        if ratio > FREE_RTOL:
+            raise SingularConfigurationError(
+                "constrained Jacobian", f"frame {self.model.frames[fid].name!r} can move with the actuators locked "
+                f"(type II singularity: |J_p N| / |J_p| = {ratio:.2e}, {N.shape[1]} passive freedom(s) with the "
+                "actuators locked)")
+        dvp = -np.linalg.pinv(Kp, rcond=RANK_RTOL) @ Ka if Kp.size else np.zeros((0, Ka.shape[1]))
+        return (J[:, self.actuated_v] + Jp @ dvp)[sel]
+
+
+def free_ratio(Jp: np.ndarray, N: np.ndarray) -> float:
+    """|J_p N| / |J_p| (spectral norms): how much the passive motions N left with the actuators
+    locked move the rows J_p (0 where there are none)."""
+    if N.shape[1] == 0 or Jp.size == 0:
+        return 0.0
+    scale = float(np.linalg.norm(Jp, 2))
+    return float(np.linalg.norm(Jp @ N, 2)) / scale if scale > 0 else 0.0

@@ -6,9 +6,9 @@ sidecar's reference, or a pose `kinematics.generic.assembly` found from the neut
 by Newton on the passive joints to the solver's tolerance; with actuator values it is
 `ClosedLoop.solve` (continuation from that pose). Each says where it came from.
 
-`constrained_jacobian(loop, q, frame, rows)` is `ClosedLoop.constrained_jacobian` for any frame
-and any subset of the six twist rows: the rows asked for must be determined by the actuators (the
-type II test is made on those rows only), so the translation rows of a frame on a rod that spins
+`constrained_jacobian(loop, q, frame, rows)` is `ClosedLoop.constrained_jacobian` (any frame, any
+subset of the six twist rows, the type II test made on those rows only) with a refusal that says
+more: so the translation rows of a frame on a rod that spins
 freely about its own axis (Gepetto's legs put their first closure frame there) are answered, and
 a refusal says which rows move with the actuators locked and which frames the actuators do hold.
 """
@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from kinematics.errors import SingularConfigurationError
-from kinematics.generic.closedloop import FREE_RTOL, RANK_RTOL, ClosedLoop
+from kinematics.generic.closedloop import FREE_RTOL, ClosedLoop, free_ratio
 from kinematics.model.robot import matrix
 
 ROW_NAMES = ("x", "y", "z", "wx", "wy", "wz")
@@ -73,30 +73,9 @@ def closed_pose(loop: ClosedLoop, actuated: Sequence[float] | np.ndarray | None 
     return ClosedPose(sol.q, sol.values, sol.values[loop.actuated_dofs], float(sol.residual), where)
 
 
-def _null_passive(loop: ClosedLoop, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(K_p, K_a, N): the loop Jacobian's passive and actuated columns at q and an orthonormal basis
-    of null(K_p) (the passive motions the loops allow with the actuators locked), with
-    `ClosedLoop.constrained_jacobian`'s rank rule."""
-    _, K = loop.residual(q)
-    Kp, Ka = K[:, loop.passive_v], K[:, loop.actuated_v]
-    if Kp.size == 0:
-        return Kp, Ka, np.eye(Kp.shape[1])
-    _, s, Vt = np.linalg.svd(Kp)  # full Vt: rows beyond len(s) span null(K_p) when K_p is wide
-    rank = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
-    return Kp, Ka, Vt[rank:].T
-
-
 def _frame_jacobian(loop: ClosedLoop, q: np.ndarray, fid: int) -> np.ndarray:
     """6 x nv world-aligned Jacobian of frame `fid` (after `loop.residual(q)` ran the kinematics)."""
     return matrix(pin.getFrameJacobian(loop.model, loop.data, fid, pin.LOCAL_WORLD_ALIGNED), loop.model.nv)
-
-
-def _free_ratio(Jp: np.ndarray, N: np.ndarray) -> float:
-    """|J_p N| / |J_p| (spectral norms): how much the locked-actuator motions move these rows."""
-    if N.shape[1] == 0 or Jp.size == 0:
-        return 0.0
-    scale = float(np.linalg.norm(Jp, 2))
-    return float(np.linalg.norm(Jp @ N, 2)) / scale if scale > 0 else 0.0
 
 
 def held_frames(loop: ClosedLoop, q: np.ndarray, rows: Sequence[int] = range(6),
@@ -104,7 +83,7 @@ def held_frames(loop: ClosedLoop, q: np.ndarray, rows: Sequence[int] = range(6),
     """Link frames whose `rows` the actuators determine at q, the farthest from the base first
     (most joints between them and the base), one per body, at most `limit`; bodies with mass
     first (a Gepetto SPHERICAL or UJOINT substitution's crosses are massless and no one's tool)."""
-    _, _, N = _null_passive(loop, q)
+    _, _, N = loop.passive_null(q)
     model = loop.model
     rows = list(rows)
     seen: set[int] = set()
@@ -113,7 +92,7 @@ def held_frames(loop: ClosedLoop, q: np.ndarray, rows: Sequence[int] = range(6),
         if f.type != pin.FrameType.BODY or f.parentJoint == 0 or f.parentJoint in seen:
             continue
         J = _frame_jacobian(loop, q, fid)
-        if _free_ratio(J[rows][:, loop.passive_v], N) <= FREE_RTOL:
+        if free_ratio(J[rows][:, loop.passive_v], N) <= FREE_RTOL:
             seen.add(f.parentJoint)
             massless = not model.inertias[f.parentJoint].mass > 0
             found.append((massless, -len(model.supports[f.parentJoint]), fid, f.name))
@@ -135,31 +114,30 @@ def constrained_jacobian(loop: ClosedLoop, q: np.ndarray, frame: str | None = No
             move and frames that are held.
         UnknownFrameError: no such frame.
     """
-    robot = loop.robot
-    fid = robot.frame_id(frame)
+    try:
+        return loop.constrained_jacobian(q, frame, rows)
+    except SingularConfigurationError:
+        pass
+    # say which part moves and which frames the actuators do hold (kinematics at q just ran)
+    fid = loop.robot.frame_id(frame)
     name = loop.model.frames[fid].name
     rows = list(rows)
-    Kp, Ka, N = _null_passive(loop, q)  # runs the kinematics at q
-    J = _frame_jacobian(loop, q, fid)
-    Jp = J[:, loop.passive_v]
-    ratio = _free_ratio(Jp[rows], N)
-    if ratio > FREE_RTOL:
-        lin = [r for r in rows if r < 3]
-        ang = [r for r in rows if r >= 3]
-        moving = [part for part, rr in (("position", lin), ("orientation", ang))
-                  if rr and _free_ratio(Jp[rr], N) > FREE_RTOL]
-        held = [part for part, rr in (("position", lin), ("orientation", ang)) if rr and part not in moving]
-        hint = []
-        if held == ["position"]:
-            hint.append("its position is held (--task translation gives that Jacobian)")
-        others = [f for f in held_frames(loop, q, rows) if f != name]
-        if others:
-            hint.append("frames the actuators hold here: " + ", ".join(others) + " (--frame)")
-        raise SingularConfigurationError(
-            f"constrained Jacobian of frame {name!r}",
-            f"its {' and '.join(moving)} can move with the actuators locked ({N.shape[1]} passive freedom(s) "
-            f"then; |J_p N| / |J_p| = {ratio:.2e} > {FREE_RTOL:g} on rows {', '.join(ROW_NAMES[r] for r in rows)}): "
-            "a type II (direct-kinematic) singularity of this pose, or a frame the actuators do not hold at any "
-            "pose (e.g. on a rod free to spin about its own axis)" + ("; " + "; ".join(hint) if hint else ""))
-    dvp = -np.linalg.pinv(Kp, rcond=RANK_RTOL) @ Ka if Kp.size else np.zeros((0, Ka.shape[1]))
-    return (J[:, loop.actuated_v] + Jp @ dvp)[rows]
+    _, _, N = loop.passive_null(q)
+    Jp = _frame_jacobian(loop, q, fid)[:, loop.passive_v]
+    ratio = free_ratio(Jp[rows], N)
+    lin = [r for r in rows if r < 3]
+    ang = [r for r in rows if r >= 3]
+    moving = [part for part, rr in (("position", lin), ("orientation", ang)) if rr and free_ratio(Jp[rr], N) > FREE_RTOL]
+    held = [part for part, rr in (("position", lin), ("orientation", ang)) if rr and part not in moving]
+    hint = []
+    if held == ["position"]:
+        hint.append("its position is held (--task translation gives that Jacobian)")
+    others = [f for f in held_frames(loop, q, rows) if f != name]
+    if others:
+        hint.append("frames the actuators hold here: " + ", ".join(others) + " (--frame)")
+    raise SingularConfigurationError(
+        f"constrained Jacobian of frame {name!r}",
+        f"its {' and '.join(moving)} can move with the actuators locked ({N.shape[1]} passive freedom(s) "
+        f"then; |J_p N| / |J_p| = {ratio:.2e} > {FREE_RTOL:g} on rows {', '.join(ROW_NAMES[r] for r in rows)}): "
+        "a type II (direct-kinematic) singularity of this pose, or a frame the actuators do not hold at any "
+        "pose (e.g. on a rod free to spin about its own axis)" + ("; " + "; ".join(hint) if hint else "")) from None
