@@ -209,6 +209,27 @@ def test_cli_ranges_and_poses(capsys):
     assert "a closed pose found from the neutral pose (q = 0) (closure gap 1.57" in capsys.readouterr().out
 
 
+def _closed_pose_in_plane(robot):
+    """(data, origin) at the default closed pose: Pinocchio data with frames placed, and a
+    function joint name -> its origin's in-plane (y, z) coordinates (both five-bars here move in
+    the y-z plane)."""
+    q = ClosedLoop(robot).reference
+    d = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, d, q)
+
+    def origin(name):
+        return d.oMi[robot.model.getJointId(name)].translation[1:]
+
+    return q, d, origin
+
+
+def _grid_centres(lo: np.ndarray, hi: np.ndarray, n: int) -> tuple[np.ndarray, float]:
+    """The centres (n * n, 2) of an n x n grid over the box [lo, hi] and one cell's area."""
+    h = (hi - lo) / n
+    g = np.meshgrid(*(lo[i] + h[i] * (np.arange(n) + 0.5) for i in range(2)), indexing="ij")
+    return np.stack(g, axis=-1).reshape(-1, 2), float(h[0] * h[1])
+
+
 def _robot_delta_reference(robot, n: int) -> dict[str, float]:
     """robot_delta's workspace area [m^2] per elbow of chain 1 and their union, by counting the
     centres of an n x n grid, from its geometry alone (not the batched solver): the end effector E
@@ -217,15 +238,8 @@ def _robot_delta_reference(robot, n: int) -> dict[str, float]:
     turns by minus the rod's turn, and its range [-pi/2, pi/2] is the one joint limit that binds."""
     from .fivebar import perp
 
-    q = ClosedLoop(robot).reference
+    q, d, origin = _closed_pose_in_plane(robot)
     m = robot.model
-    d = m.createData()
-    pin.forwardKinematics(m, d, q)
-    ax = [1, 2]  # the mechanism's plane is y-z
-
-    def origin(name):
-        return d.oMi[m.getJointId(name)].translation[ax]
-
     A1, B1, E, A2, B2 = (origin(n_) for n_ in ("mot1_rod1", "free1_rod1", "free2_rod1", "mot1_rod2", "free1_rod2"))
     a1, b1, a2, b2 = (float(np.linalg.norm(v)) for v in (B1 - A1, E - B1, B2 - A2, E - B2))
     j = m.getJointId("free2_rod1")
@@ -233,10 +247,7 @@ def _robot_delta_reference(robot, n: int) -> dict[str, float]:
     k = robot.joint_names.index("free2_rod1")
     q_ref, phi_ref = robot.values_from_configuration(q)[k], np.arctan2(*(E - B1)[::-1])
     lo, hi = robot.dofs[k].lower, robot.dofs[k].upper
-    box_lo, box_hi = np.minimum(A1, A2) - (a1 + b1), np.maximum(A1, A2) + (a1 + b1)
-    h = (box_hi - box_lo) / n
-    g = [box_lo[i] + h[i] * (np.arange(n) + 0.5) for i in range(2)]
-    P = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1).reshape(-1, 2)
+    P, cell = _grid_centres(np.minimum(A1, A2) - (a1 + b1), np.maximum(A1, A2) + (a1 + b1), n)
     r2 = np.linalg.norm(P - A2, axis=1)
     chain2 = (r2 >= abs(a2 - b2)) & (r2 <= a2 + b2)
     D = P - A1
@@ -249,7 +260,6 @@ def _robot_delta_reference(robot, n: int) -> dict[str, float]:
         phi = np.arctan2((P - B)[:, 1], (P - B)[:, 0])
         val = (q_ref - s * (phi - phi_ref) + np.pi) % (2 * np.pi) - np.pi
         out[side] = chain2 & (h2 >= 0) & (val >= lo) & (val <= hi)
-    cell = float(h[0] * h[1])
     return {"+1": out[1].sum() * cell, "-1": out[-1].sum() * cell, "union": (out[1] | out[-1]).sum() * cell}
 
 
@@ -306,18 +316,10 @@ def _fivebar_effector_reference(robot, n: int) -> float:
     the elbow B2 is on circle(A2, a2) at distance e from E (two choices); the link's fixed angle
     then places P, which chain 1 must reach (|P - A1| within its annulus). The actuators' ranges are
     full turns and the passive joints have none, so reach is the only limit."""
-    q = ClosedLoop(robot).reference
-    m = robot.model
-    d = m.createData()
-    pin.framesForwardKinematics(m, d, q)
-    ax = [1, 2]  # the mechanism's plane is y-z
-
-    def origin(name):
-        return d.oMi[m.getJointId(name)].translation[ax]
-
+    _, d, origin = _closed_pose_in_plane(robot)
     A1, B1, A2, B2 = (origin(n_) for n_ in ("mot1", "free1", "mot2", "free2"))
-    P0 = d.oMf[robot.frame_id("closedloop1_B")].translation[ax]
-    E0 = d.oMf[robot.frame_id("effector")].translation[ax]
+    P0 = d.oMf[robot.frame_id("closedloop1_B")].translation[1:]
+    E0 = d.oMf[robot.frame_id("effector")].translation[1:]
     a1, b1 = np.linalg.norm(B1 - A1), np.linalg.norm(P0 - B1)
     a2, b2, e = np.linalg.norm(B2 - A2), np.linalg.norm(P0 - B2), np.linalg.norm(E0 - B2)
 
@@ -325,10 +327,7 @@ def _fivebar_effector_reference(robot, n: int) -> float:
         return np.arctan2(v[..., 1], v[..., 0])
 
     delta = angle(P0 - B2) - angle(E0 - B2)
-    lo, hi = np.minimum(A1, A2) - (a2 + e), np.maximum(A1, A2) + (a2 + e)
-    h = (hi - lo) / n
-    E = np.stack(np.meshgrid(*(lo[i] + h[i] * (np.arange(n) + 0.5) for i in range(2)), indexing="ij"), -1)
-    E = E.reshape(-1, 2)
+    E, cell = _grid_centres(np.minimum(A1, A2) - (a2 + e), np.maximum(A1, A2) + (a2 + e), n)
     D = E - A2
     r = np.linalg.norm(D, axis=1)
     x = (a2**2 - e**2 + r**2) / (2 * r)
@@ -341,7 +340,7 @@ def _fivebar_effector_reference(robot, n: int) -> float:
         P = B + b2 * np.stack([np.cos(phi), np.sin(phi)], axis=1)
         d1 = np.linalg.norm(P - A1, axis=1)
         inside |= (h2 >= 0) & (d1 >= abs(a1 - b1)) & (d1 <= a1 + b1)
-    return float(inside.sum() * h[0] * h[1])
+    return float(inside.sum() * cell)
 
 
 @needs_models
