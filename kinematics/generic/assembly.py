@@ -46,6 +46,9 @@ TOLERANCE = 1e-10
 converges quadratically, so once within ~1e-6 the next step lands near 1e-14; 1e-10 leaves four
 decades for the ill-conditioned closures of long legs."""
 
+RANGE_TOL = 1e-9
+"""A joint value counts as within its range up to this [rad or m] (Newton's rounding)."""
+
 OPEN_GAP = 1e-9
 """A start whose closure error is at most this [m] counts as closed already (the batched solver's
 threshold for a reference pose)."""
@@ -156,22 +159,24 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     free_dofs = np.array([i for i in range(robot.nv) if i not in held_dofs], dtype=int)
     free_v = np.array([robot.dofs[i].idx_v for i in free_dofs], dtype=int)
     lo, hi = robot.lower, robot.upper
+    angular = _angular(robot)
+
+    def nearest_turn(v: np.ndarray) -> np.ndarray:
+        # whole turns of a revolute joint are the same pose: each angle at the winding nearest its
+        # start, then a turn into its range where that fits; "moved" then measures the motion,
+        # not the windings of the Newton path
+        w = start + _wrapped(robot, v - start)
+        w = np.where(angular & (w < lo) & (w + 2 * np.pi <= hi + RANGE_TOL), w + 2 * np.pi, w)
+        return np.where(angular & (w > hi) & (w - 2 * np.pi >= lo - RANGE_TOL), w - 2 * np.pi, w)
 
     def within(v: np.ndarray) -> bool:
-        w = start + _wrapped(robot, v - start)  # a revolute's windings are the same pose
-        ok = (w >= lo - 1e-9) & (w <= hi + 1e-9)
-        ok |= _angular(robot) & (((w + 2 * np.pi) <= hi + 1e-9) & ((w + 2 * np.pi) >= lo - 1e-9)
-                                 | ((w - 2 * np.pi) >= lo - 1e-9) & ((w - 2 * np.pi) <= hi + 1e-9))
-        return bool(np.all(ok))
+        w = nearest_turn(v)
+        return bool(np.all((w >= lo - RANGE_TOL) & (w <= hi + RANGE_TOL)))
 
     def result(q: np.ndarray, err: float, stage: int) -> Assembly:
-        # whole turns of a revolute joint are the same pose: report each angle nearest its start
-        # (or within its range), so "moved" measures the motion, not the Newton path's windings
-        v = start + _wrapped(robot, robot.values_from_configuration(q) - start)
-        v = np.where((v < lo) & (v + 2 * np.pi <= hi) & _angular(robot), v + 2 * np.pi, v)
-        v = np.where((v > hi) & (v - 2 * np.pi >= lo) & _angular(robot), v - 2 * np.pi, v)
-        q = robot.configuration(v)
-        a = Assembly(q, v, err, gap, source, stage, tuple(hold), float(np.max(np.abs(v - start), initial=0.0)))
+        v = nearest_turn(robot.values_from_configuration(q))
+        a = Assembly(robot.configuration(v), v, err, gap, source, stage, tuple(hold),
+                     float(np.max(np.abs(v - start), initial=0.0)))
         if default:
             _DEFAULT[robot] = a
         return a
@@ -194,14 +199,16 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     r_hi = np.where(np.isfinite(hi), hi, start + span)
     best: tuple[float, np.ndarray, float] | None = None
     kept = 0
+    closest = err
     for _ in range(RESTARTS):
         v = start.copy()
         v[free_dofs] = rng.uniform(r_lo[free_dofs], r_hi[free_dofs])
         q, err = _project(loop, robot.configuration(v), free_v, clip=True)
+        closest = min(closest, err)
         vals = robot.values_from_configuration(q)
         if err > TOLERANCE or not within(vals):
             continue
-        d = float(np.linalg.norm(_wrapped(robot, vals - start)))
+        d = float(np.linalg.norm(nearest_turn(vals) - start))
         if best is None or d < best[0]:
             best = (d, q, err)
         kept += 1
@@ -214,7 +221,7 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     held = f" with {', '.join(hold)} held" if hold else ""
     raise AssemblyError(f"assembling {robot.name} from {what}{held} (closure gap {gap:.3g} there; "
                         f"projection and {RESTARTS} random restarts found no closed pose within the joint ranges)",
-                        MAX_ITER, err, TOLERANCE)
+                        MAX_ITER, closest, TOLERANCE)
 
 
 def _angular(robot: Robot) -> np.ndarray:
