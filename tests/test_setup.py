@@ -50,3 +50,15 @@ def test_docs_figures_exist_and_are_generated():
     for name in shown:
         assert (ROOT / "docs" / "figures" / f"{name}.png").exists(), name
         assert f'"{name}"' in script, f"{name} is not drawn by docs/make_figures.py"
+
+
+def test_getting_started_code_runs(tmp_path, monkeypatch):
+    """The library example of docs/getting-started.md runs as written (it had rotted once: it read
+    bounds the volume engine no longer has) and writes the file it says."""
+    text = (ROOT / "docs" / "getting-started.md").read_text()
+    blocks = re.findall(r"```python\n(.+?)\n```", text, re.S)
+    assert blocks, "docs/getting-started.md lost its library example"
+    monkeypatch.chdir(tmp_path)
+    for code in blocks:
+        exec(compile(code, "getting-started.md", "exec"), {})
+    assert (tmp_path / "p2us.html").stat().st_size > 10_000
