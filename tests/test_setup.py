@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from kinematics.cli.app import reference_markdown
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -52,13 +54,20 @@ def test_docs_figures_exist_and_are_generated():
         assert f'"{name}"' in script, f"{name} is not drawn by docs/make_figures.py"
 
 
-def test_getting_started_code_runs(tmp_path, monkeypatch):
-    """The library example of docs/getting-started.md runs as written (it had rotted once: it read
-    bounds the volume engine no longer has) and writes the file it says."""
-    text = (ROOT / "docs" / "getting-started.md").read_text()
-    blocks = re.findall(r"```python\n(.+?)\n```", text, re.S)
-    assert blocks, "docs/getting-started.md lost its library example"
+def _pages_with_python() -> list[str]:
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    return [str(p.relative_to(ROOT)) for p in pages if "```python" in p.read_text()]
+
+
+@pytest.mark.parametrize("page", _pages_with_python())
+def test_documented_python_runs(page, tmp_path, monkeypatch):
+    """Every ```python block of the README and the docs runs as written, in order, in a fresh folder
+    (the getting-started example had rotted once: it read bounds the volume engine no longer has)."""
+    blocks = re.findall(r"```python\n(.+?)\n```", (ROOT / page).read_text(), re.S)
+    assert blocks, f"{page}: a python fence the pattern does not read"
     monkeypatch.chdir(tmp_path)
+    scope: dict[str, object] = {}
     for code in blocks:
-        exec(compile(code, "getting-started.md", "exec"), {})
-    assert (tmp_path / "p2us.html").stat().st_size > 10_000
+        exec(compile(code, page, "exec"), scope)
+    if page == "docs/getting-started.md":
+        assert (tmp_path / "p2us.html").stat().st_size > 10_000  # the file it says it writes
