@@ -561,7 +561,7 @@ def _det_sign(J, rows, cols, nc, M):  # pragma: no cover - compiled
 @njit(cache=True, parallel=True)
 def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
                   restarts, near, alive, found, dist, res, end, counts):  # pragma: no cover - compiled
-    """Block k of the block solver (`LoopBatch._solve_blocks`) at every target row.
+    """Block k of the block solver (`LoopBatch._solve_slots`) at every target row.
 
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
@@ -694,7 +694,6 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
             for b in range(B):
                 if not found[i, k, bslot[b, k]]:
                     alive[i, b] = False
-
 
 
 @njit(cache=True)

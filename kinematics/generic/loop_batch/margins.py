@@ -1,12 +1,30 @@
-"""Joint-limit margins of the batched closed-loop solver: the compiled slack of rows of joint
-values, and the block solver's per-slot results combined into branches with their margins."""
+"""Joint-limit margins of the batched closed-loop solver (`LoopMargins`).
+
+**Margins.** Per branch, the smallest joint-limit slack in metres (prismatic: the distance to the
+limit; revolute: the angle times `scale`), over every joint with a finite range narrower than
+2 pi; >= 0 inside. Where the branch has no solution, minus the least-squares residual [m] reached
+from its best start (< 0; block by block: the largest over the blocks tried, a block skipped
+because an earlier one has no root counting for nothing). The union is the largest branch margin.
+
+The compiled slack of rows of joint values (`slack_kernel`) and the block solver's per-slot
+results combined into branches with their margins (`assemble_kernel`) are here: they call nothing
+in `compiled`.
+"""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 from numba import njit, prange
+
+from kinematics.errors import InvalidInputError
+from kinematics.generic.loop_batch.compiled import PRISMATIC
+from kinematics.generic.loop_batch.structure import LoopStructure
+
+LIMITS = ("all", "actuators")
+"""Which joint limits the margins apply."""
 
 
 @njit(cache=True, inline="always")
@@ -70,3 +88,53 @@ def assemble_kernel(order, end, found, res, bslot, cols, ncol, lo, hi, use, unit
                 margin_out[i, b] = -max(r, 1e-300)
                 for j in range(n):
                     x_out[i, b, j] = np.nan
+
+
+class LoopMargins(LoopStructure):
+    """Joint-limit margins of joint values (a part of `LoopBatch`)."""
+
+    def limit_margin(self, x: np.ndarray, limits: str = "all") -> np.ndarray:
+        """Smallest joint-limit slack [m] of joint values x (..., n): prismatic distance to the
+        limit, revolute angle x `scale`; joints without binding limits are ignored.
+
+        limits: "all" (every joint) or "actuators" (the actuated joints only)."""
+        if limits not in LIMITS:
+            from kinematics.errors import UnknownChoiceError
+
+            raise UnknownChoiceError(limits, LIMITS)
+        x = np.asarray(x, dtype=float)
+        if x.shape[-1] != self.n:
+            raise InvalidInputError("x", f"expected (..., {self.n}) joint values, got {x.shape}")
+        flat = np.ascontiguousarray(x.reshape(-1, self.n))
+        out = np.empty(len(flat))
+        if len(flat):
+            lo, hi, use, unit, pairs, paired, centre = self._slack_args(limits)
+            slack_kernel(flat, lo, hi, use, unit, pairs, paired, centre, out)
+        return out.reshape(x.shape[:-1])
+
+    def _slack_args(self, limits: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                np.ndarray]:
+        use = self.limited.copy()
+        if limits == "actuators":
+            use[self.passive] = False
+        unit = np.where(self._g[1] == PRISMATIC, 1.0, self.scale)
+        pairs = np.array(self.free_pairs, dtype=np.int64).reshape(-1, 2)
+        paired = np.zeros(self.n, dtype=np.bool_)
+        paired[pairs.ravel()] = True
+        return (np.asarray(self.robot.lower, dtype=float), np.asarray(self.robot.upper, dtype=float), use, unit, pairs,
+                paired, self._centre)
+
+    @functools.cached_property
+    def free_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Concurrent pairs that are not flippable but whose other representation changes only
+        joints without binding limits below them (a universal joint carrying a platform through an
+        Euler spherical joint): the margin takes the better of the two representations."""
+        flippable = set(self.flippable_groups)
+        out = []
+        for grp in self.concurrent_groups:
+            if len(grp) != 2 or grp in flippable:
+                continue
+            below = [j for j in range(self.n) if self._descends(j, grp[1]) and j != grp[1]]
+            if not any(self.limited[j] for j in below):
+                out.append((grp[0], grp[1]))
+        return tuple(out)
