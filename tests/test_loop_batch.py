@@ -431,11 +431,11 @@ def test_warm_cache_ring_returns_each_points_own_ends(monkeypatch):
     it several times. Each point's "ends" are its own coordinates, so a stale row (a tree index
     pointing at a row since overwritten) would show as ends that differ from the point found; and
     exactly the newest CACHE_POINTS .. CACHE_POINTS + RECENT_POINTS points must be findable."""
-    import kinematics.generic.loop_batch as module
+    import kinematics.generic.loop_batch.warm as module
 
     monkeypatch.setattr(module, "CACHE_POINTS", 40)
     monkeypatch.setattr(module, "RECENT_POINTS", 16)
-    cache = module._WarmCache((3,))
+    cache = module.WarmCache((3,))
     added = np.empty((0, 3))
     rng = np.random.default_rng(22)
     for size in (10, 37, 5, 60, 16, 1, 90, 3):

@@ -1,0 +1,228 @@
+"""The block solver (`LoopBatch(solver="blocks")`, the default; `BlockSolver`).
+
+`ik` solves **block by block**: each block is a small model of its own (`block_models`: the
+ancestors of its frames; for a closure of a translational mechanism with a 3D task the platform
+placed at the target), with one *slot* per choice of the labels its held joints depend on, times
+its own sign for a labelling block (3-[P2(US)], Delta: 2 slots per block, 12 small solves per
+target instead of 8 of all 18 unknowns). A branch is the combination of the slots of its labels;
+it exists where every block has a root in its slot.
+Each slot is sought from (1) a solved neighbour's end of that slot (a cache of earlier batches
+and, inside a batch, every 64th then every 8th point solved first: continuation, also through the
+least-squares points of targets outside), else (2) the atlas configuration of that slot, which is
+also tried where a neighbour's end stalled less than the continuation radius from closure (a
+neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
+`restarts` quasi-random starts of the block's unknowns where another slot of the block was found
+or the block holds joints of earlier blocks that closed. Blocks are solved in a dependency order,
+the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
+reach costs that limb's solves only. A block that later blocks hold values of is solved to
+TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from kinematics.generic.loop_batch.atlas import BranchSolutions, LoopAtlas
+from kinematics.generic.loop_batch.compiled import block_kernel, pack
+from kinematics.generic.loop_batch.margins import LoopMargins, assemble_kernel
+from kinematics.generic.loop_batch.warm import WARM_RADIUS_FACTOR, WarmStarts
+
+
+class _Slots(NamedTuple):
+    """The block solver's per-slot results (`LoopBatch._solve_slots`, `block_kernel`)."""
+
+    found: np.ndarray  # (N, K, S)
+    dist: np.ndarray  # (N, K, S) distance to the reference of the kept root
+    res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried; 0: found)
+    end: np.ndarray  # (N, K, S, cmax) each block's unknowns per slot: its kept root where found, else
+    # where the slot's best start ended
+    counts: np.ndarray  # (N, 2) unlabelled roots, conflicts
+
+    @classmethod
+    def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
+        return cls(np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
+                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 2), dtype=np.int64))
+
+
+class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
+    """`ik` block by block (a part of `LoopBatch`)."""
+
+    @functools.cached_property
+    def _block_tables(self) -> dict[str, Any]:
+        """The block solver's packed arrays (`block_kernel`): per block its slots (one per choice
+        of the labels it depends on, times its own sign for a labelling block), the slot each
+        branch uses, the starts, and the sub-model indices padded to the largest block."""
+        models = self.block_models
+        K, B = len(models), len(self.labels)
+        labels = np.array(self.labels, dtype=np.int64).reshape(B, -1)
+        cmax = max(len(bm.cols) for bm in models)
+        keys: list[list[tuple[int, ...]]] = []
+        bslot = np.zeros((B, K), dtype=np.int64)
+        for k, bm in enumerate(models):
+            own = (bm.label,) if bm.label >= 0 else ()
+            key = [tuple(int(v) for v in labels[b, list(bm.depends) + list(own)]) for b in range(B)]
+            uniq = sorted(set(key), reverse=True)
+            keys.append(uniq)
+            bslot[:, k] = [uniq.index(c) for c in key]
+        S = max(len(u) for u in keys)
+        nslot = np.array([len(u) for u in keys], dtype=np.int64)
+        rep = np.zeros((K, S), dtype=np.int64)  # a branch that uses each slot
+        for k in range(K):
+            for s in range(nslot[k]):
+                rep[k, s] = int(np.flatnonzero(bslot[:, k] == s)[0])
+        land = np.full((K, S, 3), -1, dtype=np.int64)
+        for k, bm in enumerate(models):
+            for s, slot_key in enumerate(keys[k]):
+                if bm.label < 0:
+                    land[k, s] = s
+                    continue
+                for sign in (-1, 0, 1):
+                    other = slot_key[:-1] + (sign,)
+                    land[k, s, sign + 1] = keys[k].index(other) if other in keys[k] else -1
+        hmax = max([len(bm.held) for bm in models] + [1])
+        held = np.zeros((K, hmax), dtype=np.int64)
+        held_owner = np.zeros((K, hmax), dtype=np.int64)
+        held_pos = np.zeros((K, hmax), dtype=np.int64)
+        held_slot = np.zeros((K, S, hmax), dtype=np.int64)
+        for k, bm in enumerate(models):
+            for h, (o, pos) in enumerate(bm.owner):
+                held[k, h], held_owner[k, h], held_pos[k, h] = bm.held[h], o, pos
+                held_slot[k, : nslot[k], h] = bslot[rep[k, : nslot[k]], o]
+        flippable = self.flippable_groups
+        fmax = max([len(bm.cols) for bm in models] + [1])
+        flips = np.full((K, fmax, 3), -1, dtype=np.int64)
+        nflip = np.zeros(K, dtype=np.int64)
+        mmax = max([len(bm.middles) for bm in models] + [1])
+        middles = np.zeros((K, mmax), dtype=np.int64)
+        cols = np.zeros((K, cmax), dtype=np.int64)
+        rows_det = np.zeros((K, cmax), dtype=np.int64)
+        ref = np.zeros((K, cmax))
+        act = np.zeros((K, cmax), dtype=np.bool_)
+        atlas = np.zeros((K, S, cmax))
+        lo = np.zeros((K, cmax))
+        hi = np.zeros((K, cmax))
+        alpha = np.zeros((K, cmax))
+        span = np.where(self.limited, self.robot.upper - self.robot.lower, 0.0)
+        r_lo = np.where(self.limited, self.robot.lower - 0.5 * span, self._centre - math.pi)
+        r_hi = np.where(self.limited, self.robot.upper + 0.5 * span, self._centre + math.pi)
+        for k, bm in enumerate(models):
+            full = np.array(bm.block.cols, dtype=np.int64)
+            nc = len(full)
+            where = {int(j): i for i, j in enumerate(bm.joints)}
+            q = 0
+            for grp in flippable:
+                if all(j in bm.block.cols for j in grp):
+                    flips[k, q, : len(grp)] = [where[j] for j in grp]
+                    q += 1
+            nflip[k] = q
+            middles[k, : len(bm.middles)] = bm.middles
+            cols[k, :nc] = bm.cols
+            if bm.label >= 0:
+                rows_det[k, :nc] = bm.rows
+            ref[k, :nc] = self._reference[full]
+            act[k, :nc] = np.isin(full, self.actuated)
+            atlas[k, : nslot[k], :nc] = self.atlas[rep[k, : nslot[k]]][:, full]
+            lo[k, :nc], hi[k, :nc] = r_lo[full], r_hi[full]
+            # the additive recurrence of the R_d sequence (plastic-number family): well spread in d dims
+            phi = 2.0
+            for _ in range(64):
+                phi = (1.0 + phi) ** (1.0 / (nc + 1))
+            alpha[k, :nc] = (1.0 / phi) ** np.arange(1, nc + 1) % 1.0
+        T = (np.array([bm.pinned for bm in models], dtype=np.bool_), np.array([len(bm.cols) for bm in models],
+             dtype=np.int64), cols, rows_det, np.array([bm.label for bm in models], dtype=np.int64), middles,
+             np.array([len(bm.middles) for bm in models], dtype=np.int64), flips, nflip, held,
+             np.array([len(bm.held) for bm in models], dtype=np.int64), held_owner, held_pos, held_slot, land, ref, act,
+             np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_))
+        kernel_models = tuple((*pack(bm.g), bm.m, bm.nzc, bm.nzn, bm.centre, bm.free, bm.weights) for bm in models)
+        # solve order: every block after the blocks it holds joints of, the smallest sub-model first
+        # among those ready (a target that one limb cannot reach is dropped before the costlier ones)
+        order: list[int] = []
+        while len(order) < K:
+            ready = [k for k in range(K) if k not in order and all(o in order for o, _ in models[k].owner)]
+            order.append(min(ready, key=lambda k: (len(models[k].joints), k)))
+        full_cols = np.zeros((K, cmax), dtype=np.int64)
+        for k, bm in enumerate(models):
+            full_cols[k, : len(bm.block.cols)] = bm.block.cols
+        return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "atlas": atlas,
+                "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax}
+
+    def _ik_blocks(self, p: np.ndarray, warm: bool, every_block: bool = False) -> BranchSolutions:
+        """`ik` block by block (`block_models`, `block_kernel`): each block's roots once per choice
+        of the branches it depends on, combined into the atlas branches (`assemble_kernel`).
+        Warm starts are per block slot: the slot's end at the nearest cached point, or at the
+        nearest point of this batch solved before it (coarse levels first), whichever is nearer."""
+        from scipy.spatial import cKDTree
+
+        tb = self._block_tables
+        N, B, n = len(p), len(self.labels), self.n
+        K, S, cmax = len(self.block_models), tb["S"], tb["cmax"]
+        radius = WARM_RADIUS_FACTOR * self.scale
+        best = np.full(N, np.inf)  # distance to the nearest start's source (inf: none)
+        cached = None
+        if warm:
+            best, cached = self._nearest_cached(p, (K, S, cmax))
+        # continuation inside the batch: every 64th point, then every 8th, then the rest, each
+        # level from the nearest point of the levels before; the points are taken level by level
+        # (order) so that each level's slots are one contiguous slice of the arrays
+        # (a batch whose points mostly have a cached neighbour, such as a root refinement step, in one go)
+        strides = (1,) if np.isfinite(best).mean() >= 0.9 else (64, 8, 1)
+        levels, taken = [], np.zeros(N, dtype=bool)
+        for stride in strides:
+            level = np.flatnonzero(~taken & (np.arange(N) % stride == 0))
+            if len(level) and not (stride > 1 and 8 * stride >= N):
+                levels.append(level)
+                taken[level] = True
+        order = np.concatenate(levels) if levels else np.arange(0)
+        q, best = p[order], best[order]
+        starts = np.full((N, K, S, cmax), np.nan)
+        if cached is not None:
+            near = np.isfinite(best)
+            starts[near] = cached[order[near]]
+        slots = _Slots.empty(N, K, S, cmax)
+        a = 0
+        for level in levels:
+            b = a + len(level)
+            if a:
+                # the nearest solved point: all its slot ends within the continuation radius (roots
+                # and least-squares points alike); farther, its roots only, and only where it is
+                # nearer than the reference position (whose roots are the atlas starts)
+                d, src = cKDTree(q[:a]).query(q[a:b])
+                near = (d <= radius) & (d < best[a:b])
+                starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
+                far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
+                starts[a:b][far] = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
+            self._solve_slots(q[a:b], starts[a:b], _Slots(*(v[a:b] for v in slots)), every_block)
+            a = b
+        x = np.empty((N, B, n))
+        end_x = np.empty((N, B, n))
+        ok = np.empty((N, B), dtype=np.bool_)
+        residual = np.empty((N, B))
+        margin = np.empty((N, B))
+        if N:
+            lo, hi, use, unit, pairs, paired, centre = self._slack_args("all")
+            assemble_kernel(order, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"],
+                             tb["T"][1], lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
+        if warm:
+            self._remember(q, slots.end)
+        return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
+                               end_x)
+
+    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, out: _Slots, every_block: bool = False) -> None:
+        """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none), written to
+        `out` (rows of the caller's arrays); a slot no live branch needs is skipped unless
+        every_block."""
+        tb = self._block_tables
+        N, B = len(p), len(self.labels)
+        alive = np.ones((N, B), dtype=np.bool_)
+        starts = np.ascontiguousarray(starts)
+        for k in tb["order"] if N else ():
+            if every_block:
+                alive[:] = True
+            gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
+            block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
+                          tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res,
+                          out.end, out.counts)

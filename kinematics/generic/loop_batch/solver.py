@@ -1,0 +1,229 @@
+"""`LoopBatch`, the batched closed-loop solver: built from a robot (`from_robot`: the task, the
+compiled model, the blocks and the atlas), it solves every branch at many targets (`ik`) and gives
+their margins (`margin`) to the volume engine; `loop_batch` caches one per robot.
+
+**Task.** At the sidecar's reference configuration the constrained Jacobian (Pinocchio,
+`ClosedLoop.constrained_jacobian`) tells what the actuators move: if they never turn the end
+effector the mechanism is translational (task = position, orientation held at R_0: the 3-[P2(US)],
+the Delta); otherwise the task is the d = (number of actuators) position axes best determined by
+them (the planar five-bar: x, y). Mechanisms whose actuators drive a rotation of the end effector
+(a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
+
+**What the search can miss.** A branch that exists at a target but is reached from none of the
+starts (a block's basin missed by the neighbour's end, the atlas configuration and the restarts)
+is reported absent (margin < 0): most likely in a branch region that does not contain the
+reference position's branch of the same label and is far from the batch's other points, or next
+to the workspace's boundary where the nearest solved point lies outside, its least-squares point
+leads nowhere and the atlas start lies in another basin (restarts are not spent on a labelling
+block with no root at all: outside they would cost most of the time). Solutions whose label is
+not in the atlas (assembly modes absent at the reference position) are counted in
+`BranchSolutions.unlabelled`, not returned. Two physically different poses with the same label at
+one target keep only the one nearest the reference (counted in `conflicts`).
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from kinematics.errors import UnsupportedRobotError
+from kinematics.generic.loop_batch.atlas import BranchSolutions
+from kinematics.generic.loop_batch.blocks import BlockSolver
+from kinematics.generic.loop_batch.singular import LoopSingularities
+from kinematics.generic.loop_batch.whole import WholeSolver
+from kinematics.model.robot import Robot
+
+SOLVERS = ("blocks", "whole")
+"""How `LoopBatch.ik` solves: block by block (each block's roots once per branch choice it depends
+on, combined into branches) or every unknown of every branch at once (the reference path)."""
+
+
+def _rng(seed: int | np.random.Generator | None) -> np.random.Generator:
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
+    """Every working mode of a closed-loop mechanism (URDF tree + loop sidecar), batched.
+
+    Capabilities (all vectorised over targets, task points of shape (N, d)):
+
+    * `task_dim`, `task_axes`, `translational`, `bounding_box()`: the task space;
+    * `ik(points)`: joint values of every branch (`BranchSolutions`), `labels` names the branches;
+    * `margin(points)`: (N, B + 1) joint-limit margins per branch and their union (the last
+      column), the callable `kinematics.analyses.columns.column_volume` takes; `margin_function(branches)`
+      selects branches;
+    * `jacobians(points, x)`: forward (task rate per actuator rate) and inverse (actuator rate per
+      task rate) Jacobians; `singularities(points, x)`: Gosselin-Angeles measures and types.
+
+    Not thread-safe (it keeps a cache of solved points for warm starts); make one per thread.
+    Build with `LoopBatch.from_robot`.
+
+    Its parts are the package's modules, one concept each: `model` (the dataclass fields, the
+    compiled model, `newton`, `evaluate`), `structure` (blocks, labels, joint groups), `atlas` (the
+    branch search), `warm` (warm starts), `margins`, `blocks` and `whole` (the two solvers of
+    `ik`), `singular` (velocities and singularities).
+    """
+
+    # -- construction ----------------------------------------------------------------------------
+    @classmethod
+    def from_robot(cls, robot: Robot, *, task_axes: tuple[int, ...] | None = None, seeds: int = 512,
+                   restarts: int = 8, rng: int | np.random.Generator | None = 0, solver: str = "blocks"
+                   ) -> LoopBatch:
+        """Compile a closed-loop robot and find its branches at the reference position.
+
+        Args:
+            task_axes: world position axes of the task (default: chosen at the reference, see the
+                module docstring).
+            seeds: random starts of the branch search at the reference position.
+            restarts: random starts per target that misses some branch (`ik`).
+            rng: seed of the random starts (the result is deterministic for a fixed seed).
+            solver: one of SOLVERS (`ik`).
+
+        Raises:
+            UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, or a task
+                that needs orientation coordinates.
+        """
+        from kinematics.generic.closedloop import ClosedLoop
+
+        if solver not in SOLVERS:
+            from kinematics.errors import UnknownChoiceError
+
+            raise UnknownChoiceError(solver, SOLVERS)
+        if robot.loops is None:
+            raise UnsupportedRobotError(robot.name, "no loop-closure sidecar (<name>.loops.yaml) next to its URDF")
+        model = robot.model
+        for jid in range(1, model.njoints):
+            if model.joints[jid].nv != 1:
+                raise UnsupportedRobotError(robot.name, f"joint {model.names[jid]!r} has {model.joints[jid].nv} "
+                                            "degrees of freedom; the batched loop solver takes 1-DOF joints")
+        loop = ClosedLoop(robot)
+        # closed to rounding (Newton until it stalls): the translational test below compares the
+        # end effector's angular rates with 1e-9 of its linear ones, and a pose closed only to
+        # ~1e-12 m leaves ~1e-9 of spurious rotation in the constrained Jacobian (robot_delta)
+        q, err, _ = loop.newton(loop.reference, tol=0.0)
+        if err > 1e-9:
+            raise UnsupportedRobotError(robot.name, f"{loop.assembly.description} does not close "
+                                        f"(residual {err:.2e} m)")
+        G = loop.constrained_jacobian(q)  # 6 x n_actuated
+        n_act = len(loop.actuated_dofs)
+        lin, ang = G[:3], G[3:]
+        size = max(float(np.linalg.norm(lin)), 1e-300)
+        translational = float(np.linalg.norm(ang)) * _length(robot, q) <= 1e-9 * size
+        if task_axes is None:
+            best, axes = -1.0, None
+            for comb in itertools.combinations(range(3), n_act):
+                s = np.linalg.svd(lin[list(comb)], compute_uv=False)
+                if s[-1] > best:
+                    best, axes = float(s[-1]), comb
+            if axes is None or best <= 1e-9 * size:
+                raise UnsupportedRobotError(robot.name, "its actuators drive the end effector's orientation; "
+                                            "the batched solver handles position tasks only")
+            task_axes = tuple(axes)
+        self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), translational=translational,
+                   scale=_length(robot, q), restarts=restarts, solver=solver)
+        self._compile(q)
+        self._reference = robot.values_from_configuration(q)
+        pin.framesForwardKinematics(model, robot.data, q)
+        ee_pos = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].translation)
+        self._anchor = ee_pos[list(self.task_axes)]
+        self.blocks = self._find_blocks()
+        if self.solver == "blocks":
+            try:
+                self.block_models  # noqa: B018 - built here so that a failure picks the other solver
+            except UnsupportedRobotError:
+                # the equations do not split in dependency order: every unknown at once instead
+                self.solver = "whole"
+        self._find_atlas(seeds, _rng(rng))
+        return self
+
+    # -- inverse kinematics and margins ----------------------------------------------------------
+    def ik(self, points: np.ndarray, *, warm: bool = True, every_block: bool = False) -> BranchSolutions:
+        """Every atlas branch at every task point (the search: the modules `blocks` and `whole`; what
+        it can miss: this module's docstring).
+
+        Args:
+            points: (N, d) task coordinates [m].
+            warm: use (and update) the cache of earlier batches' solutions as starts.
+            every_block: (block solver) solve every block even where an earlier one already rules
+                out every branch that uses it, so that `end` holds each block's own end everywhere
+                (singularity fields outside the workspace); slower outside.
+        """
+        p = self._points(points)
+        if self.solver == "blocks":
+            return self._ik_blocks(p, warm, every_block)
+        N = len(p)
+        if N > 64:
+            # continuation inside the batch: a coarse subset first, the rest from its ends
+            first = np.arange(0, N, 8)
+            sub = self._solve(p[first], warm)
+            rest = np.setdiff1d(np.arange(N), first)
+            other = self._solve(p[rest], warm, extra=(p[first], sub.end))
+            out = _merge(N, (first, sub), (rest, other))
+        else:
+            out = self._solve(p, warm)
+        if warm:
+            self._remember(p, out.end)
+        return out
+
+    def margin(self, points: np.ndarray, limits: str = "all") -> np.ndarray:
+        """(N, B + 1) margins [m]: every branch (order of `labels`), then their union (max).
+
+        limits: "all" or "actuators" (`limit_margin`)."""
+        return self.margin_function(None, limits)(points)
+
+    def margin_function(self, branches: Sequence[int] | None = None, limits: str = "all"
+                        ) -> Callable[[np.ndarray], np.ndarray]:
+        """points (N, d) -> (N, len(branches) + 1): the chosen branches' margins [m], then their
+        union, for `kinematics.analyses.columns.column_volume`."""
+        cols = list(range(len(self.labels))) if branches is None else list(branches)
+        self.limit_margin(np.zeros((1, self.n)), limits)  # validates `limits`
+
+        def margin(points: np.ndarray) -> np.ndarray:
+            sol = self.ik(points)
+            m = sol.margin if limits == "all" else np.where(sol.found, self.limit_margin(sol.x, limits), sol.margin)
+            m = m[:, cols]
+            return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
+
+        return margin
+
+    def bounding_box(self, samples: int = 20_000, rng: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """A box [m] around the end effector's reachable task coordinates: the end effector's own
+        chain sampled within its joint limits (loops ignored: a superset), padded by 5 %. A
+        heuristic: a sampled box can miss the chain's extreme poses by about the padding."""
+        x = self.random_configurations(samples, np.random.default_rng(rng))
+        _, _, pos = self.evaluate(np.zeros((samples, self.task_dim)), x)
+        ee = pos[:, self.n + self._g[12], list(self.task_axes)]
+        lo, hi = ee.min(axis=0), ee.max(axis=0)
+        pad = 0.05 * (hi - lo) + 1e-3 * self.scale
+        return lo - pad, hi + pad
+
+
+def _merge(N: int, *parts: tuple[np.ndarray, BranchSolutions]) -> BranchSolutions:
+    first = parts[0][1]
+    x = np.empty((N,) + first.x.shape[1:])
+    found = np.empty((N,) + first.found.shape[1:], dtype=bool)
+    residual = np.empty(found.shape)
+    margin = np.empty(found.shape)
+    end = np.empty_like(x)
+    for idx, s in parts:
+        x[idx], found[idx], residual[idx], margin[idx], end[idx] = s.x, s.found, s.residual, s.margin, s.end
+    return BranchSolutions(x, found, residual, margin, sum(s.unlabelled for _, s in parts),
+                           sum(s.conflicts for _, s in parts), end)
+
+
+def _length(robot: Robot, q: np.ndarray) -> float:
+    """Characteristic length [m]: the largest distance of a joint origin from the world origin at q."""
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q)
+    d = [float(np.linalg.norm(data.oMi[j].translation)) for j in range(1, robot.model.njoints)]
+    return max(max(d, default=0.0), 1e-3)
+
+
+@functools.lru_cache(maxsize=16)
+def loop_batch(robot: Robot) -> LoopBatch:
+    """`LoopBatch.from_robot(robot)`, cached per robot."""
+    return LoopBatch.from_robot(robot)
