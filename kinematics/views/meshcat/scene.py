@@ -167,10 +167,10 @@ class Scene:
         A point at offset P from the target, seen from distance d along the unit vector u, is at
         tan(angle) = |P . axis| / (d - P . u) off the view's axis, so d >= P . u + |P . axis| /
         (fill tan(half-angle)) for both screen axes."""
-        if not self._extent:
+        pts = self.extent
+        if not len(pts):
             self.camera((3.0, 0.0, 1.0))  # meshcat's default view
             return
-        pts = np.vstack(self._extent)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         centre = (lo + hi) / 2
         u = np.asarray(direction, dtype=float)
@@ -184,6 +184,11 @@ class Scene:
         distance = max(float(np.max(P @ u + need)), 0.1)
         footprint = float(np.max(hi[:2] - lo[:2])) / 2
         self.camera(centre + distance * u, centre, float(lo[2]), 1.3 * footprint + 0.05)
+
+    @property
+    def extent(self) -> np.ndarray:
+        """(K, 3) every point [m, world] the camera frames so far (robots and overlays)."""
+        return np.vstack(self._extent) if self._extent else np.zeros((0, 3))
 
     def _include(self, points: np.ndarray) -> None:
         """Points [m, world] the camera must frame."""

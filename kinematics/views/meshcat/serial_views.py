@@ -112,7 +112,7 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
     if ellipsoid:
         e = ellipsoid_of(frame_jacobian(robot, qc)[:3])
         # true size unless it would dwarf the arm: then scaled to half the arm's bounding radius
-        pts = np.vstack(scene._extent)
+        pts = scene.extent
         size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) / 4
         scale = min(1.0, size / e.radii[-1])
         label = "velocity ellipsoid of the tool [m/s per rad/s]" if scale == 1 else \
