@@ -355,3 +355,24 @@ def test_gepetto_fivebar_area_holds_its_geometric_reference(capsys):
     robot = load_robot(path)
     fine, coarse = _fivebar_effector_reference(robot, 2400), _fivebar_effector_reference(robot, 1200)
     assert abs(data["area_m2"] - fine) <= data["error_estimate"] + abs(fine - coarse)
+
+
+def test_a_serial_arm_without_ranges_asks_for_them(tmp_path, capsys):
+    """A serial arm whose revolute has a <limit> without lower/upper: no [0, 0] joint, and its
+    workspace names the joint that needs a range; --range gives it (the continuous joint needs none)."""
+    src = (Path(__file__).parent / "models" / "arm3r_wedge.urdf").read_text()
+    text = src.replace('<limit lower="0.5" upper="2.0" effort="10" velocity="1"/>', '<limit effort="10" velocity="1"/>')
+    assert text != src
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(text)
+    robot = load_robot(urdf)
+    assert robot.unranged == ("elbow",)
+    assert main(["workspace-volume", str(urdf)]) == 2
+    err = capsys.readouterr().err
+    assert "needs the range of elbow," in err and "--range elbow=LO:HI" in err and "pitch" not in err
+    with_range = main(["workspace-volume", str(urdf), "--range", "elbow=0.5:2.0", "--json"])
+    original = main(["workspace-volume", str(Path(__file__).parent / "models" / "arm3r_wedge.urdf"), "--json"])
+    assert with_range == original == 0
+    out = capsys.readouterr().out
+    first, second = (json.loads(part) for part in out.replace("}\n{", "}\n\x00{").split("\x00"))
+    assert first["volume_m3"] == second["volume_m3"]  # the range given is the file's own: same volume
