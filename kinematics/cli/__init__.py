@@ -1,8 +1,14 @@
 """The `kinematics` command line. Private to the package: the library never imports it.
 
-`main` (in `app`) parses the command line and hands each command to its handler module
-(`parallel`, `workspace`, `mobility`, `views`, `guidance`, `design`, `fk`), imported only when
-that command runs, so `kinematics --help` stays instant. `report` formats JSON and text reports.
+`main` (in `app`) parses the command line and hands each command to its handler. Each command is
+registered in one place, its module's `register(command)`, which adds its subparser, arguments and
+handler: `info`, `fk`, `ik`, `jacobian`, `manipulability`, `mobility`, `workspace`
+(workspace-volume, singularities, sweep), `design` (usable-workspace, dexterity, synthesize,
+workspace-mesh), `guidance` (guide), `views` (show), `urdf`; `app.build_parser` loops over them.
+`args` holds the shared argument helpers (the parser class, number and type parsers, ROBOT with
+--range, --q, the scan options). These modules import nothing heavy at module level; their
+handlers import NumPy, Pinocchio etc. when the command runs, so `kinematics --help` stays instant.
+`parallel` holds the closed-loop robots' handlers, `report` formats JSON and text reports.
 """
 
 from __future__ import annotations

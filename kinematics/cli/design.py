@@ -1,13 +1,102 @@
-"""CLI handlers of `kinematics usable-workspace` and `workspace-mesh` (called from `cli`)."""
+"""`kinematics usable-workspace`, `dexterity`, `synthesize` and `workspace-mesh`: their arguments and handlers."""
 
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from kinematics.cli.report import Out, fmt, key_values
+from kinematics.cli.args import Command, integer, load, positive, robot_arg
+from kinematics.cli.report import Out, emit, fmt, key_values
 from kinematics.files import check_output, write_atomic
-from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    from kinematics.model.robot import Robot
+
+
+def register(command: Command) -> None:
+    p = command("usable-workspace", cmd_usable_workspace, "p2us, delta (any spatial mechanism with closed forms): "
+                "the largest axis-aligned cube, vertical cylinder or sphere where every point is reachable, "
+                "non-singular and has kappa <= K")
+    robot_arg(p)
+    p.add_argument("--shape", required=True, choices=["cube", "cylinder", "sphere"], help="the shape")
+    p.add_argument("--kappa-max", type=positive, default=10.0, metavar="K",
+                   help="largest condition number sigma_max/sigma_min of the forward Jacobian J (default 10)")
+    p.add_argument("--mode", help="working mode such as --- (default), or union")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--step", type=positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
+
+    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa) and mean Yoshikawa index "
+                "with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their union; conditioning "
+                "maps")
+    robot_arg(p)
+    p.add_argument("--mode", help="one working mode / elbow such as --- or up (default: every one, and the union)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--samples", type=integer, default=16384, metavar="N",
+                   help="points per replicate, rounded up to a power of two (default 16384)")
+    p.add_argument("--replicates", type=integer, default=8, metavar="R",
+                   help="independently scrambled Sobol' sets, >= 2 (default 8)")
+    p.add_argument("--seed", type=integer, default=0, metavar="S", help="random seed of the scrambling (default 0)")
+    p.add_argument("--step", type=positive, metavar="M",
+                   help="grid step of the maps (--plot, --export) [m] (default: the bounding box's longest side / 50)")
+    p.add_argument("--plot", metavar="FILE.png", help="write a conditioning map (slices of 1/kappa)")
+    p.add_argument("--export", metavar="FILE.html", help="write a Meshcat scene: points coloured by 1/kappa")
+
+    p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
+                "Dask: maximise the usable cube and the GCI, minimise the footprint; the Pareto front")
+    robot_arg(p)
+    p.add_argument("--param", action="append", metavar="NAME=LOWER:UPPER",
+                   help="a design variable and its bounds (repeatable) [m, rad]: p2us b, d, L, beta, theta_zero, "
+                        "rod_spacing, stroke_min, stroke_max; delta R, r, la, lb, cone, theta_min, theta_max, "
+                        "elbow_socket, platform_socket")
+    p.add_argument("--population", type=integer, default=16, metavar="N", help="designs per generation (default 16)")
+    p.add_argument("--generations", type=integer, default=8, metavar="G", help="generations (default 8)")
+    p.add_argument("--seed", type=integer, default=0, metavar="S", help="random seed (default 0): same seed, same front")
+    p.add_argument("--mode", help="working mode of the cube and the GCI: --- (default) or union")
+    p.add_argument("--kappa-max", type=positive, default=10.0, metavar="K",
+                   help="largest condition number in the usable cube (default 10)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuators' only")
+    p.add_argument("--cube-cells", type=integer, default=40, metavar="N",
+                   help="coarse grid of the cube search: steps along the design's bounding box (default 40)")
+    p.add_argument("--gci-samples", type=integer, default=4096, metavar="N",
+                   help="GCI points per replicate (4 replicates; default 4096)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
+                                                            "local cluster)")
+    p.add_argument("--workers", type=integer, metavar="N",
+                   help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
+
+    p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
+                "watertight triangle mesh (STL, PLY or glTF binary)")
+    robot_arg(p)
+    p.add_argument("--mode", help="working mode such as --- (default), or union")
+    p.add_argument("-o", required=True, metavar="FILE.stl|.ply|.glb", help="the mesh file")
+    p.add_argument("--step", type=positive, default=0.01, metavar="M", help="grid step [m] (default 0.01)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuator strokes only")
+
+
+def cmd_usable_workspace(args: argparse.Namespace) -> int:
+    """Largest cube, cylinder or sphere in the well-conditioned workspace."""
+    return usable_workspace(args, load(args), emit)
+
+
+def cmd_dexterity(args: argparse.Namespace) -> int:
+    """Global conditioning index and mean Yoshikawa index with error bars; conditioning maps."""
+    return dexterity(args, load(args), emit)
+
+
+def cmd_synthesize(args: argparse.Namespace) -> int:
+    """Multi-objective dimensional synthesis (NSGA-II) on Dask."""
+    return synthesize(args, load(args), emit)
+
+
+def cmd_workspace_mesh(args: argparse.Namespace) -> int:
+    """A working mode's workspace boundary as a watertight mesh."""
+    return workspace_mesh(args, load(args), emit)
 
 
 def _params(robot: Robot) -> Any:

@@ -1,5 +1,6 @@
-"""CLI handler of `kinematics fk ROBOT --q-file Q --out P` (called from `cli`): many
-configurations through the compiled batched kinematics.
+"""`kinematics fk`: forward kinematics at one configuration (closed loops in
+`kinematics.cli.parallel`), and `fk ROBOT --q-file Q --out P`: many configurations through the
+compiled batched kinematics.
 
 --q-file rows hold one value per degree of freedom, in model order ([rad] or [m]; with --degrees
 the angles are in degrees); a continuous joint takes its angle, not Pinocchio's (cos, sin) pair.
@@ -13,13 +14,62 @@ import argparse
 import io
 import os
 import warnings
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from kinematics.cli.report import Out
+from kinematics.cli.args import CLOSED_POSE, EXIT_OK, Command, is_parallel, load, q_args, robot_arg, values
+from kinematics.cli.report import Out, emit
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.files import check_output, write_atomic
-from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from kinematics.model.robot import Robot
+
+
+def register(command: Command) -> None:
+    p = command("fk", cmd_fk, "forward kinematics: tool position (and rotation)")
+    robot_arg(p)
+    q_args(p, required=False, loops=CLOSED_POSE)
+    p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
+    p.add_argument("--q-file", metavar="Q.csv|Q.npy",
+                   help="serial robots: many configurations (compiled, every core), one per row, one value "
+                        "per degree of freedom [rad or m] (a continuous joint: its angle); CSV may have a "
+                        "header line")
+    p.add_argument("--out", metavar="P.csv|P.npy",
+                   help="with --q-file: one row per configuration: x y z [m] then the rotation matrix "
+                        "row-major (9 entries) for spatial robots; the plane coordinates for planar arms")
+
+
+def cmd_fk(args: argparse.Namespace) -> int:
+    """Forward kinematics: tool position (and rotation for spatial robots)."""
+    robot = load(args)
+    if args.q_file is not None or args.out is not None:
+        return fk_file(args, robot, emit)
+    if is_parallel(robot):
+        from kinematics.cli.parallel import fk as parallel_fk
+
+        return parallel_fk(args, robot, emit)
+    from kinematics.cli.report import key_values, matrix
+    from kinematics.generic.serial import forward_kinematics, plane
+
+    v = values(args, robot)
+    pose = forward_kinematics(robot, robot.configuration(v), args.frame)
+    axes = plane(robot)
+    frame = args.frame or robot.tool_frame
+    if axes is not None:
+        payload: dict[str, Any] = {"frame": frame, "q": v, "position": pose.position[list(axes)]}
+    else:
+        payload = {"frame": frame, "q": v, "position": pose.position, "rotation": pose.rotation}
+
+    def human() -> str:
+        lines = [key_values([("frame", frame), ("q", v), ("position [m]", payload["position"])], 12)]
+        if "rotation" in payload:
+            lines += ["rotation:", matrix(pose.rotation, 9)]
+        return "\n".join(lines)
+
+    emit(args, payload, human)
+    return EXIT_OK
 
 
 def _check_out(path: str, q_file: str) -> None:
@@ -31,6 +81,8 @@ def _check_out(path: str, q_file: str) -> None:
 
 def read_rows(path: str) -> np.ndarray:
     """A 2-D float array from .npy or CSV (comma-separated, an optional header line)."""
+    import numpy as np
+
     if not os.path.isfile(path):
         raise InvalidInputError("--q-file", f"{path}: no such file")
     try:
@@ -54,6 +106,8 @@ def read_rows(path: str) -> np.ndarray:
 
 def fk_file(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """Evaluate every row of --q-file, write --out."""
+    import numpy as np
+
     from kinematics.generic.batched import compile_frame, configurations
     from kinematics.generic.serial import plane
 

@@ -4,9 +4,34 @@ from __future__ import annotations
 
 import argparse
 
-from kinematics.cli.report import Out, fmt, key_values
+from kinematics.cli.args import Command, number, positive
+from kinematics.cli.report import Out, emit, fmt, key_values
 from kinematics.errors import UnsupportedRobotError
 from kinematics.files import write_atomic
+
+
+def register(command: Command) -> None:
+    p = command("guide", cmd_guide, "simulate paper A's manual-guidance experiments (admittance + virtual impedance)")
+    p.add_argument("--experiment", type=int, required=True, choices=[1, 2, 3],
+                   help="1: hard short push (saturation); 2: push to (0.7, 0), operator stops; 3: keeps pushing")
+    p.add_argument("--robot", default="scara", metavar="ROBOT", help="a planar 2R arm (default scara)")
+    p.add_argument("--no-virtual-impedance", action="store_true", help="the baseline: plain admittance control")
+    p.add_argument("--force", type=number, metavar="N", help="operator push [N] (default 30 for 1, 6 for 2 and 3)")
+    p.add_argument("--mass", type=positive, metavar="KG", help="admittance mass per axis [kg] (default 5)")
+    p.add_argument("--damping", type=positive, metavar="NS/M", help="admittance damping [N s/m] (default 40)")
+    p.add_argument("--v-max", type=positive, metavar="M/S", help="velocity saturation [m/s] (default 0.25)")
+    p.add_argument("--saturation", choices=["norm", "axis"], help="saturate the speed (default) or each axis")
+    p.add_argument("--threshold", type=positive, metavar="M", help="radius threshold [m] (default 0.1)")
+    p.add_argument("--k-max", type=positive, metavar="N/M", help="eq. 16 step height (default 250)")
+    p.add_argument("--gain", type=positive, metavar="1/M", help="eq. 16 arctan slope (default 1e4)")
+    p.add_argument("--dt", type=positive, metavar="S", help="control period [s] (default 0.001)")
+    p.add_argument("--plot", metavar="FILE.png", help="write the time histories (paper A's Figs. 14-30)")
+    p.add_argument("--csv", metavar="FILE", help="write every step: force, position, velocities, radii, K_v, joints")
+
+
+def cmd_guide(args: argparse.Namespace) -> int:
+    """Paper A's manual-guidance experiments, simulated."""
+    return run(args, emit)
 
 
 def run(args: argparse.Namespace, out: Out) -> int:

@@ -3,13 +3,30 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from kinematics.cli.report import fmt, key_values, table
+from kinematics.cli.args import Command, load, number, q_args, robot_arg
+from kinematics.cli.report import emit, fmt, key_values, table
 from kinematics.errors import InvalidInputError
-from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from kinematics.model.robot import Robot
+
+
+def register(command: Command) -> None:
+    p = command("mobility", cmd_mobility, "mobility three ways: Grübler-Kutzbach, screw theory, constraint rank")
+    robot_arg(p)
+    q_args(p, required=False, p2us="the 3 actuator values (closed-loop solved)")
+    p.add_argument("--position", nargs=3, type=number, metavar=("X", "Y", "Z"),
+                   help="p2us, delta: platform position [m] (default: the sidecar's reference configuration)")
+    p.add_argument("--mode", help="p2us, delta: working mode for --position (default ---)")
+
+
+def cmd_mobility(args: argparse.Namespace) -> int:
+    """Grübler–Kutzbach, screw-theory and numeric mobility at a configuration."""
+    return run(args, load(args), emit)
 
 
 def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, str]:
@@ -19,6 +36,8 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     or the sidecar's reference (closed first where it is open, `kinematics.generic.assembly`); serial robots: --q (every joint) or a seeded random regular
     configuration within the ranges (`mobility.regular_configuration`).
     """
+    import numpy as np
+
     if robot.loops is None:
         if args.position is not None:
             raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")

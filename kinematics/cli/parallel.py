@@ -1,11 +1,10 @@
 """CLI handlers for closed-loop robots: the closed forms of the mechanism families (3-[P2(US)],
 Delta; see `FAMILIES`), and the generic Pinocchio closed-loop solver for any other URDF + loop
-sidecar. Called from `kinematics.cli.app`."""
+sidecar. Called from the command modules (`fk`, `ik`, `jacobian`, `mobility`, `views`)."""
 
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -356,56 +355,3 @@ def _frame_position(robot: Robot, q: np.ndarray, frame: str) -> np.ndarray:
     from kinematics.generic.serial import forward_kinematics
 
     return forward_kinematics(robot, q, frame).position
-
-
-URDF_FLAGS: dict[str, dict[str, str]] = {
-    # CLI flag (argparse dest) -> parameter name, per mechanism; angles marked by ANGLES
-    "p2us": {"b": "b", "d": "d", "L": "L", "beta": "beta", "alpha": "alpha", "stroke": "stroke",
-             "theta": "theta_limits", "phi": "phi_limits", "theta_zero": "theta_zero", "rod_spacing": "rod_spacing"},
-    "delta": {"b": "R", "d": "r", "upper_arm": "la", "forearm": "lb", "alpha": "alpha", "theta": "theta_limits",
-              "cone": "cone", "elbow_socket": "elbow_socket", "platform_socket": "platform_socket",
-              "rod_spacing": "rod_spacing"},
-}
-ANGLES = {"beta", "alpha", "theta", "phi", "theta_zero", "cone", "elbow_socket", "platform_socket"}
-
-
-def cmd_urdf(args: argparse.Namespace) -> int:
-    """`kinematics urdf p2us|delta [design flags] -o FILE`: write the URDF and its loop sidecar."""
-    from kinematics.mechanisms.delta import urdf as delta_urdf
-    from kinematics.mechanisms.delta.closed_form import DeltaParams
-    from kinematics.mechanisms.p2us import urdf as p2us_urdf
-
-    conv = math.radians if args.degrees else float
-    flags = URDF_FLAGS[args.robot]
-    for other, names in URDF_FLAGS.items():
-        for flag in set(names) - set(flags):
-            if getattr(args, flag, None) is not None:
-                raise InvalidInputError(f"--{flag.replace('_', '-')}", f"applies to {other} only, not {args.robot}")
-    design = getattr(args, "design", "table2")
-    if args.robot != "p2us" and design != "table2":
-        raise InvalidInputError("--design", f"presets are for p2us only, not {args.robot}")
-    changes: dict[str, Any] = {}
-    for flag, key in flags.items():
-        value = getattr(args, flag)
-        if value is None:
-            continue
-        f = conv if flag in ANGLES else float
-        changes[key] = tuple(f(x) for x in value) if isinstance(value, list) else f(value)
-    base: Any = p2us_urdf.DESIGNS[design] if args.robot == "p2us" else DeltaParams()
-    module: Any = p2us_urdf if args.robot == "p2us" else delta_urdf
-    write, read_params = module.write, module.read_params
-    params = base.replace(**changes)  # validates every value
-    urdf_path, side = write(params, args.output)
-    back = read_params(urdf_path)
-    payload = {"urdf": str(urdf_path), "sidecar": str(side), "parameters": params.as_dict(),
-               "round_trip": back == params}
-
-    def human() -> str:
-        return "\n".join([f"wrote {urdf_path}", f"wrote {side}", "parameters (SI; read back "
-                          + ("identical" if back == params else "DIFFERENT") + "):",
-                          key_values(params.as_dict().items(), None)])
-
-    from kinematics.cli.report import emit
-
-    emit(args, payload, human)
-    return EXIT_OK

@@ -6,15 +6,52 @@ import argparse
 import time
 from typing import Any
 
-import numpy as np
-
-from kinematics.cli.report import Out
+from kinematics.cli.args import Command, load, non_negative, number, positive, robot_arg, serial_args
+from kinematics.cli.report import Out, emit
 from kinematics.errors import InvalidInputError
+
+
+def register(command: Command) -> None:
+    p = command("show", cmd_show, "Meshcat view with overlays: prints the viewer URL and serves until "
+                                   "interrupted, or writes a static HTML scene with --export")
+    robot_arg(p)
+    p.add_argument("--q", nargs="+", type=number, metavar="Q",
+                   help="joint values [rad or m]; closed loops: the actuator values (closed-loop solved)")
+    p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
+    p.add_argument("--position", nargs=3, type=number, metavar=("X", "Y", "Z"),
+                   help="p2us, delta: platform position [m] (default: the sidecar's reference pose)")
+    p.add_argument("--mode", help="p2us, delta: working mode for --position (default ---)")
+    p.add_argument("--ellipsoid", action="store_true", help="the manipulability ellipse/ellipsoid at the tool")
+    p.add_argument("--workspace", action="store_true",
+                   help="the workspace as points coloured by smallest radius (arms) or min(iota_I, iota_II) "
+                        "(closed loops: p2us, delta, any URDF + sidecar)")
+    p.add_argument("--singularities", action="store_true", help="the singular points")
+    p.add_argument("--guide", type=int, choices=[1, 2, 3], help="planar arm: animate guidance experiment N")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="closed loops: limits for --workspace")
+    p.add_argument("--step", type=positive, default=None, metavar="M",
+                   help="closed loops: grid step [m] (default 0.02; 0.05 for a generic closed loop, whose solver is "
+                        "slower)")
+    serial_args(p)
+    p.add_argument("--skeleton", action="store_true",
+                   help="also draw the kinematic skeleton: joints along their axes, links joint to joint, loop-closure "
+                        "frames, the end effector (drawn anyway for a robot whose mesh files are missing)")
+    p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
+                                                  "boundary from `workspace-mesh`")
+    p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
+    p.add_argument("--serve-seconds", type=non_negative, metavar="S", help=argparse.SUPPRESS)
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    """Meshcat view of a robot with overlays."""
+    return run(args, load(args), emit)
 
 
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import signal
     import sys
+
+    import numpy as np
 
     from kinematics.mechanisms import mechanism_of
     from kinematics.views import meshcat as viz
@@ -118,6 +155,8 @@ def _load_mesh(path: str) -> Any:
 def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[str, Any] | None:
     """Before a scene starts: the overlay grid fits the view budget, and --position (or --q) is
     reachable in --mode (else the answer to report, exit 1)."""
+    import numpy as np
+
     from kinematics.cli.parallel import families
     from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
 

@@ -1,4 +1,4 @@
-"""CLI handlers of `kinematics workspace-volume`, `singularities` and `sweep` (called from `cli`)."""
+"""`kinematics workspace-volume`, `singularities` and `sweep`: their arguments and handlers."""
 
 from __future__ import annotations
 
@@ -8,16 +8,79 @@ import os
 import time
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from kinematics.cli.report import Out, fmt, key_values, show_progress, table
+from kinematics.cli.args import (
+    Command,
+    integer,
+    load,
+    non_negative,
+    positive,
+    robot_arg,
+    scan_args,
+    serial_args,
+)
+from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.files import write_atomic
-from kinematics.model.robot import Robot
+from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from kinematics.mechanisms.base import Mechanism
-from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
+    from kinematics.model.robot import Robot
+
+
+def register(command: Command) -> None:
+    p = command("workspace-volume", cmd_workspace_volume,
+                "workspace volume (p2us, delta, closed loops, serial arms) or area (planar arms and loops) with its "
+                "error estimate, per mode, with singular points")
+    robot_arg(p)
+    scan_args(p, 0.01)
+    p.add_argument("--rtol", type=non_negative, default=1e-3, metavar="R",
+                   help="relative tolerance on the volume's error estimate; the quadrature refines until it "
+                        "is met (default 1e-3; 0: 1e-2)")
+    p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
+    serial_args(p)
+
+    p = command("singularities", cmd_singularities,
+                "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
+                "(planar arm); possibly singular joint boxes (serial arms)")
+    robot_arg(p)
+    scan_args(p, 0.01)
+    p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")
+    p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
+                   help="planar arm: joint-grid step in degrees (default 1)")
+    serial_args(p)
+
+    p = command("sweep", cmd_sweep, "design sweep of the 3-[P2(US)] on Dask: volume, singularity-free "
+                                     "fraction, conditioning")
+    robot_arg(p)
+    p.add_argument("--param", action="append", metavar="NAME=START:STOP:COUNT",
+                   help="a swept parameter (repeatable): b, d, L, beta, theta_zero, rod_spacing, stroke_min, "
+                        "stroke_max [m, rad]")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a running dask scheduler (default: an embedded "
+                                                            "local cluster)")
+    p.add_argument("--workers", type=integer, metavar="N",
+                   help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
+    p.add_argument("--step", type=positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
+    p.add_argument("--rtol", type=positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
+
+
+def cmd_workspace_volume(args: argparse.Namespace) -> int:
+    """Workspace volume (area) with bounds, per mode and union, and the singular points in it."""
+    return workspace_volume(args, load(args), emit)
+
+
+def cmd_singularities(args: argparse.Namespace) -> int:
+    """Singular loci over a grid (p2us) or the joint grid (planar arm)."""
+    return singularities(args, load(args), emit)
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Design sweep of the 3-[P2(US)] on Dask."""
+    return sweep(args, load(args), emit)
+
 
 SERIAL_PROVED = ("proved: lower <= volume <= upper for the URDF's kinematics (Taylor balls with a global "
                  "second-derivative bound above, Graves' theorem and boundary-free cell components below; "
@@ -52,6 +115,8 @@ def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
     """An evenly spaced sample of the possibly singular boxes: world position [m] (the base joint
     at 0 for a solid of revolution), the ball radius [m] their image lies within, the joint values."""
     import dataclasses
+
+    import numpy as np
 
     k = len(ws.singular_radius)
     idx = np.unique(np.linspace(0, k - 1, min(k, count)).astype(int)) if k else np.zeros(0, dtype=int)
@@ -142,6 +207,8 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> i
 
 def _write_points(path: str, points: np.ndarray, header: str) -> None:
     """Write points as .npy or CSV (by suffix), atomically."""
+    import numpy as np
+
     if os.path.splitext(path)[1].lower() == ".npy":
         write_atomic(path, lambda tmp: np.save(tmp, points), "--points")
     else:
@@ -151,6 +218,8 @@ def _write_points(path: str, points: np.ndarray, header: str) -> None:
 
 def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...]) -> np.ndarray:
     """Grid points (cell centres at `step`) inside the union, for --points."""
+    import numpy as np
+
     lo, hi = mech.bounding_box(limits)
     margin = mech.margin(branches, limits)
     check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,

@@ -1,0 +1,183 @@
+"""The CLI's shared argument helpers: the parser class, the number and type parsers, the
+arguments several commands take (ROBOT with --range, --q, the scan and serial-arm options), and
+`command`, through which each command module's `register` adds its subparser. No heavy imports:
+everything the parser imports must keep `kinematics --help` instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
+
+EXIT_OK, EXIT_NO, EXIT_ERROR = 0, 1, 2
+"""Exit status: success, a well-formed question whose answer is \"no\", bad input (argparse's usage
+errors too); the others are in `kinematics.cli.app`."""
+
+MAX_MAGNITUDE = 1e6
+"""Largest magnitude of a coordinate on the command line [m, rad, deg, N]: a million metres is
+beyond any robot, and squares of such values stay far from overflowing."""
+
+CLOSED_POSE = (", default: the actuators of its default closed pose (the sidecar's reference, or a pose found from "
+               "the neutral pose; the report says which)")
+"""The closed-loop default of --q (fk, jacobian), for the help."""
+
+ROBOT_HELP = ("built-in name (scara, p2us, p2us-results, delta), URDF path, or example-robot-data name "
+              "(ur5, panda, ...)")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (no usage dump) and exit status 2, and numbers such as -1e-3
+    and -inf taken as values, not options (as Python 3.12's argparse does), as are working-mode
+    labels such as --- and -+-."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        import re
+
+        super().__init__(*args, **kwargs)
+        # working-mode labels such as --- and -+- are values too (no option is spelled that way)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$|^-inf(inity)?$|^-[+-]{2}$",
+                                                    re.I)
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
+
+
+def positive(text: str) -> float:
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be positive and finite, got {text}")
+    return v
+
+
+def non_negative(text: str) -> float:
+    return 0.0 if text.strip() in ("0", "0.0") else positive(text)
+
+
+def number(text: str) -> float:
+    """A coordinate: finite, magnitude at most MAX_MAGNITUDE."""
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+        raise argparse.ArgumentTypeError(f"must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {text}")
+    return v
+
+
+def joint_range(text: str) -> tuple[str, tuple[float, float]]:
+    """`JOINT=LO:HI` -> (joint, (lo, hi)), both finite with lo < hi."""
+    name, sep, pair = text.partition("=")
+    lo, colon, hi = pair.partition(":")
+    try:
+        a, b = float(lo), float(hi)
+    except ValueError:
+        a = b = float("nan")
+    if not (sep and colon and name) or not (abs(a) <= MAX_MAGNITUDE and abs(b) <= MAX_MAGNITUDE and a < b):
+        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r}")
+    return name, (a, b)
+
+
+def integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+class Version(argparse.Action):
+    """--version from the installed package's metadata (looked up only when asked)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        from importlib.metadata import version
+
+        print(f"kinematics {version('kinematics')}")
+        parser.exit(0)
+
+
+Handler = Callable[[argparse.Namespace], int]
+"""A command's handler: the parsed arguments -> the exit status."""
+Command = Callable[[str, Handler, str], argparse.ArgumentParser]
+"""`command(name, handler, help)`: adds a subparser with --json whose handler is `handler`."""
+
+
+def subcommands(sub: Any) -> Command:
+    """The `command` function adding subparsers to `sub` (from `add_subparsers`)."""
+
+    def command(name: str, func: Handler, help_: str) -> argparse.ArgumentParser:
+        p: argparse.ArgumentParser = sub.add_parser(name, help=help_, description=help_)
+        p.set_defaults(func=func)
+        p.add_argument("--json", action="store_true", help="print JSON instead of a readable report")
+        return p
+
+    return command
+
+
+def robot_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("robot", metavar="ROBOT", help=ROBOT_HELP)
+    p.add_argument("--range", action="append", type=joint_range, metavar="JOINT=LO:HI",
+                   help="give or replace a joint's range [rad or m] (repeat per joint): for URDFs whose "
+                        "<limit> has no lower/upper")
+
+
+def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
+           loops: str = "") -> None:
+    p.add_argument("--q", nargs="+", type=number, required=required, metavar="Q",
+                   help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
+                        f"robot, one per actuated joint{loops}; p2us: {p2us}")
+    p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
+
+
+def scan_args(p: argparse.ArgumentParser, step: float) -> None:
+    p.add_argument("--step", type=positive, default=step, metavar="M",
+                   help=f"grid step [m] (default {step:g}; the volume: the column spacing to start "
+                        "from, and the sampling step along columns where no exact columns exist)")
+    p.add_argument("--modes", nargs="+", metavar="MODE",
+                   help="working modes such as --- +-+ (p2us, delta; default all 8); planar arm: "
+                        "elbows up/down; other robots: their branch labels (a wrong one lists them)")
+    p.add_argument("--limits", default="all", choices=["all", "actuators"],
+                   help="all limits (default), or the actuator strokes only")
+    p.add_argument("--plot", metavar="FILE.png", help="write a figure")
+
+
+def serial_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-points", type=positive, default=2_000_000, metavar="N",
+                   help="serial arms: budget of configurations (default 2e6: 15-25 s for the UR5 on 2 cores, "
+                        "proved bounds about +/-50 %%; the bounds stay valid at any budget)")
+    p.add_argument("--resolution", type=integer, metavar="N",
+                   help="serial arms: cells across the reached extent (default 400 for a plane or a solid "
+                        "of revolution's profile, 128 in space)")
+
+
+# -- what handlers read from the arguments -------------------------------------------------------
+def load(args: argparse.Namespace) -> Any:
+    """The robot of ROBOT and --range."""
+    from kinematics.model.robot import load_robot
+
+    return load_robot(args.robot, ranges=dict(getattr(args, "range", None) or ()))
+
+
+def is_parallel(robot: Any) -> bool:
+    """A closed-loop mechanism, as the dispatcher (`mechanism_of`) decides."""
+    from kinematics.mechanisms import mechanism_of
+
+    return mechanism_of(robot).closed_loop
+
+
+def values(args: argparse.Namespace, robot: Any) -> Any:
+    """The joint values of --q (and --degrees): required here."""
+    if args.q is None:
+        from kinematics.errors import InvalidInputError
+
+        raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom ({robot.nv})")
+    return robot.joint_values(args.q, degrees=args.degrees)
