@@ -230,12 +230,11 @@ def substitute_joints(root: ET.Element, spec: GepettoSpec) -> ET.Element:
 def build_model(urdf_path: str | os.PathLike[str], spec: GepettoSpec) -> tuple[pin.Model, ET.Element]:
     """The Pinocchio model (fixed base) of the URDF with `spec`'s joint substitutions applied,
     and the URDF tree it was built from."""
-    from kinematics.model.urdf_file import build_model as build_plain
-    from kinematics.model.urdf_file import check_urdf_file
+    from kinematics.model.urdf_file import check_urdf_file, read_urdf
 
-    root = check_urdf_file(urdf_path)
     if not spec.substitutions:
-        return build_plain(urdf_path), root
+        return read_urdf(urdf_path)
+    root = check_urdf_file(urdf_path)
     root = substitute_joints(root, spec)
     try:
         return pin.buildModelFromXML(ET.tostring(root, encoding="unicode")), root

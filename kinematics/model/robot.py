@@ -31,7 +31,7 @@ from kinematics.errors import (
     UnknownRobotError,
     UnsupportedRobotError,
 )
-from kinematics.model.urdf_file import build_model, check_urdf_file, missing_range_sides
+from kinematics.model.urdf_file import build_model, check_urdf_file, missing_range_sides, read_urdf
 
 __all__ = ["BUILTIN", "ERD_ALIASES", "URDF_DIR", "Dof", "ParserAgreement", "Robot", "apply_ranges", "build_model",
            "check_urdf_file", "erd_catalogue", "erd_robots_dir", "load_robot", "matrix", "missing_range_sides",
@@ -367,8 +367,7 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
         if name == "robot":  # Gepetto's files are all robot.urdf: the folder names the robot
             name = Path(path).resolve().parent.name
     else:
-        root = check_urdf_file(path)
-        model = build_model(path)
+        model, root = read_urdf(path)
         loops = find_loop_spec(path, model)
     given = {**(loops.ranges if loops is not None else {}), **(ranges or {})}
     apply_ranges(model, missing_range_sides(root), given)

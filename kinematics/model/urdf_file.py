@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from kinematics.errors import ModelFileError
 
-__all__ = ["build_model", "check_urdf_file", "missing_range_sides"]
+__all__ = ["build_model", "check_urdf_file", "missing_range_sides", "read_urdf"]
 
 
 @contextmanager
@@ -53,7 +53,13 @@ def check_urdf_file(path: str | os.PathLike[str]) -> ET.Element:
 
 def build_model(path: str | os.PathLike[str]) -> pin.Model:
     """Parse a URDF with Pinocchio (fixed base); malformed files raise `ModelFileError`."""
-    check_urdf_file(path)
+    return read_urdf(path)[0]
+
+
+def read_urdf(path: str | os.PathLike[str]) -> tuple[pin.Model, ET.Element]:
+    """The Pinocchio model (fixed base) of a URDF file and its checked XML tree, the file read
+    once by each parser; malformed files raise `ModelFileError`."""
+    root = check_urdf_file(path)
     with _quiet_stderr() as log:
         try:
             model = pin.buildModelFromUrdf(str(path))
@@ -64,7 +70,7 @@ def build_model(path: str | os.PathLike[str]) -> pin.Model:
     if err is not None:
         detail = next((ln.strip() for ln in log[0].splitlines() if "Error" in ln), str(err))
         raise ModelFileError(path, f"Pinocchio cannot parse it: {detail}")
-    return model
+    return model, root
 
 
 def missing_range_sides(root: ET.Element) -> dict[str, tuple[bool, bool]]:
