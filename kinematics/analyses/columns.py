@@ -141,7 +141,9 @@ def column_lengths(
     Args:
         margin: (N, d) points [m] -> (N, T) or (N,) margins, >= 0 inside.
         base: (M, d - 1) the columns' other coordinates [m].
-        z0, z1: the column's extent along `axis` [m]; step: sampling step [m].
+        z0: the column's start along `axis` [m].
+        z1: the column's end along `axis` [m].
+        step: sampling step [m].
 
     Returns:
         (M, T) lengths [m], (M, T) sums of the final bracket widths [m], (M, T) interval ends.
@@ -489,7 +491,8 @@ def column_volume(
 
     Args:
         margin: (N, d) points [m] -> (N, T) (or (N,)) margins [m], continuous, >= 0 inside.
-        lo, hi: a box [m] containing the region (d = 2 or 3).
+        lo: the lower corner [m] of a box containing the region (d = 2 or 3).
+        hi: the box's upper corner [m].
         step: [m] exact columns: the quadratures' starting node spacing (at least MIN_NODES
             nodes per direction); sampled columns: the sampling step along the columns
             (components shorter than it can be missed), and 8 x step starts the quadratures.

@@ -173,10 +173,11 @@ def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tupl
 
 def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
                   spacing: float | None = None, search: bool = True) -> UsableShape:
-    """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
+    """The largest `shape` inside {field >= 0} within the box `[lo, hi]` [m] (see the module doc).
 
     Args:
-        step: grid step of the coarse search [m]; spacing: membership-test spacing (default step / 2).
+        step: grid step of the coarse search [m].
+        spacing: membership-test spacing [m] (default step / 2).
         search: False skips the pattern search (centre and aspect stay at the coarse optimum's):
             a checked lower bound, several times cheaper.
     """
