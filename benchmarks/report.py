@@ -31,29 +31,38 @@ DEFAULT_OUT = ROOT / "docs" / "benchmarks.md"
 Row = tuple[str, str]
 
 
+def num(x: float, digits: int = 3) -> str:
+    """`digits` significant digits, large and small numbers as 1.23e6 (no "+", no leading zeros)."""
+    text = f"{x:.{digits}g}"
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}e{int(exponent)}"
+    return text
+
+
 def rate(x: float, unit: str = "points/s") -> str:
-    return f"{x:.3g} {unit}"
+    return f"{num(x)} {unit}"
 
 
 def sec(x: float) -> str:
-    return f"{x:.3g} s"
+    return f"{num(x)} s"
 
 
 def _batched_fk(o: dict[str, Any]) -> list[Row]:
     return [(f"{o['robot']} tool poses, compiled, {o['threads']} threads", rate(o["compiled_fk_per_s"], "configurations/s")),
             (f"{o['robot']} tool poses, compiled, 1 thread (per wall / CPU second)",
-             f"{rate(o['compiled_fk_1thread_per_s'], 'configurations/s')} / "
-             f"{rate(o['compiled_fk_1thread_cpu_time_per_s'], 'configurations/s')}"),
+             (f"{rate(o['compiled_fk_1thread_per_s'], 'configurations/s')} / "
+             f"{rate(o['compiled_fk_1thread_cpu_time_per_s'], 'configurations/s')}")),
             (f"{o['robot']} tool Jacobians, compiled", rate(o["compiled_jacobian_per_s"], "configurations/s")),
-            (f"{o['robot']} tool poses, Pinocchio loop", f"{rate(o['pinocchio_loop_fk_per_s'], 'configurations/s')} "
-             f"(compiled: {o['ratio']:.0f} x; largest difference {o['max_abs_difference']:.1e})")]
+            (f"{o['robot']} tool poses, Pinocchio loop", (f"{rate(o['pinocchio_loop_fk_per_s'], 'configurations/s')} "
+             f"(compiled: {num(o['ratio'], 2)} x; largest difference {num(o['max_abs_difference'], 1)})"))]
 
 
 def _scara(o: dict[str, Any]) -> list[Row]:
     return [(f"SCARA manipulability, closed form, {o['threads']} threads", rate(o["closed_form_per_s"], "configurations/s")),
             ("SCARA manipulability, closed form, 1 thread", rate(o["closed_form_1thread_per_s"], "configurations/s")),
-            ("SCARA manipulability, Pinocchio loop", f"{rate(o['pinocchio_loop_per_s'], 'configurations/s')} "
-             f"(closed form: {o['ratio']:.0f} x)")]
+            ("SCARA manipulability, Pinocchio loop", (f"{rate(o['pinocchio_loop_per_s'], 'configurations/s')} "
+             f"(closed form: {num(o['ratio'], 2)} x)"))]
 
 
 def _p2us_kinematics(o: dict[str, Any]) -> list[Row]:
@@ -67,17 +76,17 @@ def _p2us_scan(o: dict[str, Any]) -> list[Row]:
     c, cells = o["columns"], o["cells"]
     return [(f"3-[P2(US)] fused scan, chunked grid, {o['threads']} threads", rate(o["full_scan_points_per_s"])),
             ("3-[P2(US)] scan kernel, 1 thread", rate(o["kernel_1_thread_per_s"])),
-            ("3-[P2(US)] per-point Pinocchio evaluation", f"{rate(o['pinocchio_per_point_points_per_s'])} "
-             f"(fused scan: {o['ratio_full_scan_to_pinocchio']:.2g} x)"),
-            (f"3-[P2(US)] volume, columns, rtol {c['rtol']:g}", f"{c['volume_m3']:.6g} m^3 +/- {c['error_estimate']:.1g} "
-             f"in {sec(c['seconds'])} (true error {c['true_rel_error']:.1e} relative)"),
-            (f"3-[P2(US)] volume, adaptive cells, rtol {cells['rtol']:g}", f"{sec(cells['seconds'])} "
-             f"(true error {cells['true_rel_error']:.1e} relative)")]
+            ("3-[P2(US)] per-point Pinocchio evaluation", (f"{rate(o['pinocchio_per_point_points_per_s'])} "
+             f"(fused scan: {num(o['ratio_full_scan_to_pinocchio'], 2)} x)")),
+            (f"3-[P2(US)] volume, columns, rtol {c['rtol']:g}", (f"{num(c['volume_m3'], 6)} m^3 +/- {num(c['error_estimate'], 1)} "
+             f"in {sec(c['seconds'])} (true error {num(c['true_rel_error'], 1)} relative)")),
+            (f"3-[P2(US)] volume, adaptive cells, rtol {cells['rtol']:g}", (f"{sec(cells['seconds'])} "
+             f"(true error {num(cells['true_rel_error'], 1)} relative)"))]
 
 
 def _volume(o: dict[str, Any]) -> list[Row]:
     return [(f"3-[P2(US)] volume, {r['limits']} limits, {r['target']}, {r['method']}",
-             f"{sec(r['seconds'])} (true error {r['true_rel']:.1e} relative)")
+             f"{sec(r['seconds'])} (true error {num(r['true_rel'], 1)} relative)")
             for r in o["rows"] if r["target"] == "union"]
 
 
@@ -86,14 +95,14 @@ def _delta(o: dict[str, Any]) -> list[Row]:
              f"{rate(o['kernel_all_threads_per_s'])} / {rate(o['kernel_1_thread_per_s'])}"),
             ("Delta margins, NumPy closed forms", rate(o["numpy_closed_forms_per_s"]))]
     if o.get("volume_m3") is not None:
-        rows.append(("Delta volume (`workspace-volume delta`)", f"{o['volume_m3']:.5g} m^3 +/- {o['error_estimate']:.1g} "
-                     f"in {sec(o['volume_seconds'])}"))
+        rows.append(("Delta volume (`workspace-volume delta`)", (f"{num(o['volume_m3'], 5)} m^3 +/- {num(o['error_estimate'], 1)} "
+                     f"in {sec(o['volume_seconds'])}")))
     return rows
 
 
 def _guidance(o: dict[str, Any]) -> list[Row]:
     names = {"step_closed_form": "guidance step, closed forms", "step_generic_pinocchio": "guidance step, generic Pinocchio"}
-    return [(f"{names[r['call']]} (p50 / p99)", f"{r['p50_us']:.3g} / {r['p99_us']:.3g} us")
+    return [(f"{names[r['call']]} (p50 / p99)", f"{num(r['p50_us'])} / {num(r['p99_us'])} us")
             for r in o["rows"] if r["call"] in names]
 
 
@@ -106,8 +115,8 @@ def _loop_batch(o: dict[str, Any]) -> list[Row]:
 
 def _serial_workspace(o: dict[str, Any]) -> list[Row]:
     unit = {"m2": "m^2", "m3": "m^3"}
-    return [(f"serial workspace, {r['robot']} ({r['mode']})", f"{r['measure']:.6g} {unit.get(r['unit'], r['unit'])} "
-             f"+/- {r['error_estimate']:.1g} in {sec(r['seconds'])}") for r in o["results"]]
+    return [(f"serial workspace, {r['robot']} ({r['mode']})", (f"{num(r['measure'], 6)} {unit.get(r['unit'], r['unit'])} "
+             f"+/- {num(r['error_estimate'], 1)} in {sec(r['seconds'])}")) for r in o["results"]]
 
 
 def _models(o: dict[str, Any]) -> list[Row]:
@@ -157,19 +166,19 @@ def table(results: dict[str, dict[str, Any]], quick: bool, date: str) -> str:
     machines = [o["machine"] for o in results.values() if "machine" in o]
     lines = ["# Benchmarks", ""]
     if quick:
-        lines += ["**Smoke run at the benchmarks' `--quick` sizes: these figures only show that every script runs; "
-                  "they are not measurements. Regenerate at full size (below) for the current figures.**", ""]
+        lines += [("**Smoke run at the benchmarks' `--quick` sizes: these figures only show that every script runs; "
+                  "they are not measurements. Regenerate at full size (below) for the current figures.**"), ""]
     if machines:
         loads = [m["load_avg_1min"] for m in machines]
         loop = statistics.median(m["calib_numba_loop_s"] for m in machines)
         matmul = statistics.median(m["calib_matmul_s"] for m in machines)
-        lines += [f"Measured {date} on {machines[0]['cores']} cores ({machines[0].get('cpu') or 'CPU unknown'}); "
+        lines += [(f"Measured {date} on {machines[0]['cores']} cores ({machines[0].get('cpu') or 'CPU unknown'}); "
                   f"load average (1 min) {min(loads):.2f} to {max(loads):.2f} at the benchmarks' starts; calibration "
                   f"(median over the benchmarks, see `benchmarks/_timing.py`): compiled loop {loop * 1e3:.1f} ms, "
-                  f"500 x 500 matmul {matmul * 1e3:.2f} ms.", ""]
-    lines += ["Regenerate: `python benchmarks/report.py` (every `benchmarks/bench_*.py` with `--json`, one after "
+                  f"500 x 500 matmul {matmul * 1e3:.2f} ms."), ""]
+    lines += [("Regenerate: `python benchmarks/report.py` (every `benchmarks/bench_*.py` with `--json`, one after "
               "the other, on an otherwise idle machine). Each script's own "
-              "`--help` says what it measures; its `--json` output has every figure.", "",
+              "`--help` says what it measures; its `--json` output has every figure."), "",
               "| benchmark | figure | value | load |", "|---|---|---|---|"]
     for name, out in results.items():
         load = f"{out['machine']['load_avg_1min']:.2f}" if "machine" in out else ""
