@@ -85,7 +85,8 @@ def _p2us_scan(o: dict[str, Any]) -> list[Row]:
 
 
 def _volume(o: dict[str, Any]) -> list[Row]:
-    return [(f"3-[P2(US)] volume, {r['limits']} limits, {r['target']}, {r['method']}",
+    limits = {"all": "every limit", "actuators": "strokes only"}
+    return [(f"3-[P2(US)] volume, {limits.get(r['limits'], r['limits'])}, {r['target']}, {r['method']}",
              f"{sec(r['seconds'])} (true error {num(r['true_rel'], 1)} relative)")
             for r in o["rows"] if r["target"] == "union"]
 
@@ -124,7 +125,7 @@ def _models(o: dict[str, Any]) -> list[Row]:
         return [("Gepetto models, every command", f"skipped: {o['skipped']}")]
     ok = sum(r["status"] == "ok" for r in o["rows"])
     total = sum(r["seconds"] for r in o["rows"])
-    return [("Gepetto models, every command (see models.md)", f"{ok} of {len(o['rows'])} ok, {sec(total)} in all")]
+    return [("Gepetto models, every command ([models](models.md))", f"{ok} of {len(o['rows'])} ok, {sec(total)} in all")]
 
 
 HEADLINES: dict[str, Callable[[dict[str, Any]], list[Row]]] = {
@@ -220,7 +221,11 @@ def main() -> int:
         results[name] = run(ROOT / "benchmarks" / f"{name}.py", args.quick)
         if args.save:
             (args.save / f"{name}.json").write_text(json.dumps(results[name], indent=2))
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    when = datetime.datetime.now(datetime.timezone.utc)
+    if args.from_json:  # when the saved runs ended, not when the page was rewritten
+        newest = max((args.from_json / f"{n}.json").stat().st_mtime for n in names)
+        when = datetime.datetime.fromtimestamp(newest, datetime.timezone.utc)
+    date = when.strftime("%Y-%m-%d %H:%M UTC")
     text = table(results, quick, date)
     tmp = args.out.with_name(f".{args.out.name}.tmp")
     tmp.write_text(text)
