@@ -82,18 +82,22 @@ def test_the_mechanism_interface_is_documented(site):
 
 
 def test_a_broken_docstring_fails_the_build(tmp_path):
-    """The check itself can fail: a module whose docstring names an argument its function lacks."""
+    """The check itself can fail: a docstring naming an argument its function lacks, a cross-reference
+    to nothing, and a user-guide link to a missing page are each reported, and the build stops."""
     pkg = tmp_path / "src" / "broken"
     pkg.mkdir(parents=True)
     (pkg / "__init__.py").write_text('"""A package."""\n')
     (pkg / "mod.py").write_text('def f(x: float) -> float:\n    """Twice x.\n\n    Args:\n'
-                                '        y: not an argument of f.\n    """\n    return 2 * x\n')
+                                '        y: not an argument of f.\n    """\n    return 2 * x\n\n\n'
+                                'def g() -> None:\n    """Calls [f][broken.mod.nothing]."""\n')
     (tmp_path / "docs").mkdir()
-    (tmp_path / "docs" / "index.md").write_text("# broken\n\n::: broken.mod\n")
+    (tmp_path / "docs" / "index.md").write_text("# broken\n\nSee [the guide](guide.md).\n\n::: broken.mod\n")
     text = (ROOT / "mkdocs.yml").read_text()
     plugins = text[text.index("plugins:"):text.index("nav:")].replace("paths: [.]", f"paths: [{tmp_path / 'src'}]")
     config = tmp_path / "mkdocs.yml"
     config.write_text(f"site_name: broken\ndocs_dir: {tmp_path / 'docs'}\nstrict: true\n{plugins}")
     run = build(tmp_path, config)
     assert run.returncode != 0
-    assert "does not appear in the function signature" in run.stderr
+    assert "Parameter 'y' does not appear in the function signature" in run.stderr
+    assert "Could not find cross-reference target 'broken.mod.nothing'" in run.stderr
+    assert "'guide.md'" in run.stderr
