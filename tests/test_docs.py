@@ -75,6 +75,15 @@ def test_every_public_module_has_its_reference(site, package):
     assert not [a for a in anchors if re.search(r"\._[a-z]", a)]
 
 
+def test_every_docstring_section_was_parsed(site):
+    """A section header the Google parser did not take (e.g. `Returns:` right under the arguments
+    without a blank line) is left as a paragraph: "Returns:" on a line of its own in the page."""
+    unparsed = [f"{page.parent.name}: {m.group(0)[:80]!r}" for page in sorted((site / "reference").glob("*/index.html"))
+                for m in re.finditer(r"<p>(Args|Arguments|Returns|Raises|Yields|Attributes|Examples?):\s*\n[^<]*",
+                                     page.read_text())]
+    assert unparsed == []
+
+
 def test_the_mechanism_interface_is_documented(site):
     html = (site / "reference" / "mechanisms" / "index.html").read_text()
     assert 'id="kinematics.mechanisms.base.Mechanism"' in html

@@ -288,8 +288,8 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     is at least rtol x floor x |the last target's integral| (the union's, in a workspace
     measurement): a target far smaller than the last is not chased to a relative tolerance of its own.
 
-    Returns: integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without
-    groups).
+    Returns:
+        integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without groups).
     """
     t, w = _gauss(order)
     gof = np.arange(len(a)) if group is None else np.asarray(group)
@@ -406,7 +406,8 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
        two nodes with equal signatures) shows up as a signature change among an interval's nodes
        and is charged its variation bound; one missed by every node is not seen.
 
-    Returns: integrals (P, T), error estimates (P, T), converged (P,), evaluations.
+    Returns:
+        integrals (P, T), error estimates (P, T), converged (P,), evaluations.
     """
     P = len(a)
     width = b - a
