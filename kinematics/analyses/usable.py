@@ -269,7 +269,7 @@ def _starts(lv: _Level, count: int) -> list[np.ndarray]:
 def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
                   spacing: float | None = None, search: bool = True, levels: int = 3,
                   starts: int = 4) -> UsableShape:
-    """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
+    """The largest `shape` inside {field >= 0} within the box `[lo, hi]` [m] (see the module doc).
 
     Global search: the field sampled every `step`, distance transforms give at every voxel the
     shape centred there and an upper bound on any shape centred in its cell (`_per_voxel`); the
@@ -279,8 +279,8 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     largest bound left (or the best volume, if larger).
 
     Args:
-        step: grid step of the coarsest search [m]; spacing: membership-test spacing (default
-            step / 2).
+        step: grid step of the coarsest search [m].
+        spacing: membership-test spacing [m] (default step / 2).
         search: False skips the pattern search and the finer levels (the coarse optimum's centre,
             the size still bisected and checked): a checked lower bound, several times cheaper.
         levels: grids sampled (step, step/2, ...), at least 1.
