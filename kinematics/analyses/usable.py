@@ -323,50 +323,57 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
             lo_t, hi_t = (mid, hi_t) if fits(c, [mid * s for s in base]) else (lo_t, mid)
         return lo_t
 
-    best: tuple[float, np.ndarray, tuple[float, ...]] = (0.0, lo_, (step / 4,) * (2 if shape == "cylinder" else 1))
+    tested: list[tuple[float, np.ndarray, tuple[float, ...]]] = []  # (volume, centre, size) of each start
     bound = 0.0
     for level in range(levels if search else 1):
         for j in _starts(lv, starts if search else 1):
             base = tuple(float(x) for x in lv.size[tuple(j)])
             if min(base) <= 0:
                 base = (lv.h / 4,) * len(base)
-            c = lv.point(j)
-            t = max_scale(c, base)
-            if shape_volume(shape, [t * s for s in base]) > best[0]:
-                best = (shape_volume(shape, [t * s for s in base]), c, tuple(t * s for s in base))
+            t = max_scale(lv.point(j), base)
+            tested.append((shape_volume(shape, [t * x for x in base]), lv.point(j), tuple(t * x for x in base)))
+        best = max(v for v, _, _ in tested)
         bound = float(lv.bound[lv.region].max())
         if level + 1 < (levels if search else 1):
-            finer = _finer(field, shape, lv, best[0])
+            finer = _finer(field, shape, lv, best)
             if finer is None:  # no cell can beat the best: the best is the bound
-                bound = best[0]
+                bound = best
                 break
             lv = finer
-    _, center, size0 = best
 
-    def sized(aspect: float) -> tuple[float, ...]:
-        if shape != "cylinder":
-            return size0
-        return (size0[0] * aspect, size0[1] / aspect**2)  # same volume for every aspect
+    def polish(center: np.ndarray, size0: tuple[float, ...]) -> tuple[np.ndarray, tuple[float, ...]]:
+        """Pattern search of the centre (and the cylinder's aspect) from a tested start."""
 
-    aspect, t = 1.0, 1.0
-    delta = step if search else 0.0
-    while delta >= step / 8 and delta > 0:
-        improved = False
-        moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
-        if shape == "cylinder":
-            moves += [(3, s) for s in (-1, 1)]
-        for ax, s in moves:
-            c, a = center.copy(), aspect
-            if ax < 3:
-                c[ax] += s * delta
-            else:
-                a *= (1 + delta / max(size0[0], step)) ** s
-            t_new = max_scale(c, sized(a), above=t * (1 + 1e-4))
-            if t_new > t * (1 + 1e-4):
-                center, aspect, t, improved = c, a, t_new, True
-        if not improved:
-            delta /= 2
-    size = tuple(t * s for s in sized(aspect))
+        def sized(aspect: float) -> tuple[float, ...]:
+            if shape != "cylinder":
+                return size0
+            return (size0[0] * aspect, size0[1] / aspect**2)  # same volume for every aspect
+
+        aspect, t = 1.0, 1.0
+        delta = step if search else 0.0
+        while delta >= step / 8 and delta > 0:
+            improved = False
+            moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
+            if shape == "cylinder":
+                moves += [(3, s) for s in (-1, 1)]
+            for ax, s in moves:
+                c, a = center.copy(), aspect
+                if ax < 3:
+                    c[ax] += s * delta
+                else:
+                    a *= (1 + delta / max(size0[0], step)) ** s
+                t_new = max_scale(c, sized(a), above=t * (1 + 1e-4))
+                if t_new > t * (1 + 1e-4):
+                    center, aspect, t, improved = c, a, t_new, True
+            if not improved:
+                delta /= 2
+        return center, tuple(t * x for x in sized(aspect))
+
+    # the two best starts at least a step apart are polished: they can lie in different basins
+    tested.sort(key=lambda r: -r[0])
+    firsts = [tested[0]]
+    firsts += [r for r in tested[1:] if np.abs(r[1] - tested[0][1]).max() >= step][: 1 if search else 0]
+    center, size = max((polish(c, sz) for _, c, sz in firsts), key=lambda r: shape_volume(shape, r[1]))
     final = contains(field, shape, center, size, spacing)
     bigger = [1.01 * s for s in size]
     offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * 3, indexing="ij"), -1).reshape(-1, 3)
