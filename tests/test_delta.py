@@ -124,41 +124,6 @@ def test_fk_ik_property(q1, q2, q3):
         assert np.min(np.max(np.abs(ik.q - q), axis=-1)) <= 1e-9
 
 
-def _sphere_roots(P, q):
-    """Both platform positions from scipy root solves of |p + r e_i - E_i|^2 = lb^2, with the
-    elbows built here from the definition; lower one first."""
-    from scipy.optimize import root
-
-    c = np.array([elbow(P, i, q[i]) - P.r * P.e[i] for i in range(3)])
-    f = lambda p: np.sum((p - c) ** 2, axis=-1) - P.lb**2
-    roots: list[np.ndarray] = []
-    for start in np.concatenate([np.eye(3), -np.eye(3)]) * 2 * P.lb + c.mean(axis=0):
-        sol = root(f, start, method="lm", options={"xtol": 1e-15, "ftol": 1e-15}).x
-        if np.abs(f(sol)).max() < 1e-13 and all(np.linalg.norm(sol - r) > 1e-6 for r in roots):
-            roots.append(sol)
-    assert len(roots) == 2
-    return sorted(roots, key=lambda r: r[2])
-
-
-@pytest.mark.parametrize("alpha_deg", [(0, 120, 240), (0, 240, 120), (90, 200, 330)])
-def test_fk_assembly_labels_by_geometry(alpha_deg, rng):
-    """"below" is the lower solution whatever the limbs' numbering; oracle: scipy root solves.
-    1e-9 m allows ~1e-12 m^2 residuals over gradients ~lb (poses with the two solutions > 2 cm
-    apart)."""
-    D = P.replace(alpha=tuple(np.radians(alpha_deg)))
-    q = rng.uniform(*D.theta_limits, (40, 3))
-    res = dl.fk(D, q)
-    checked = 0
-    for qq, ok, p in zip(q, res.exists, res.p, strict=True):
-        if not ok or abs(p[1, 2] - p[0, 2]) < 0.02:
-            continue
-        below, above = _sphere_roots(D, qq)
-        np.testing.assert_allclose(p[0], below, atol=1e-9)
-        np.testing.assert_allclose(p[1], above, atol=1e-9)
-        checked += 1
-    assert checked >= 20
-
-
 def test_fk_no_assembly_gap_is_a_length():
     """Where the spheres do not meet, forearms `gap` longer (to 1e-9 relative) just assemble.
     Short forearms (0.3 m) and arms raised: the centres' circumradius is 0.2 + 0.3 cos(40 deg)
