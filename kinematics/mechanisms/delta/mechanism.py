@@ -22,17 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.mechanisms.base import (
-    Assemblies,
-    BranchIK,
-    MarginFn,
-    Mechanism,
-    SingularFields,
-    Velocity,
-    parallel_forward,
-)
+from kinematics.mechanisms.base import MarginFn, SingularFields
 from kinematics.mechanisms.delta import closed_form as cf
 from kinematics.mechanisms.delta.scan import scan
+from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
 
 LIMITS = ("all", "actuators")
 """Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
@@ -65,25 +58,17 @@ def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all"
     return np.where(limbs.reach[..., None] & np.isfinite(out), out, np.minimum(reach, 0.0)[..., None])
 
 
-class Delta(Mechanism):
+class Delta(ThreeLimbMechanism):
     """Clavel's 3-RUU Delta robot of a given design."""
 
     family = "delta"
-    closed_loop = True
     description = "3-RUU Delta robot (closed forms)"
     actuator_unit = "rad"
-    branch_kind = "working mode"
-    branches = cf.MODES
     branch_legend = MODE_LEGEND
     limit_sets = LIMITS
-    assembly_modes = cf.ASSEMBLY_MODES
-
-    def __init__(self, params: cf.DeltaParams, name: str = "delta") -> None:
-        self.params = params
-        self.name = name
-
-    def parameters(self) -> dict[str, Any]:
-        return self.params.as_dict()
+    closed_form = cf
+    urdf_module = "kinematics.mechanisms.delta.urdf"
+    params: cf.DeltaParams
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] that contains the workspace under `limits` (proved, not sampled).
@@ -133,28 +118,6 @@ class Delta(Mechanism):
             return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
         return margin
-
-    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
-        res = cf.ik(self.params, points, limits=_check_limits(limits))
-        return BranchIK(res.q, np.asarray(res.reachable), res.within_limits)
-
-    def fk(self, q: np.ndarray) -> Assemblies:
-        res = cf.fk(self.params, q)
-        return Assemblies(res.p, np.isfinite(res.p).all(axis=-1), cf.ASSEMBLY_MODES)
-
-    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
-        jac = cf.jacobians(self.params, points, q)
-        return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
-
-    def reference_pose(self) -> tuple[np.ndarray, str]:
-        from kinematics.mechanisms.delta.urdf import reference_pose
-
-        return reference_pose(self.params)
-
-    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
-        from kinematics.mechanisms.delta.urdf import joint_values_at
-
-        return joint_values_at(self.params, point, self.check_branches([branch])[0])
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
