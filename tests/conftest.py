@@ -70,3 +70,12 @@ def sample_actuators(params, n: int, rng: np.random.Generator) -> np.ndarray:
         q = rng.uniform(params.stroke[0], params.stroke[1], (4 * n, 3))
         out.append(q[fk(params, q).exists])
     return np.concatenate(out)[:n]
+
+
+def limited_poses(ik, params, lo, hi, n: int, rng: np.random.Generator, oversample: int):
+    """Up to n platform positions [m], uniform in the box lo..hi, where working mode '---' is
+    assembled within every limit, and their actuator values (`ik`: a family's closed-form IK)."""
+    p = rng.uniform(lo, hi, (oversample * n, 3))
+    res = ik(params, p)
+    ok = res.within_limits[:, -1]
+    return p[ok][:n], res.q[ok, -1][:n]

@@ -11,8 +11,6 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from kinematics.errors import InvalidDesignError, InvalidInputError
 from kinematics.mechanisms.delta import closed_form as dl
@@ -109,19 +107,6 @@ def test_fk_ik_round_trip_vectorised(rng):
     ok = back.exists
     dist = np.min(np.linalg.norm(back.p[ok] - below[ok, None, :], axis=-1), axis=-1)
     assert ok.mean() > 0.5 and dist.max() <= 1e-9
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.floats(-0.69, 1.57), st.floats(-0.69, 1.57), st.floats(-0.69, 1.57))
-def test_fk_ik_property(q1, q2, q3):
-    q = np.array([q1, q2, q3])
-    res = dl.fk(P, q)
-    if not res.exists:
-        return
-    for k in range(2):
-        ik = dl.ik(P, res.p[k])
-        assert ik.reachable.all()
-        assert np.min(np.max(np.abs(ik.q - q), axis=-1)) <= 1e-9
 
 
 def test_fk_no_assembly_gap_is_a_length():

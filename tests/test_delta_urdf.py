@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from kinematics.errors import ConvergenceError, SingularConfigurationError
@@ -15,6 +14,7 @@ from kinematics.mechanisms.delta import closed_form as dl
 from kinematics.mechanisms.delta.urdf import joint_values_at, read_params, write
 from kinematics.model.robot import load_robot, parser_agreement
 
+from .conftest import limited_poses
 from .test_delta import sample_actuators, type_two_pose
 
 
@@ -67,20 +67,6 @@ def random_design(rng):
     )
 
 
-def test_fk_matches_closed_loop_solve(loop, params, rng):
-    """Closed-form FK vs Pinocchio's closed loop on 120 seeded actuator triples within the range."""
-    qs = sample_actuators(params, 120, rng)
-    worst_pos = worst_rot = 0.0
-    for q in qs:
-        sol = loop.solve(q)
-        assert sol.residual <= 1e-12
-        fk = dl.fk(params, q)
-        worst_pos = max(worst_pos, np.min(np.linalg.norm(fk.p - sol.pose.translation, axis=-1)))
-        worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
-    assert worst_pos <= 1e-9  # [m]
-    assert worst_rot <= 1e-9  # the platform does not rotate [rad]
-
-
 def test_constrained_jacobian_matches_closed_form(loop, params, rng):
     """Pinocchio's constrained Jacobian (platform twist per actuator rate) vs J^-1 = J_x^-1 J_q
     on at least 100 seeded poses away from singularities (iota > 1e-3), 1e-9 relative."""
@@ -99,10 +85,8 @@ def test_constrained_jacobian_matches_closed_form(loop, params, rng):
 
 
 def workspace_poses(P, n, rng):
-    p = rng.uniform([-0.3, -0.3, -1.0], [0.3, 0.3, -0.6], (50 * n, 3))
-    res = dl.ik(P, p)
-    ok = res.within_limits[:, -1]
-    return p[ok][:n], res.q[ok, -1][:n]
+    """Platform positions inside the limited workspace (mode '---') and their actuator angles."""
+    return limited_poses(dl.ik, P, [-0.3, -0.3, -1.0], [0.3, 0.3, -0.6], n, rng, 50)
 
 
 def test_passive_joints_match_closed_form(loop, delta, params, rng):

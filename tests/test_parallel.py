@@ -6,8 +6,6 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from kinematics.errors import InvalidInputError, UnknownModeError
 from kinematics.mechanisms.p2us import closed_form as par
@@ -54,22 +52,6 @@ def test_fk_ik_round_trip_vectorised(p2us_params, rng):
     ok = back.exists
     dist = np.min(np.linalg.norm(back.p[ok] - p[ok, None, :], axis=-1), axis=-1)
     assert ok.mean() > 0.5 and dist.max() <= 1e-9
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.floats(0.1, 0.6), st.floats(0.1, 0.6), st.floats(0.1, 0.6))
-def test_fk_ik_property(q1, q2, q3):
-    from kinematics.mechanisms.p2us.closed_form import P2USParams
-
-    P = P2USParams()
-    q = np.array([q1, q2, q3])
-    res = par.fk(P, q)
-    if not res.exists:
-        return
-    for k in range(2):
-        ik = par.ik(P, res.p[k])
-        assert ik.reachable.all()
-        assert np.min(np.max(np.abs(ik.q - q), axis=-1)) <= 1e-9
 
 
 def _stroke_at_home(P, z):

@@ -12,7 +12,10 @@ from types import ModuleType
 from typing import Any, Callable
 
 import numpy as np
+import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.closedloop import ClosedLoop
@@ -23,6 +26,7 @@ from kinematics.mechanisms.p2us import urdf as p2us_urdf
 from kinematics.model.robot import URDF_DIR, load_robot
 
 from . import test_delta, test_delta_urdf, test_p2us_urdf
+from .conftest import sample_actuators
 from .same_model import assert_same_model, assert_same_yaml, model_differences
 from .same_text import assert_same_text
 from .test_cli import run
@@ -39,13 +43,15 @@ class Family:
     actuator_range: Callable[[Any], tuple[float, float]]
     centres: Callable[[Any, np.ndarray], np.ndarray]  # FK sphere centres, built independently of fk
     rod: Callable[[Any], float]
+    closed_form: ModuleType
+    sample: Callable[[Any, int, np.random.Generator], np.ndarray]  # assembling actuator values
 
 
 P2US = Family("p2us", p2us_urdf, test_p2us_urdf.random_design, ("slider_2", "b"), lambda P: P.stroke,
-              par.sphere_centres, lambda P: P.L)
+              par.sphere_centres, lambda P: P.L, par, sample_actuators)
 DELTA = Family("delta", delta_urdf, test_delta_urdf.random_design, ("tip_3_2_joint", "lb"), lambda P: P.theta_limits,
                lambda P, q: np.array([test_delta.elbow(P, i, q[i]) - P.r * P.e[i] for i in range(3)]),
-               lambda P: P.lb)
+               lambda P: P.lb, dl, test_delta.sample_actuators)
 FAMILIES = {"p2us": P2US, "delta": DELTA}
 BUILTINS = [("p2us", P2US, p2us_urdf.DESIGNS["table2"]), ("p2us-results", P2US, p2us_urdf.DESIGNS["results"]),
             ("delta", DELTA, dl.DeltaParams())]
@@ -196,3 +202,37 @@ def test_fk_assembly_labels_by_geometry(family, alpha_deg, rng):
         np.testing.assert_allclose(p[1], above, atol=1e-9)
         checked += 1
     assert checked >= 20
+
+
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1))
+def test_fk_ik_property(family, u1, u2, u3):
+    """FK then IK gives the actuator values back (in one of the 8 modes) to 1e-9 [m or rad]."""
+    P = family.urdf.read_params(URDF_DIR / f"{family.cli}.urdf")
+    lo, hi = family.actuator_range(P)
+    q = lo + (hi - lo) * np.array([u1, u2, u3])
+    res = family.closed_form.fk(P, q)
+    if not res.exists:
+        return
+    for k in range(2):
+        ik = family.closed_form.ik(P, res.p[k])
+        assert ik.reachable.all()
+        assert np.min(np.max(np.abs(ik.q - q), axis=-1)) <= 1e-9
+
+
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
+def test_fk_matches_closed_loop_solve(family, rng):
+    """Closed-form FK vs Pinocchio's closed loop on 120 seeded actuator triples that assemble;
+    1e-9: the solver converges to residuals <= 1e-12 over lever arms ~1 m."""
+    robot = load_robot(family.cli)
+    P, loop = family.urdf.read_params(robot.urdf_path), ClosedLoop(robot)
+    worst_pos = worst_rot = 0.0
+    for q in family.sample(P, 120, rng):
+        sol = loop.solve(q)
+        assert sol.residual <= 1e-12
+        fk = family.closed_form.fk(P, q)
+        worst_pos = max(worst_pos, np.min(np.linalg.norm(fk.p - sol.pose.translation, axis=-1)))
+        worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
+    assert worst_pos <= 1e-9  # closed-form FK vs Pinocchio's closed loop [m]
+    assert worst_rot <= 1e-9  # the platform does not rotate [rad]

@@ -49,7 +49,6 @@ if TYPE_CHECKING:
     from kinematics.model.urdf_xml import (
         UrdfBuilder,
         axis_of,
-        axis_reference,
         limit_of,
         num,
         origin_of,
@@ -78,7 +77,6 @@ _LAZY = {
     "URDF_DIR": "robot",
     "UrdfBuilder": "urdf_xml",
     "axis_of": "urdf_xml",
-    "axis_reference": "urdf_xml",
     "check_urdf_file": "robot",
     "erd_catalogue": "robot",
     "erd_robots_dir": "robot",
@@ -122,7 +120,6 @@ __all__ = [
     "Robot",
     "UrdfBuilder",
     "axis_of",
-    "axis_reference",
     "check_urdf_file",
     "erd_catalogue",
     "erd_robots_dir",

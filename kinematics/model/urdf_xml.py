@@ -5,26 +5,8 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from typing import Any
 
 import numpy as np
-
-
-def axis_reference(ik: Any, params: Any, half_span: float, samples: int, mode: int) -> tuple[np.ndarray, str]:
-    """A platform position on the base's z axis, within |z| <= half_span [m] on `samples` points,
-    where working mode `mode` (an index of the 8 sign labels, '---' = 7) is assembled with every
-    limit respected (mid-way along the valid stretch), else merely assembled: the reference
-    configuration the generators write. `ik(params, points)` is the mechanism's vectorised IK."""
-    z = np.linspace(-half_span, half_span, samples)
-    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
-    res = ik(params, pts)
-    for ok in (res.within_limits[:, mode], res.reachable[:, mode]):
-        if ok.any():
-            idx = np.flatnonzero(ok)
-            return pts[idx[len(idx) // 2]], "---"
-    from kinematics.errors import InvalidInputError
-
-    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
 
 
 def num(x: float) -> str:
@@ -59,7 +41,8 @@ def rot_z(a: float) -> np.ndarray:
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def visual(shape: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0), **size: float) -> ET.Element:
+def visual(shape: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
+           **size: float | tuple[float, ...]) -> ET.Element:
     """A `<visual>` element: geometry `shape` ("box", "cylinder", "sphere") with its size
     attributes (`size=(x, y, z)` for a box, `radius`, `length`) [m], placed at xyz/rpy."""
     v = ET.Element("visual")

@@ -46,24 +46,14 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from kinematics.errors import InvalidDesignError
 from kinematics.mechanisms.base import SINGULAR_TOL, SINGULARITY_TYPES, classify
-from kinematics.mechanisms.three_limb.modes import (
-    IKResult,
-    Jacobians,
-    actuators,
-    angle_text,
-    by_mode,
-    inverse_of,
-    jacobians_of,
-    points,
-    real_root,
-    unit_rods,
-)
+from kinematics.mechanisms.three_limb import modes
+from kinematics.mechanisms.three_limb.modes import IKResult, Jacobians
 from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
 from kinematics.mechanisms.translational import (
     ASSEMBLY_MODES,
@@ -168,36 +158,32 @@ def _wrap(params: DeltaParams, theta: np.ndarray) -> np.ndarray:
 
 
 # -- inverse kinematics ----------------------------------------------------------------------
-class LimbSolutions(NamedTuple):
-    """Per-limb IK for points of shape S + (3,); root axis: 0 = "+", 1 = "-".
+@dataclass(frozen=True)
+class LimbSolutions(modes.LimbRoots):
+    """Per-limb IK (`LimbRoots`): q the upper-arm angles [rad], n the forearm directions
+    (C_i - E_i)/l_b; and
 
     Attributes:
-        q: S + (3, 2) actuator angles [rad] (NaN where the limb cannot reach).
-        n: S + (3, 2, 3) unit forearm directions (C_i - E_i)/l_b.
-        reach: S + (3,) the limb reaches the point.
         near: S + (3,) distance from C_i to the nearest point of the elbow circle [m].
         far: S + (3,) distance from C_i to the farthest point of the elbow circle [m];
             the limb reaches iff near <= l_b <= far.
     """
 
-    q: np.ndarray
-    n: np.ndarray
-    reach: np.ndarray
     near: np.ndarray
     far: np.ndarray
 
 
 def limb_ik(params: DeltaParams, p: np.ndarray) -> LimbSolutions:
-    """Both roots of every limb at every platform position p [m]."""
-    p = points(p)
-    v = p[..., None, :] + (params.r - params.R) * params.e  # C_i - A_i, S + (3, 3)
+    """Both upper-arm angles theta = phi0 +/- atan2(sqrt(rho^2 - K^2), K) [rad] of every limb and
+    the forearm directions they give, at every platform position p [m]."""
+    v = modes.points(p)[..., None, :] + (params.r - params.R) * params.e  # C_i - A_i, S + (3, 3)
     x = np.einsum("...ij,ij->...i", v, params.e)
     y = np.einsum("...ij,ij->...i", v, params.t)
     h = v[..., 2]
     rho2 = x * x + h * h
     K = (rho2 + y * y + params.la**2 - params.lb**2) / (2 * params.la)
     disc = rho2 - K * K
-    reach, s = real_root(disc, params.lb)
+    reach, s = modes.real_root(disc, params.lb)
     phi0 = np.arctan2(-h, x)
     half = np.arctan2(s, K)
     q = _wrap(params, np.stack([phi0 + half, phi0 - half], axis=-1))  # S + (3, 2)
@@ -255,10 +241,7 @@ def ik(params: DeltaParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
     """
     limbs = limb_ik(params, p)
     theta_ok, elbow_ok, platform_ok = limb_limits(params, limbs)
-    ok = limbs.reach[..., None] & theta_ok
-    if limits:
-        ok &= elbow_ok & platform_ok
-    return by_mode(limbs, limbs.q, limbs.reach, ok)
+    return modes.by_mode(limbs, theta_ok, elbow_ok & platform_ok, limits)
 
 
 def limb_reasons(params: DeltaParams, limbs: LimbSolutions) -> list[dict[str, Any]]:
@@ -280,7 +263,7 @@ def limb_reasons(params: DeltaParams, limbs: LimbSolutions) -> list[dict[str, An
 # -- forward kinematics ----------------------------------------------------------------------
 def elbows(params: DeltaParams, q: np.ndarray) -> np.ndarray:
     """E_i = A_i + l_a d_i(theta_i) [m], shape S + (3, 3)."""
-    q = actuators(q, "angles")
+    q = modes.actuators(q, "angles")
     return params.base_points + params.la * in_plane(params, q)
 
 
@@ -304,7 +287,7 @@ def fk_reason(params: DeltaParams, res: FKResult) -> str:
 # -- velocity and singularities ---------------------------------------------------------------
 def rod_vectors(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """r_i = C_i - E_i [m], shape S + (3, 3)."""
-    p = points(p)
+    p = modes.points(p)
     return p[..., None, :] + params.r * params.e - elbows(params, q)
 
 
@@ -312,13 +295,13 @@ def jacobians(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> Jacobians:
     """J_x, J_q, J = J_q^-1 J_x and the singularity measures at (p, q)."""
     r = rod_vectors(params, p, q)
     bhat = in_plane(params, np.asarray(q, dtype=float) + math.pi / 2)  # dE/dtheta / l_a
-    n = unit_rods(r)
-    return jacobians_of(r, params.la * np.sum(r * bhat, axis=-1), n, np.sum(n * bhat, axis=-1))
+    n = modes.unit_rods(r)
+    return modes.jacobians_of(r, params.la * np.sum(r * bhat, axis=-1), n, np.sum(n * bhat, axis=-1))
 
 
 def jacobian_inverse(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """J^-1 = J_x^-1 J_q: pdot = J^-1 thetadot [m/rad] (raises where J_x is singular)."""
-    return inverse_of(jacobians(params, p, q))
+    return modes.inverse_of(jacobians(params, p, q))
 
 
 def violations(params: DeltaParams, q: np.ndarray, n: np.ndarray) -> list[str]:
@@ -328,16 +311,17 @@ def violations(params: DeltaParams, q: np.ndarray, n: np.ndarray) -> list[str]:
         q: (3,) actuator angles [rad].
         n: (3, 3) unit forearm directions, row i for limb i.
     """
+    deg = modes.angle_text
     ce, cp = cone_angles(params, np.asarray(q, dtype=float), np.asarray(n, dtype=float))
     lo, hi = params.theta_limits
     out = []
     for i in range(3):
         lim = f"limb {i + 1}: "
         if not lo <= q[i] <= hi:
-            out.append(lim + f"theta = {angle_text(q[i])} outside [{angle_text(lo)}, {angle_text(hi)}]")
+            out.append(lim + f"theta = {deg(q[i])} outside [{deg(lo)}, {deg(hi)}]")
         if ce[i] > params.cone:
-            out.append(lim + f"elbow ball joint at {angle_text(ce[i])} from its socket axis, beyond the cone's {angle_text(params.cone)}")
+            out.append(lim + f"elbow ball joint at {deg(ce[i])} from its socket axis, beyond the cone's {deg(params.cone)}")
         if cp[i] > params.cone:
-            out.append(lim + f"platform ball joint at {angle_text(cp[i])} from its socket axis, beyond the cone's "
-                       f"{angle_text(params.cone)}")
+            out.append(lim + f"platform ball joint at {deg(cp[i])} from its socket axis, beyond the cone's "
+                       f"{deg(params.cone)}")
     return out

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from types import ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -66,7 +67,7 @@ class Delta(ThreeLimbMechanism):
     actuator_unit = "rad"
     branch_legend = MODE_LEGEND
     limit_sets = LIMITS
-    closed_form = cf
+    closed_form: ClassVar[ModuleType] = cf
     urdf_module = "kinematics.mechanisms.delta.urdf"
     params: cf.DeltaParams
 

@@ -31,36 +31,17 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 
 import numpy as np
 
-from kinematics.mechanisms.delta.closed_form import (
-    MECHANISM,
-    DeltaParams,
-    ik,
-    limb_ik,
-    mode_index,
-    passive_angles,
-)
+from kinematics.mechanisms.delta.closed_form import MECHANISM, DeltaParams, ik, limb_ik, passive_angles
 from kinematics.mechanisms.three_limb import urdf as three_limb
-from kinematics.mechanisms.three_limb.modes import mode_roots
 from kinematics.mechanisms.three_limb.reader import LayoutReader
 from kinematics.mechanisms.three_limb.urdf import LIMBS as LIMBS
 from kinematics.mechanisms.three_limb.urdf import RODS as RODS
 from kinematics.mechanisms.three_limb.urdf import SPHERICAL as SPHERICAL
 from kinematics.mechanisms.three_limb.urdf import rod_offset as rod_offset
-from kinematics.model.urdf_xml import (
-    UrdfBuilder,
-    axis_of,
-    axis_reference,
-    limit_of,
-    num,
-    origin_of,
-    rot_y,
-    rot_z,
-    visual,
-)
+from kinematics.model.urdf_xml import UrdfBuilder, axis_of, limit_of, num, origin_of, rot_y, rot_z, visual
 
 
 def _platform_mount(params: DeltaParams) -> tuple[np.ndarray, np.ndarray]:
@@ -110,31 +91,21 @@ R={num(p.R)} r={num(p.r)} la={num(p.la)} lb={num(p.lb)} m, cone {num(p.cone)} ra
 def reference_pose(params: DeltaParams) -> tuple[np.ndarray, str]:
     """A platform position on the z axis where the robot is assembled in mode '---' with every
     limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
-    return axis_reference(ik, params, 2 * (params.R + params.la + params.lb), 8001, mode_index("---"))
+    return three_limb.axis_reference(ik, params, 2 * (params.R + params.la + params.lb), 8001)
 
 
 def joint_values_at(params: DeltaParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:
     """Every joint value of the URDF tree with the platform at `p` [m] in working mode `mode`
     (loops closed), from the closed forms. Raises InvalidInputError where a limb cannot reach."""
-    pos = np.asarray(p, dtype=float).reshape(3)
-    limbs = limb_ik(params, pos)
-    roots = mode_roots(limbs.reach, pos, mode)
-    theta = limbs.q[np.arange(3), roots]
-    psi, phi = passive_angles(params, theta, limbs.n[np.arange(3), roots])
-    values: dict[str, float] = {}
-    for i in LIMBS:
-        values[f"actuator_{i}"] = float(theta[i - 1])
-        for k in RODS:
-            values[f"u_psi_{i}_{k}"] = float(psi[i - 1])
-            values[f"u_phi_{i}_{k}"] = float(phi[i - 1])
+    theta, n = three_limb.mode_solution(limb_ik, params, p, mode)
+    psi, phi = passive_angles(params, theta, n)
     eps = theta[0] + params.elbow_socket + psi[0]  # rod (1, 1)'s angle in limb 1's plane
-    return three_limb.spherical_values(values, float(math.remainder(math.pi / 2 - eps, 2 * math.pi)))
+    return three_limb.tree_values("actuator", theta, "u_psi", psi, phi, float(math.remainder(math.pi / 2 - eps, 2 * math.pi)))
 
 
 def reference_configuration(params: DeltaParams) -> dict[str, float]:
     """Joint values of an assembled configuration (loops closed), for the sidecar."""
-    pos, mode = reference_pose(params)
-    return joint_values_at(params, pos, mode)
+    return joint_values_at(params, *reference_pose(params))
 
 
 def sidecar_text(params: DeltaParams, urdf_name: str) -> str:
@@ -143,28 +114,19 @@ def sidecar_text(params: DeltaParams, urdf_name: str) -> str:
                                    reference_configuration(params))
 
 
-def write(params: DeltaParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
-    """Write the URDF to `path` and its sidecar beside it, as one (`three_limb.urdf.write`:
-    atomic, both or neither); returns both paths."""
-    return three_limb.write(path, lambda robot: urdf_text(params, robot), lambda file: sidecar_text(params, file), name)
+write = three_limb.writer(urdf_text, sidecar_text)
 
 
 # -- reader -------------------------------------------------------------------------------------
 def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> DeltaParams:
-    """Read a Delta design back from its URDF (the layout `urdf_text` writes).
-
-    Raises:
-        UnsupportedRobotError: naming the missing or inconsistent joint when the URDF does not
-            have that layout.
-    """
+    """Read a Delta design back from its URDF (the layout `urdf_text` writes); raises
+    UnsupportedRobotError naming the missing or inconsistent joint when it has another layout."""
     layout = LayoutReader(urdf_path, robot, MECHANISM, "limb_i_joint, actuator_i, elbow_i_k_joint, u_psi_i_k, "
                           "u_phi_i_k, tip_i_k_joint, s_1..s_3, pmount_i_joint, anchor_i_k_joint, psocket_i_joint")
-    need, fail = layout.need, layout.fail
-    alpha, R, th_lim, spacing, sigma, cones, la, lb, r, kappa = ([] for _ in range(10))
+    alpha, (need, fail) = layout.limb_angles(), (layout.need, layout.fail)
+    R, th_lim, spacing, sigma, cones, la, lb, r, kappa = ([] for _ in range(9))
     for i in LIMBS:
-        alpha.append(layout.limb_angle(i))
-        act = need(f"actuator_{i}", "revolute")
-        xyz, rpy = origin_of(act)
+        act, xyz, rpy = layout.placed(f"actuator_{i}", "revolute")
         if xyz[1:] != (0, 0) or rpy != (0, 0, 0) or axis_of(act) != (0, 1, 0):
             raise fail(f"joint 'actuator_{i}' must sit at (R, 0, 0) with axis y")
         R.append(xyz[0])

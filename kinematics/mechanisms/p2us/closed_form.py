@@ -45,7 +45,6 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
@@ -53,18 +52,9 @@ from kinematics.errors import InvalidDesignError, InvalidInputError
 from kinematics.mechanisms.base import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.mechanisms.base import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.mechanisms.base import classify as classify
+from kinematics.mechanisms.three_limb import modes
 from kinematics.mechanisms.three_limb.modes import IKResult as IKResult
 from kinematics.mechanisms.three_limb.modes import Jacobians as Jacobians
-from kinematics.mechanisms.three_limb.modes import (
-    actuators,
-    angle_text,
-    by_mode,
-    inverse_of,
-    jacobians_of,
-    points,
-    real_root,
-    unit_rods,
-)
 from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
 from kinematics.mechanisms.translational import ASSEMBLY_MODES as ASSEMBLY_MODES
 from kinematics.mechanisms.translational import BOUNDARY_TOL as BOUNDARY_TOL
@@ -162,30 +152,26 @@ class P2USParams(LimbDesign):
 
 
 # -- inverse kinematics ----------------------------------------------------------------------
-class LimbSolutions(NamedTuple):
-    """Per-limb IK for points of shape S + (3,); root axis: 0 = "+", 1 = "-".
+@dataclass(frozen=True)
+class LimbSolutions(modes.LimbRoots):
+    """Per-limb IK (`LimbRoots`): q the carriage positions [m], n the rod directions
+    (C_i - B_i)/L, reach where the discriminant >= -BOUNDARY_TOL L^2; and
 
     Attributes:
-        q: S + (3, 2) actuator values [m] (NaN where the limb cannot reach).
-        n: S + (3, 2, 3) unit rod directions (C_i - B_i)/L.
-        reach: S + (3,) the limb reaches the point (discriminant >= -BOUNDARY_TOL L^2).
         axis_distance: S + (3,) distance of C_i from the rail's axis [m] (reach iff <= L).
     """
 
-    q: np.ndarray
-    n: np.ndarray
-    reach: np.ndarray
     axis_distance: np.ndarray
 
 
 def limb_ik(params: P2USParams, p: np.ndarray) -> LimbSolutions:
-    """Both roots of every limb at every platform position p [m]."""
-    p = points(p)
-    v = p[..., None, :] + (params.d - params.b) * params.e  # S + (3, 3)
+    """Both carriage positions q = A_i +/- sqrt(A_i^2 - G_i) [m] of every limb (paper eq. 18) and
+    the rod directions they give, at every platform position p [m]."""
+    v = modes.points(p)[..., None, :] + (params.d - params.b) * params.e  # S + (3, 3)
     A = np.einsum("...ij,ij->...i", v, params.w)
     vv = np.einsum("...ij,...ij->...i", v, v)
     disc = A * A - (vv - params.L**2)
-    reach, root = real_root(disc, params.L)
+    reach, root = modes.real_root(disc, params.L)
     q = np.stack([A + root, A - root], axis=-1)  # S + (3, 2)
     n = (v[..., None, :] - q[..., None] * params.w[:, None, :]) / params.L
     dist = np.sqrt(np.maximum(vv - A * A, 0.0))
@@ -290,16 +276,13 @@ def ik(params: P2USParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
     """
     limbs = limb_ik(params, p)
     stroke_ok, theta_ok, phi_ok = limb_limits(params, limbs)
-    ok = limbs.reach[..., None] & stroke_ok
-    if limits:
-        ok &= theta_ok & phi_ok
-    return by_mode(limbs, limbs.q, limbs.reach, ok)
+    return modes.by_mode(limbs, stroke_ok, theta_ok & phi_ok, limits)
 
 
 # -- forward kinematics ----------------------------------------------------------------------
 def sphere_centres(params: P2USParams, q: np.ndarray) -> np.ndarray:
     """c_i = B_i - d e_i: the platform centre lies at distance L from each, S + (3, 3)."""
-    q = actuators(q, "values")
+    q = modes.actuators(q, "values")
     return params.base_points + q[..., None] * params.w - params.d * params.e
 
 
@@ -312,16 +295,16 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
 # -- velocity and singularities ---------------------------------------------------------------
 def rod_vectors(params: P2USParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """r_i = C_i - B_i [m], shape S + (3, 3)."""
-    p = points(p)
-    q = actuators(q, "values")
+    p = modes.points(p)
+    q = modes.actuators(q, "values")
     return p[..., None, :] + params.d * params.e - params.base_points - q[..., None] * params.w
 
 
 def jacobians(params: P2USParams, p: np.ndarray, q: np.ndarray) -> Jacobians:
     """J_x, J_q, J = J_q^-1 J_x and the singularity measures at (p, q)."""
     r = rod_vectors(params, p, q)
-    n = unit_rods(r)
-    return jacobians_of(r, np.einsum("...ij,ij->...i", r, params.w), n, np.einsum("...ij,ij->...i", n, params.w))
+    n = modes.unit_rods(r)
+    return modes.jacobians_of(r, np.einsum("...ij,ij->...i", r, params.w), n, np.einsum("...ij,ij->...i", n, params.w))
 
 
 def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
@@ -331,6 +314,7 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
         q: (3,) actuator values [m].
         n: (3, 3) unit rod directions, row i for limb i.
     """
+    deg = modes.angle_text
     theta, phi = limit_angles(params, n)
     theta_ok, phi_ok = passive_limits_ok(params, n)
     theta_name = "theta (rod-rail angle)" if params.theta_convention == "rod-rail" else "theta"
@@ -343,13 +327,13 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
             out.append(lim + f"q = {q[i]:.6g} m above the stroke's {params.stroke[1]:g} m")
         if not theta_ok[i]:
             lo, hi = params.theta_limits
-            out.append(lim + f"{theta_name} = {angle_text(theta[i])} outside [{angle_text(lo)}, {angle_text(hi)}]")
+            out.append(lim + f"{theta_name} = {deg(theta[i])} outside [{deg(lo)}, {deg(hi)}]")
         if not phi_ok[i]:
             lo, hi = params.phi_limits
-            out.append(lim + f"phi = {angle_text(phi[i])} outside [{angle_text(lo)}, {angle_text(hi)}]")
+            out.append(lim + f"phi = {deg(phi[i])} outside [{deg(lo)}, {deg(hi)}]")
     return out
 
 
 def jacobian_inverse(params: P2USParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """J^-1 = J_x^-1 J_q: pdot = J^-1 qdot (raises where J_x is singular)."""
-    return inverse_of(jacobians(params, p, q))
+    return modes.inverse_of(jacobians(params, p, q))

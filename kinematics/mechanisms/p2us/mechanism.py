@@ -4,7 +4,8 @@ common interface (branches: the 8 working modes; limits: every limit, or the str
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from types import ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -61,7 +62,7 @@ class P2US(ThreeLimbMechanism):
     actuator_unit = "m"
     branch_legend = MODE_LEGEND
     limit_sets = LIMITS
-    closed_form = cf
+    closed_form: ClassVar[ModuleType] = cf
     urdf_module = "kinematics.mechanisms.p2us.urdf"
     params: cf.P2USParams
 

@@ -40,23 +40,12 @@ import numpy as np
 from kinematics.errors import ModelFileError, UnsupportedRobotError
 from kinematics.mechanisms.p2us.closed_form import P2USParams, limb_ik, passive_angles
 from kinematics.mechanisms.three_limb import urdf as three_limb
-from kinematics.mechanisms.three_limb.modes import mode_roots
 from kinematics.mechanisms.three_limb.reader import LayoutReader
 from kinematics.mechanisms.three_limb.urdf import LIMBS as LIMBS
 from kinematics.mechanisms.three_limb.urdf import RODS as RODS
 from kinematics.mechanisms.three_limb.urdf import SPHERICAL as SPHERICAL
 from kinematics.model.loops import sidecar_for
-from kinematics.model.urdf_xml import (
-    UrdfBuilder,
-    axis_of,
-    axis_reference,
-    limit_of,
-    num,
-    origin_of,
-    rot_y,
-    rot_z,
-    visual,
-)
+from kinematics.model.urdf_xml import UrdfBuilder, axis_of, limit_of, num, origin_of, rot_y, rot_z, visual
 
 MECHANISM = "3-[P2(US)]"
 
@@ -146,32 +135,22 @@ b={num(p.b)} d={num(p.d)} L={num(p.L)} m, beta={num(p.beta)} rad, rod spacing {n
 def reference_pose(params: P2USParams) -> tuple[np.ndarray, str]:
     """A platform position on the z axis where the robot is assembled in mode '---' with every
     limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
-    from kinematics.mechanisms.p2us.closed_form import ik, mode_index
+    from kinematics.mechanisms.p2us.closed_form import ik
 
-    return axis_reference(ik, params, 3 * (params.b + params.L), 6001, mode_index("---"))
+    return three_limb.axis_reference(ik, params, 3 * (params.b + params.L), 6001)
 
 
 def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:
     """Every joint value of the URDF tree with the platform at `p` [m] in working mode `mode`
     (loops closed), from the closed forms. Raises InvalidInputError where a limb cannot reach."""
-    pos = np.asarray(p, dtype=float).reshape(3)
-    limbs = limb_ik(params, pos)
-    roots = mode_roots(limbs.reach, pos, mode)
-    q = limbs.q[np.arange(3), roots]
-    theta, phi = passive_angles(params, limbs.n[np.arange(3), roots])
-    values: dict[str, float] = {}
-    for i in LIMBS:
-        values[f"slider_{i}"] = float(q[i - 1])
-        for k in RODS:
-            values[f"u_theta_{i}_{k}"] = float(theta[i - 1])
-            values[f"u_phi_{i}_{k}"] = float(phi[i - 1])
-    return three_limb.spherical_values(values, theta_centre(params) - values["u_theta_1_1"])
+    q, n = three_limb.mode_solution(limb_ik, params, p, mode)
+    theta, phi = passive_angles(params, n)
+    return three_limb.tree_values("slider", q, "u_theta", theta, phi, theta_centre(params) - float(theta[0]))
 
 
 def reference_configuration(params: P2USParams) -> dict[str, float]:
     """Joint values of an assembled configuration (loops closed), for the sidecar."""
-    pos, mode = reference_pose(params)
-    return joint_values_at(params, pos, mode)
+    return joint_values_at(params, *reference_pose(params))
 
 
 def sidecar_text(params: P2USParams, urdf_name: str) -> str:
@@ -191,27 +170,20 @@ def sidecar_path(urdf_path: str | os.PathLike[str]) -> Path:
     return sidecar_for(Path(urdf_path))
 
 
-def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
-    """Write the URDF to `path` and its sidecar beside it, as one (`three_limb.urdf.write`:
-    atomic, both or neither); returns both paths."""
-    return three_limb.write(path, lambda robot: urdf_text(params, robot), lambda file: sidecar_text(params, file), name)
+write = three_limb.writer(urdf_text, sidecar_text)
 
 
 # -- reader -------------------------------------------------------------------------------------
 def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> P2USParams:
-    """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes).
-
-    Raises:
-        UnsupportedRobotError: naming the missing or inconsistent joint when the URDF does not
-            have that layout.
-    """
+    """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes) and the
+    `u_joint_angles` block of its sidecar (`read_conventions`); UnsupportedRobotError names the
+    missing or inconsistent joint when the URDF does not have that layout."""
     layout = LayoutReader(urdf_path, robot, MECHANISM, _layout_hint())
     need, fail = layout.need, layout.fail
-    alpha, b, beta, stroke, spacing, theta0, th_lim, ph_lim, L, d = ([] for _ in range(10))
+    alpha = layout.limb_angles()
+    b, beta, stroke, spacing, theta0, th_lim, ph_lim, L, d = ([] for _ in range(9))
     for i in LIMBS:
-        alpha.append(layout.limb_angle(i))
-        slider = need(f"slider_{i}", "prismatic")
-        xyz, rpy = origin_of(slider)
+        slider, xyz, rpy = layout.placed(f"slider_{i}", "prismatic")
         if xyz[1:] != (0, 0) or rpy[0] != 0 or rpy[2] != math.pi or axis_of(slider) != (1, 0, 0):
             raise fail(f"joint 'slider_{i}' must sit at (b, 0, 0), rpy (0, beta, pi), axis x")
         b.append(xyz[0])
@@ -243,7 +215,7 @@ def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> 
         th_lim = [conventions.pop("theta_limits")]
     same = layout.same
     return P2USParams(
-        b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta), alpha=tuple(alpha),
+        b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta), alpha=tuple(alpha),  # type: ignore[arg-type]
         stroke=same("stroke", stroke), theta_limits=same("theta limits", th_lim), phi_limits=same("phi limits", ph_lim),
         theta_zero=same("theta_zero", theta0), rod_spacing=same("rod spacing", spacing), **conventions,
     )

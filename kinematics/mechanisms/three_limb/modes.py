@@ -5,7 +5,8 @@ and the velocity matrices J_x, J_q, J = J_q^-1 J_x with their singularity measur
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -44,6 +45,22 @@ def real_root(disc: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
     return reach, np.sqrt(np.where(reach, np.maximum(disc, 0.0), np.nan))
 
 
+@dataclass(frozen=True)
+class LimbRoots:
+    """Per-limb IK for points of shape S + (3,); root axis: 0 = "+", 1 = "-". A family's
+    `LimbSolutions` adds what tells why a limb does not reach.
+
+    Attributes:
+        q: S + (3, 2) actuator values [m or rad] (NaN where the limb cannot reach).
+        n: S + (3, 2, 3) unit rod directions, from the rod's actuated end to the platform.
+        reach: S + (3,) the limb reaches the point.
+    """
+
+    q: np.ndarray
+    n: np.ndarray
+    reach: np.ndarray
+
+
 class IKResult(NamedTuple):
     """IK over all 8 working modes for points of shape S + (3,).
 
@@ -59,18 +76,21 @@ class IKResult(NamedTuple):
     q: np.ndarray
     reachable: np.ndarray
     within_limits: np.ndarray
-    limbs: NamedTuple
+    limbs: Any
     limb_ok: np.ndarray
 
 
-def by_mode(limbs: NamedTuple, q: np.ndarray, reach: np.ndarray, ok: np.ndarray) -> IKResult:
-    """Assemble per-limb roots q, S + (3, 2), into the 8 working modes; `reach` S + (3,) says
-    which limbs reach, `ok` S + (3, 2) which roots reach within the limits checked."""
+def by_mode(limbs: LimbRoots, actuator_ok: np.ndarray, passive_ok: np.ndarray, passive: bool) -> IKResult:
+    """Assemble per-limb solutions `limbs` into the 8 working modes; a root is within the limits where its limb reaches, `actuator_ok` holds and,
+    if `passive`, `passive_ok` holds (both S + (3, 2))."""
+    ok = limbs.reach[..., None] & actuator_ok
+    if passive:
+        ok &= passive_ok
     idx = np.arange(3)
-    all_reach = np.all(reach, axis=-1)[..., None]
+    all_reach = np.all(limbs.reach, axis=-1)[..., None]
     reachable = np.broadcast_to(all_reach, all_reach.shape[:-1] + (len(MODES),))
     within = np.all(ok[..., idx, MODE_ROOTS], axis=-1)
-    return IKResult(q[..., idx, MODE_ROOTS], reachable, within, limbs, ok)
+    return IKResult(limbs.q[..., idx, MODE_ROOTS], reachable, within, limbs, ok)
 
 
 def mode_roots(reach: np.ndarray, position: np.ndarray, mode: str) -> np.ndarray:

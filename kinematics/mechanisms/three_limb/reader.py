@@ -43,18 +43,26 @@ class LayoutReader:
             raise self.fail(f"not a {self.mechanism}: joint {name!r} is {j.get('type')}, expected {kind}")
         return j
 
+    def placed(self, name: str, kind: str) -> tuple[ET.Element, tuple[float, ...], tuple[float, ...]]:
+        """Joint `name` of type `kind` (`need`) with its origin's xyz [m] and rpy [rad]."""
+        j = self.need(name, kind)
+        return (j, *origin_of(j))
+
+    def limb_angles(self) -> list[float]:
+        """alpha_i [rad] of the three limbs from `limb_i_joint`, each a pure rotation about z."""
+        out = []
+        for i in LIMBS:
+            _, xyz, rpy = self.placed(f"limb_{i}_joint", "fixed")
+            if xyz != (0, 0, 0) or rpy[:2] != (0, 0):
+                raise self.fail(f"joint 'limb_{i}_joint' must be a pure rotation about z")
+            out.append(rpy[2])
+        return out
+
     def same(self, what: str, values: list) -> Any:
         """The one value every limb/rod has; UnsupportedRobotError when they differ."""
         if any(v != values[0] for v in values[1:]):
             raise self.fail(f"the closed forms need identical limbs/rods, but {what} differs: {values}")
         return values[0]
-
-    def limb_angle(self, i: int) -> float:
-        """alpha_i [rad] from `limb_i_joint`, a pure rotation about z."""
-        xyz, rpy = origin_of(self.need(f"limb_{i}_joint", "fixed"))
-        if xyz != (0, 0, 0) or rpy[:2] != (0, 0):
-            raise self.fail(f"joint 'limb_{i}_joint' must be a pure rotation about z")
-        return rpy[2]
 
     def tip_length(self, i: int, k: int, what: str) -> float:
         """Rod (i, k)'s length [m] from `tip_i_k_joint` at (`what`, 0, 0)."""

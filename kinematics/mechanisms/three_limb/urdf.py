@@ -20,7 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.errors import ModelFileError
+from kinematics.errors import InvalidInputError, ModelFileError
+from kinematics.mechanisms.three_limb.modes import mode_roots
+from kinematics.mechanisms.translational import mode_index
 from kinematics.model.loops import FORMAT, sidecar_for
 from kinematics.model.urdf_xml import UrdfBuilder, rpy_of, visual
 
@@ -30,6 +32,22 @@ SPHERICAL = ("s_1", "s_2", "s_3")
 
 JOINT_MATERIAL = {"joint": "0.15 0.15 0.15 1"}
 """The dark grey of joint spheres, shared by both families' colour sets."""
+
+
+def axis_reference(ik: Callable[[Any, np.ndarray], Any], params: Any, half_span: float,
+                   samples: int) -> tuple[np.ndarray, str]:
+    """A platform position on the base's z axis, within |z| <= half_span [m] on `samples` points,
+    where working mode '---' is assembled with every limit respected (mid-way along the valid
+    stretch), else merely assembled: the reference configuration the generators write. `ik(params, points)` is the mechanism's vectorised IK."""
+    z = np.linspace(-half_span, half_span, samples)
+    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
+    res = ik(params, pts)
+    mode = mode_index("---")
+    for ok in (res.within_limits[:, mode], res.reachable[:, mode]):
+        if ok.any():
+            idx = np.flatnonzero(ok)
+            return pts[idx[len(idx) // 2]], "---"
+    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
 
 
 def rod_offset(k: int, s: float) -> float:
@@ -83,9 +101,28 @@ def add_platform(urdf: UrdfBuilder, mount: tuple[np.ndarray, np.ndarray], alpha:
             urdf.link(f"anchor_{i}_{k}")
 
 
-def spherical_values(values: dict[str, float], s_2: float) -> dict[str, float]:
-    """`values` completed with the platform's spherical joint: s_1 undoes rod (1, 1)'s u_phi,
-    s_2 as given (the family's elevation term), s_3 = 0 (the platform does not turn)."""
+def mode_solution(limb_ik: Callable[[Any, np.ndarray], Any], params: Any, p: np.ndarray,
+                  mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """(actuator values (3,), unit rod directions (3, 3)) with the platform at `p` [m] in working
+    mode `mode`, from the family's `limb_ik`; InvalidInputError where a limb cannot reach."""
+    pos = np.asarray(p, dtype=float).reshape(3)
+    limbs = limb_ik(params, pos)
+    roots = mode_roots(limbs.reach, pos, mode)
+    return limbs.q[np.arange(3), roots], limbs.n[np.arange(3), roots]
+
+
+def tree_values(actuator: str, q: np.ndarray, first: str, u_first: np.ndarray, u_phi: np.ndarray,
+                s_2: float) -> dict[str, float]:
+    """Joint values of the tree, by name: `{actuator}_i` = q_i, the universal joint's
+    `{first}_i_k` and `u_phi_i_k` (both rods of a limb alike), and the platform's spherical
+    joint: s_1 undoes rod (1, 1)'s u_phi, s_2 as given (the family's elevation term), s_3 = 0
+    (the platform does not turn)."""
+    values: dict[str, float] = {}
+    for i in LIMBS:
+        values[f"{actuator}_{i}"] = float(q[i - 1])
+        for k in RODS:
+            values[f"{first}_{i}_{k}"] = float(u_first[i - 1])
+            values[f"u_phi_{i}_{k}"] = float(u_phi[i - 1])
     values["s_1"] = -values["u_phi_1_1"]
     values["s_2"] = s_2
     values["s_3"] = 0.0
@@ -113,19 +150,28 @@ def sidecar_text(mechanism: str, command: str, urdf_name: str, actuated: str, re
     return "".join(f"# {line}\n" for line in header) + body
 
 
-def write(path: str | os.PathLike[str], urdf_text: Callable[[str], str], sidecar_text: Callable[[str], str],
-          name: str | None = None) -> tuple[Path, Path]:
-    """Write the URDF `urdf_text(robot name)` to `path` and `sidecar_text(URDF file name)` beside
-    it (`model.loops.sidecar_for`); returns both paths. Both are written as one
+Writer = Callable[..., tuple[Path, Path]]
+"""`write(params, path, name=None) -> (URDF path, sidecar path)`."""
+
+
+def writer(urdf_text: Callable[[Any, str], str], sidecar_text: Callable[[Any, str], str]) -> Writer:
+    """A family's `write(params, path, name=None)`: the URDF `urdf_text(params, name or the file's
+    stem)` to `path` and `sidecar_text(params, URDF file name)` beside it
+    (`model.loops.sidecar_for`), returning both paths. Both are written as one
     (`files.write_atomic_files`): on any failure neither file is half-written, and files already
     there are left as they were."""
-    from kinematics.files import write_atomic_files
 
-    urdf_path = Path(path)
-    side = sidecar_for(urdf_path)
-    urdf = urdf_text(name or urdf_path.stem)
-    loops = sidecar_text(urdf_path.name)
-    if not urdf_path.parent.is_dir():
-        raise ModelFileError(urdf_path.parent, "output directory does not exist")
-    write_atomic_files([(str(urdf_path), urdf), (str(side), loops)], "output")
-    return urdf_path, side
+    def write(params: Any, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
+        from kinematics.files import write_atomic_files
+
+        urdf_path = Path(path)
+        side = sidecar_for(urdf_path)
+        urdf = urdf_text(params, name or urdf_path.stem)
+        loops = sidecar_text(params, urdf_path.name)
+        if not urdf_path.parent.is_dir():
+            raise ModelFileError(urdf_path.parent, "output directory does not exist")
+        write_atomic_files([(str(urdf_path), urdf), (str(side), loops)], "output")
+        return urdf_path, side
+
+    write.__doc__ = writer.__doc__
+    return write
