@@ -14,6 +14,7 @@ from typing import Any, Callable
 import numpy as np
 import pinocchio as pin
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -236,3 +237,15 @@ def test_fk_matches_closed_loop_solve(family, rng):
         worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
     assert worst_pos <= 1e-9  # closed-form FK vs Pinocchio's closed loop [m]
     assert worst_rot <= 1e-9  # the platform does not rotate [rad]
+
+
+def test_sidecar_comparison_sees_a_small_change():
+    """The sidecar comparison is not blind: 1e-13 on one reference value, a renamed frame."""
+    text = (URDF_DIR / "delta.loops.yaml").read_text()
+    assert_same_yaml(text, text)
+    value = yaml.safe_load(text)["reference"]["actuator_2"]
+    for changed in (text.replace(f"actuator_2: {value!r}", f"actuator_2: {value + 1e-13!r}"),
+                    text.replace("frame2: anchor_3_2", "frame2: anchor_3_1")):
+        assert changed != text
+        with pytest.raises(AssertionError):
+            assert_same_yaml(changed, text)
