@@ -27,26 +27,17 @@ from kinematics.mechanisms.base import MarginFn, SingularFields
 from kinematics.mechanisms.delta import closed_form as cf
 from kinematics.mechanisms.delta.scan import scan
 from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
-
-LIMITS = ("all", "actuators")
-"""Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
+from kinematics.mechanisms.three_limb.modes import LIMITS as LIMITS
+from kinematics.mechanisms.three_limb.modes import check_limits
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' turns the upper arm from the line actuator "
                "axis -> platform joint towards larger theta, '-' the other way ('---': the usual elbows-out "
                "Delta); 'union': any mode")
 
 
-def _check_limits(limits: str) -> bool:
-    from kinematics.errors import UnknownChoiceError
-
-    if limits not in LIMITS:
-        raise UnknownChoiceError(limits, LIMITS)
-    return limits == "all"
-
-
 def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all") -> np.ndarray:
     """(N, 3, 2) per limb and root: the smallest slack [m] (see the module docstring)."""
-    passive = _check_limits(limits)
+    passive = check_limits(limits)
     limbs = cf.limb_ik(params, np.asarray(points, dtype=float))
     reach = np.minimum(params.lb - limbs.near, limbs.far - params.lb)  # (N, 3)
     lo, hi = params.theta_limits
@@ -66,10 +57,7 @@ class Delta(ThreeLimbMechanism):
     description = "3-RUU Delta robot (closed forms)"
     actuator_unit = "rad"
     branch_legend = MODE_LEGEND
-    limit_sets = LIMITS
     closed_form: ClassVar[ModuleType] = cf
-    urdf_module = "kinematics.mechanisms.delta.urdf"
-    params: cf.DeltaParams
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] that contains the workspace under `limits` (proved, not sampled).
@@ -82,7 +70,7 @@ class Delta(ThreeLimbMechanism):
         actuators only: any n). The box is the intersection of the three limbs' boxes; the elbow
         cones, which couple n to theta, are left out, so it is a superset.
         """
-        passive = _check_limits(limits)
+        passive = check_limits(limits)
         P = self.params
         lo_t, hi_t = P.theta_limits
         lo = np.full(3, -np.inf)
@@ -123,7 +111,7 @@ class Delta(ThreeLimbMechanism):
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
         mode m where det[n_1; n_2; n_3] of that mode's forearm directions does."""
-        s = scan(self.params, np.asarray(points, dtype=float), _check_limits(limits))
+        s = scan(self.params, np.asarray(points, dtype=float), check_limits(limits))
         return SingularFields(s.margin, s.disc, s.det)
 
     def kernels(self) -> tuple[Any, ...]:

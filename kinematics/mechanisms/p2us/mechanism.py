@@ -11,7 +11,7 @@ import numpy as np
 
 from kinematics.mechanisms.base import UNION, MarginFn, SingularFields
 from kinematics.mechanisms.p2us import closed_form as cf
-from kinematics.mechanisms.p2us.scan import LIMITS, bounding_box, check_limits, scan
+from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
 from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
@@ -61,10 +61,7 @@ class P2US(ThreeLimbMechanism):
     description = "3-[P2(US)] translational parallel robot (closed forms)"
     actuator_unit = "m"
     branch_legend = MODE_LEGEND
-    limit_sets = LIMITS
     closed_form: ClassVar[ModuleType] = cf
-    urdf_module = "kinematics.mechanisms.p2us.urdf"
-    params: cf.P2USParams
 
     def kernels(self) -> tuple[Any, ...]:
         import kinematics.mechanisms.p2us.scan as scan_module

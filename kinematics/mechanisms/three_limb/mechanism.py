@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinematics.mechanisms.base import Assemblies, BranchIK, Mechanism, Velocity, parallel_forward
+from kinematics.mechanisms.three_limb.modes import LIMITS, check_limits
 from kinematics.mechanisms.translational import ASSEMBLY_MODES, MODES
 
 
@@ -18,8 +19,8 @@ class ThreeLimbMechanism(Mechanism):
     """A three-limb translational parallel robot of a given design (branches: the 8 working
     modes; limits: `limit_sets`, "all" checking the passive joints too).
 
-    Subclasses name their modules: `closed_form` (with `ik`, `fk`, `jacobians`) and `urdf_module`
-    (with `reference_pose`, `joint_values_at`; imported on first use).
+    Subclasses name their `closed_form` module (with `ik`, `fk`, `jacobians`); the `urdf` module
+    beside it (with `reference_pose`, `joint_values_at`) is imported on first use.
 
     Attributes:
         params: the design (the family's parameter dataclass), read from its URDF.
@@ -29,8 +30,8 @@ class ThreeLimbMechanism(Mechanism):
     branch_kind = "working mode"
     branches = MODES
     assembly_modes = ASSEMBLY_MODES
+    limit_sets = LIMITS
     closed_form: ClassVar[ModuleType]
-    urdf_module: ClassVar[str]
 
     def __init__(self, params: Any, name: str | None = None) -> None:
         self.params = params
@@ -41,7 +42,7 @@ class ThreeLimbMechanism(Mechanism):
 
     def passive_limits(self, limits: str) -> bool:
         """Whether `limits` (one of `limit_sets`, else UnknownChoiceError) checks the passive joints."""
-        return self.check_limits(limits) == "all"
+        return check_limits(limits)
 
     def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
         res = self.closed_form.ik(self.params, points, limits=self.passive_limits(limits))
@@ -55,11 +56,15 @@ class ThreeLimbMechanism(Mechanism):
         jac = self.closed_form.jacobians(self.params, points, q)
         return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
 
+    def urdf_module(self) -> Any:
+        """The family's URDF module (`<family package>.urdf`), imported on first use."""
+        return importlib.import_module(f"{self.closed_form.__package__}.urdf")
+
     def reference_pose(self) -> tuple[np.ndarray, str]:
-        pose: tuple[np.ndarray, str] = importlib.import_module(self.urdf_module).reference_pose(self.params)
+        pose: tuple[np.ndarray, str] = self.urdf_module().reference_pose(self.params)
         return pose
 
     def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
-        values: dict[str, float] = importlib.import_module(self.urdf_module).joint_values_at(
-            self.params, point, self.check_branches([branch])[0])
+        values: dict[str, float] = self.urdf_module().joint_values_at(self.params, point,
+                                                                       self.check_branches([branch])[0])
         return values

@@ -10,9 +10,20 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from kinematics.errors import InvalidInputError
+from kinematics.errors import InvalidInputError, UnknownChoiceError
 from kinematics.mechanisms.base import SINGULAR_TOL
 from kinematics.mechanisms.translational import BOUNDARY_TOL, MODES, mode_index
+
+LIMITS = ("all", "actuators")
+"""Which limits apply: every limit (actuators and passive joints), or the actuators only."""
+
+
+def check_limits(limits: str) -> bool:
+    """True when the passive limits apply; raises UnknownChoiceError for anything but LIMITS."""
+    if limits not in LIMITS:
+        raise UnknownChoiceError(limits, LIMITS)
+    return limits == "all"
+
 
 MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in MODES])  # (8, 3)
 """Per working mode (row, order of MODES) and limb: the IK root it takes, 0 = "+", 1 = "-"."""
