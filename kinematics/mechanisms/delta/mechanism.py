@@ -27,12 +27,16 @@ from kinematics.mechanisms.base import (
     BranchIK,
     MarginFn,
     Mechanism,
+    PoseFK,
+    PoseIK,
+    PoseJacobians,
     SingularFields,
     Velocity,
     parallel_forward,
 )
 from kinematics.mechanisms.delta import closed_form as cf
 from kinematics.mechanisms.delta.scan import scan
+from kinematics.mechanisms.pose_reports import pose_fk, pose_ik, pose_jacobians
 
 LIMITS = ("all", "actuators")
 """Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
@@ -77,6 +81,7 @@ class Delta(Mechanism):
     branch_legend = MODE_LEGEND
     limit_sets = LIMITS
     assembly_modes = cf.ASSEMBLY_MODES
+    iota_I_label = "iota_I = min |n.b|"
 
     def __init__(self, params: cf.DeltaParams, name: str = "delta") -> None:
         self.params = params
@@ -84,6 +89,20 @@ class Delta(Mechanism):
 
     def parameters(self) -> dict[str, Any]:
         return self.params.as_dict()
+
+    def design_parameters(self) -> dict[str, Any]:
+        return self.params.as_dict()
+
+    def pose_ik(self, point: np.ndarray) -> PoseIK:
+        res = cf.ik(self.params, point)
+        return pose_ik(res, lambda q, n: cf.violations(self.params, q, n), cf.limb_reasons(self.params, res.limbs))
+
+    def pose_fk(self, q: np.ndarray) -> PoseFK:
+        return pose_fk(cf.fk(self.params, q), q, lambda p: cf.rod_vectors(self.params, p, q), self.params.lb,
+                       lambda qq, n: cf.violations(self.params, qq, n), lambda res: cf.fk_reason(self.params, res))
+
+    def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
+        return pose_jacobians(cf.jacobians(self.params, point, q))
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] that contains the workspace under `limits` (proved, not sampled).

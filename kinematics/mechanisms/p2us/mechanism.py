@@ -14,12 +14,16 @@ from kinematics.mechanisms.base import (
     BranchIK,
     MarginFn,
     Mechanism,
+    PoseFK,
+    PoseIK,
+    PoseJacobians,
     SingularFields,
     Velocity,
     parallel_forward,
 )
 from kinematics.mechanisms.p2us import closed_form as cf
 from kinematics.mechanisms.p2us.scan import LIMITS, bounding_box, check_limits, scan
+from kinematics.mechanisms.pose_reports import pose_fk, pose_ik, pose_jacobians
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
                "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
@@ -73,6 +77,7 @@ class P2US(Mechanism):
     branch_legend = MODE_LEGEND
     limit_sets = LIMITS
     assembly_modes = cf.ASSEMBLY_MODES
+    iota_I_label = "iota_I = min |n.w|"
 
     def __init__(self, params: cf.P2USParams, name: str = "p2us") -> None:
         self.params = params
@@ -80,6 +85,38 @@ class P2US(Mechanism):
 
     def parameters(self) -> dict[str, Any]:
         return self.params.as_dict()
+
+    def design_parameters(self) -> dict[str, Any]:
+        return self.params.as_dict()
+
+    def parameter_sources(self, urdf_path: str) -> dict[str, str]:
+        """Paper B's table for each parameter of a built-in design (`paper_b.SOURCES`)."""
+        from kinematics.mechanisms.p2us.paper_b import parameter_sources
+
+        return parameter_sources(self.name, urdf_path)
+
+    def limb_reasons(self, limbs: cf.LimbSolutions) -> list[dict[str, Any]]:
+        """Per-limb reachability at one point, with the reason when a limb cannot reach."""
+        return [{"limb": i + 1, "reachable": bool(limbs.reach[i]),
+                 "reason": None if limbs.reach[i] else (
+                     f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the "
+                     f"rail's axis, farther than the rod length L = {self.params.L:g} m")} for i in range(3)]
+
+    def fk_reason(self, res: Any) -> str:
+        """Why a single FK query has no assembly."""
+        return (f"no assembly: the three spheres of radius L = {self.params.L:g} m around the carriages do not "
+                f"meet (the rods would need to be {float(res.gap):.6g} m longer)")
+
+    def pose_ik(self, point: np.ndarray) -> PoseIK:
+        res = cf.ik(self.params, point)
+        return pose_ik(res, lambda q, n: cf.violations(self.params, q, n), self.limb_reasons(res.limbs))
+
+    def pose_fk(self, q: np.ndarray) -> PoseFK:
+        return pose_fk(cf.fk(self.params, q), q, lambda p: cf.rod_vectors(self.params, p, q), self.params.L,
+                       lambda qq, n: cf.violations(self.params, qq, n), self.fk_reason)
+
+    def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
+        return pose_jacobians(cf.jacobians(self.params, point, q))
 
     def kernels(self) -> tuple[Any, ...]:
         import kinematics.mechanisms.p2us.scan as scan_module
