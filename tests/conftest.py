@@ -36,17 +36,15 @@ def rng() -> np.random.Generator:
 
 def write_2r_urdf(path, l1: float, l2: float, lim1: float = 2.0, lim2: float = 2.5) -> None:
     """A tiny planar 2R arm with arbitrary link lengths (tests the URDF reader)."""
-    path.write_text(
-        f"""<robot name="arm2r">
-  <link name="base"/><link name="a"/><link name="b"/><link name="tip"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
-    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="{-lim1!r}" upper="{lim1!r}" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
-    <origin xyz="{l1!r} 0 0.02"/><axis xyz="0 0 1"/><limit lower="{-lim2!r}" upper="{lim2!r}" effort="1" velocity="1"/></joint>
-  <joint name="t" type="fixed"><parent link="b"/><child link="tip"/><origin xyz="{l2!r} 0 0"/></joint>
-</robot>
-"""
-    )
+    from kinematics.model.urdf_xml import UrdfBuilder
+
+    urdf = UrdfBuilder("arm2r", {})
+    for name in ("base", "a", "b", "tip"):
+        urdf.link(name)
+    urdf.joint("j1", "revolute", "base", "a", xyz=(0, 0, 0.1), axis=(0, 0, 1), limit=(-lim1, lim1))
+    urdf.joint("j2", "revolute", "a", "b", xyz=(l1, 0, 0.02), axis=(0, 0, 1), limit=(-lim2, lim2))
+    urdf.joint("t", "fixed", "b", "tip", xyz=(l2, 0, 0))
+    path.write_text(urdf.text("A planar 2R arm written by tests/conftest.py."))
 
 
 @pytest.fixture(scope="session")
@@ -70,3 +68,12 @@ def sample_actuators(params, n: int, rng: np.random.Generator) -> np.ndarray:
         q = rng.uniform(params.stroke[0], params.stroke[1], (4 * n, 3))
         out.append(q[fk(params, q).exists])
     return np.concatenate(out)[:n]
+
+
+def limited_poses(ik, params, lo, hi, n: int, rng: np.random.Generator, oversample: int):
+    """Up to n platform positions [m], uniform in the box lo..hi, where working mode '---' is
+    assembled within every limit, and their actuator values (`ik`: a family's closed-form IK)."""
+    p = rng.uniform(lo, hi, (oversample * n, 3))
+    res = ik(params, p)
+    ok = res.within_limits[:, -1]
+    return p[ok][:n], res.q[ok, -1][:n]

@@ -1,6 +1,6 @@
 """Comparing a generated model file with the shipped one: the same text, numbers to rounding.
 
-Generators print every number with 17 significant digits (a float's round trip), and a few are the
+Generators print every number as the shortest text that reads back as the same float, and a few are the
 end of a chain of trigonometry and 3 x 3 products whose last bits depend on the machine's SIMD path
 (NumPy picks its sin/cos and matmul kernels by CPU). A byte comparison would then fail on one
 machine and pass on another; the files' content is what matters, so the text outside numbers must

@@ -19,7 +19,7 @@ from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us.urdf import joint_values_at
 from kinematics.model.robot import load_robot
 
-from .conftest import sample_actuators
+from .conftest import limited_poses, sample_actuators
 from .test_parallel import type_two_pose
 
 MODELS = Path(__file__).parent / "models"
@@ -30,26 +30,9 @@ def loop(p2us):
     return ClosedLoop(p2us)
 
 
-def test_fk_matches_closed_loop_solve(loop, p2us_params, rng):
-    P = p2us_params
-    qs = sample_actuators(P, 120, rng)
-    worst_pos = worst_rot = 0.0
-    for q in qs:
-        sol = loop.solve(q)
-        assert sol.residual <= 1e-12
-        fk = par.fk(P, q)
-        worst_pos = max(worst_pos, np.min(np.linalg.norm(fk.p - sol.pose.translation, axis=-1)))
-        worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
-    assert worst_pos <= 1e-9  # closed-form FK vs Pinocchio's closed loop [m]
-    assert worst_rot <= 1e-9  # the platform does not rotate [rad]
-
-
 def workspace_poses(P, n, rng):
     """Platform positions inside the joint-limited workspace (mode '---') and their actuators."""
-    p = rng.uniform([-0.4, -0.4, -0.7], [0.4, 0.4, -0.1], (200 * n, 3))
-    res = par.ik(P, p)
-    ok = res.within_limits[:, -1]
-    return p[ok][:n], res.q[ok, -1][:n]
+    return limited_poses(par.ik, P, [-0.4, -0.4, -0.7], [0.4, 0.4, -0.1], n, rng, 200)
 
 
 def test_passive_joints_match_closed_form_angles(loop, p2us, p2us_params, rng):

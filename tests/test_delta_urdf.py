@@ -6,16 +6,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
-from kinematics.errors import ConvergenceError, SingularConfigurationError, UnsupportedRobotError
+from kinematics.errors import ConvergenceError, SingularConfigurationError
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.mechanisms.delta import closed_form as dl
-from kinematics.mechanisms.delta.urdf import joint_values_at, read_params, sidecar_text, urdf_text, write
-from kinematics.model.robot import URDF_DIR, load_robot, parser_agreement
+from kinematics.mechanisms.delta.urdf import joint_values_at, read_params, write
+from kinematics.model.robot import load_robot, parser_agreement
 
-from .same_text import assert_same_text
+from .conftest import limited_poses
 from .test_delta import sample_actuators, type_two_pose
 
 
@@ -32,15 +31,6 @@ def loop(delta):
 @pytest.fixture(scope="module")
 def params(delta):
     return read_params(delta.urdf_path)
-
-
-def test_builtin_files_are_the_generated_default(tmp_path, params):
-    # The committed files are exactly what the generator writes for the default design.
-    assert_same_text(urdf_text(dl.DeltaParams(), "delta"), (URDF_DIR / "delta.urdf").read_text())
-    assert_same_text(sidecar_text(dl.DeltaParams(), "delta.urdf"), (URDF_DIR / "delta.loops.yaml").read_text())
-    urdf, side = write(params, tmp_path / "delta.urdf")
-    assert_same_text(urdf.read_text(), (URDF_DIR / "delta.urdf").read_text())
-    assert_same_text(side.read_text(), (URDF_DIR / "delta.loops.yaml").read_text())
 
 
 def test_default_design_read_from_urdf(params):
@@ -66,6 +56,7 @@ def test_parsers_agree(delta, loop, rng):
 
 
 def random_design(rng):
+    """A random valid Delta design (test_three_limb's round trips)."""
     lo = float(rng.uniform(-1.0, 0.0))
     return dl.DeltaParams(
         R=float(rng.uniform(0.1, 0.3)), r=float(rng.uniform(0.02, 0.08)), la=float(rng.uniform(0.2, 0.4)),
@@ -74,49 +65,6 @@ def random_design(rng):
         elbow_socket=float(rng.uniform(1.3, 1.8)), platform_socket=float(rng.uniform(0.0, 0.5)),
         rod_spacing=float(rng.uniform(0.03, 0.1)),
     )
-
-
-def test_generate_read_round_trip_is_exact(tmp_path, rng):
-    for k in range(8):
-        design = random_design(rng)
-        urdf, _ = write(design, tmp_path / f"d{k}.urdf")
-        assert read_params(urdf) == design
-        robot = load_robot(urdf)
-        assert robot.loops is not None and robot.loops.mechanism == dl.MECHANISM
-        cl = ClosedLoop(robot)
-        assert np.abs(cl.residual(cl.reference)[0]).max() <= 1e-12  # 17 digits: assembled to 1e-12
-
-
-def test_reader_names_what_is_missing(tmp_path):
-    with pytest.raises(UnsupportedRobotError, match="missing joint 'limb_1_joint'"):
-        read_params(URDF_DIR / "scara.urdf")
-    with pytest.raises(UnsupportedRobotError, match="missing joint 'actuator_1'"):
-        read_params(URDF_DIR / "p2us.urdf")
-    text = (URDF_DIR / "delta.urdf").read_text()
-    broken = tmp_path / "broken.urdf"
-    broken.write_text(text.replace('name="u_phi_2_1"', 'name="u_phi_2_1x"'))
-    with pytest.raises(UnsupportedRobotError, match="u_phi_2_1"):
-        read_params(broken)
-    uneven = tmp_path / "uneven.urdf"
-    start = text.index('<joint name="tip_3_2_joint"')
-    seg = text[start:text.index("</joint>", start)]
-    uneven.write_text(text.replace(seg, seg.replace('xyz="0.80000000000000004 0 0"', 'xyz="0.5 0 0"')))
-    with pytest.raises(UnsupportedRobotError, match="lb differs"):
-        read_params(uneven)
-
-
-def test_fk_matches_closed_loop_solve(loop, params, rng):
-    """Closed-form FK vs Pinocchio's closed loop on 120 seeded actuator triples within the range."""
-    qs = sample_actuators(params, 120, rng)
-    worst_pos = worst_rot = 0.0
-    for q in qs:
-        sol = loop.solve(q)
-        assert sol.residual <= 1e-12
-        fk = dl.fk(params, q)
-        worst_pos = max(worst_pos, np.min(np.linalg.norm(fk.p - sol.pose.translation, axis=-1)))
-        worst_rot = max(worst_rot, np.linalg.norm(pin.log3(sol.pose.rotation)))
-    assert worst_pos <= 1e-9  # [m]
-    assert worst_rot <= 1e-9  # the platform does not rotate [rad]
 
 
 def test_constrained_jacobian_matches_closed_form(loop, params, rng):
@@ -137,10 +85,8 @@ def test_constrained_jacobian_matches_closed_form(loop, params, rng):
 
 
 def workspace_poses(P, n, rng):
-    p = rng.uniform([-0.3, -0.3, -1.0], [0.3, 0.3, -0.6], (50 * n, 3))
-    res = dl.ik(P, p)
-    ok = res.within_limits[:, -1]
-    return p[ok][:n], res.q[ok, -1][:n]
+    """Platform positions inside the limited workspace (mode '---') and their actuator angles."""
+    return limited_poses(dl.ik, P, [-0.3, -0.3, -1.0], [0.3, 0.3, -0.6], n, rng, 50)
 
 
 def test_passive_joints_match_closed_form(loop, delta, params, rng):

@@ -47,6 +47,9 @@ def test_largest_shape_in_a_ball(shape, exact):
     res = largest_shape(ball, *BOX, shape, step=0.01)
     assert res.volume <= exact * (1 + 1e-9)
     assert res.volume >= exact * 0.97
+    # the grid bound holds against the closed-form optimum, and says something (three grids down to
+    # 2.5 mm on a 0.1 m ball: a cube's bound edge is within 3 steps of its own, < 8 % in volume)
+    assert exact <= res.volume_bound <= exact * 1.08
     assert np.linalg.norm(res.center - C) <= 0.01
     assert res.min_field >= 0 and res.larger_fails
 
@@ -94,6 +97,22 @@ def test_p2us_usable_sphere(p2us_params):
     # a tighter kappa bound can only shrink it
     tight = usable(P2US(p2us_params), "sphere", kappa_max=3.0, step=0.02)
     assert tight.size[0] < res.size[0]
+
+
+@pytest.mark.slow
+def test_p2us_usable_cube_is_found_globally(p2us_params):
+    """The largest cube under kappa <= 1e6 (the case where a local search stopped at an edge of
+    0.1416 m although a cube over 10 % larger fits): found by the global search, checked on a dense
+    lattice by the independent path, and within the grid's bound."""
+    from kinematics.analyses.usable import usable
+    from kinematics.mechanisms.p2us.mechanism import P2US
+
+    res = usable(P2US(p2us_params), "cube", kappa_max=1e6, step=0.02)
+    assert res.size[0] >= 1.10 * 0.1416
+    g = np.linspace(-res.size[0] / 2, res.size[0] / 2, 31)  # 5 mm lattice, faces and corners included
+    lattice = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    assert usable_independent(p2us_params, res.center + lattice, 1e6).all()
+    assert res.volume <= res.volume_bound and res.optimality_gap < 0.15
 
 
 # -- boundary meshes -----------------------------------------------------------------------------

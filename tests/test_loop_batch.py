@@ -25,6 +25,7 @@ from kinematics.mechanisms.p2us import closed_form as par
 from kinematics.mechanisms.p2us.mechanism import p2us_margin
 from kinematics.mechanisms.p2us.scan import bounding_box, scan
 from kinematics.mechanisms.p2us.urdf import read_params as p2us_params
+from kinematics.mechanisms.three_limb.modes import MODE_ROOTS
 from kinematics.model.robot import load_robot
 
 from .fivebar import FiveBar
@@ -75,7 +76,7 @@ def test_p2us_branches_are_the_eight_closed_form_modes(p2us):
     # that carries the platform (limb 1, rod 1) may come as (theta + pi, pi - phi), the same rod
     # (spun about its axis, the spherical joint compensating): either representation is accepted
     theta, phi = par.passive_angles(P, ik.limbs.n)  # (N, 3, 2): limb, root
-    roots = par._MODE_ROOTS[mapping]  # (B, 3)
+    roots = MODE_ROOTS[mapping]  # (B, 3)
     names = robot.joint_names
     for i in range(3):
         want_t = theta[clear][:, i, roots[:, i]]

@@ -108,11 +108,11 @@ def test_missing_meshes_are_skipped_and_reported(tmp_path, capsys):
     robot = load_robot(urdf)
     geom, skipped = viz.visual_model(robot)
     assert sorted(g.name.rsplit("_", 1)[0] for g in geom.geometryObjects) == ["base", "l1", "l2"]
-    assert skipped == ["link base: meshes/base.stl", "link l1: package://nopkg/l1.dae"]
+    assert skipped == ["link base: mesh meshes/base.stl not found", "link l1: mesh package://nopkg/l1.dae not found"]
     out = tmp_path / "arm.html"
     code, text, err = run(capsys, "show", str(urdf), "--export", str(out), "--json")
     assert code == 0 and out.exists()
-    assert "not drawn: link base: meshes/base.stl" in err and "l1.dae" in err
+    assert "not drawn: link base: mesh meshes/base.stl not found" in err and "l1.dae" in err
     assert "2 visual(s) not drawn, mesh file missing; its kinematic skeleton is drawn instead" in err
     import json
 

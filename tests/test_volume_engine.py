@@ -102,7 +102,7 @@ def _scara_area_reference(sp: ScaraParams) -> float:
     At radius r each elbow's theta2 is fixed and theta1 sweeps its range of width w, so the elbow
     covers an arc of width w starting at lower1 + psi(theta2); two arcs of width w whose starts are
     delta apart cover w + |[w, 2 pi] & ([delta, delta + w] u [delta - 2 pi, delta + w - 2 pi])|.
-    (Independent of `workspace.scara_area_quadrature`, whose fixed Simpson rule converges only to
+    (Independent of `scara.joint_space.area_quadrature`, whose fixed Simpson rule converges only to
     first order at those kinks: 8.6e-6 relative off at its default 20001 nodes.)
     """
     from scipy.integrate import quad

@@ -60,7 +60,7 @@ class BoundaryMesh:
 
 def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: ArrayLike, hi: ArrayLike,
                 step: float) -> BoundaryMesh:
-    """Zero level set of a scalar field (N, 3) -> (N,) over the box [lo, hi] [m] at grid `step`."""
+    """Zero level set of a scalar field (N, 3) -> (N,) over the box `[lo, hi]` [m] at grid `step`."""
     import trimesh
     from skimage.measure import marching_cubes
 

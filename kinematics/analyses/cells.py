@@ -197,10 +197,12 @@ def adaptive_volume(
 
     Args:
         margin: (N, d) points [m] -> (N, T) margins, continuous, > 0 inside.
-        lo, hi: the box [m]; it must contain the region.
+        lo: the box's lower corner [m]; the box must contain the region.
+        hi: the box's upper corner [m].
         step: starting cell size [m].
         rtol: relative tolerance on the estimate; None: one uniform grid, no refinement.
-        max_levels, max_points: refinement budget; when it runs out, converged is False.
+        max_levels: refinement budget in levels; when it runs out, converged is False.
+        max_points: refinement budget in margin evaluations; when it runs out, converged is False.
     """
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)

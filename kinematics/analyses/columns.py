@@ -141,7 +141,9 @@ def column_lengths(
     Args:
         margin: (N, d) points [m] -> (N, T) or (N,) margins, >= 0 inside.
         base: (M, d - 1) the columns' other coordinates [m].
-        z0, z1: the column's extent along `axis` [m]; step: sampling step [m].
+        z0: the column's start along `axis` [m].
+        z1: the column's end along `axis` [m].
+        step: sampling step [m].
 
     Returns:
         (M, T) lengths [m], (M, T) sums of the final bracket widths [m], (M, T) interval ends.
@@ -286,8 +288,8 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     is at least rtol x floor x |the last target's integral| (the union's, in a workspace
     measurement): a target far smaller than the last is not chased to a relative tolerance of its own.
 
-    Returns: integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without
-    groups).
+    Returns:
+        integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without groups).
     """
     t, w = _gauss(order)
     gof = np.arange(len(a)) if group is None else np.asarray(group)
@@ -404,7 +406,8 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
        two nodes with equal signatures) shows up as a signature change among an interval's nodes
        and is charged its variation bound; one missed by every node is not seen.
 
-    Returns: integrals (P, T), error estimates (P, T), converged (P,), evaluations.
+    Returns:
+        integrals (P, T), error estimates (P, T), converged (P,), evaluations.
     """
     P = len(a)
     width = b - a
@@ -489,7 +492,8 @@ def column_volume(
 
     Args:
         margin: (N, d) points [m] -> (N, T) (or (N,)) margins [m], continuous, >= 0 inside.
-        lo, hi: a box [m] containing the region (d = 2 or 3).
+        lo: the lower corner [m] of a box containing the region (d = 2 or 3).
+        hi: the box's upper corner [m].
         step: [m] exact columns: the quadratures' starting node spacing (at least MIN_NODES
             nodes per direction); sampled columns: the sampling step along the columns
             (components shorter than it can be missed), and 8 x step starts the quadratures.

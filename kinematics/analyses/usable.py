@@ -14,13 +14,18 @@ of u is used. The union of the branches is u = max over branches.
 
 Method (any field, `largest_shape`): (1) sample u on a grid of step h over a box; distance
 transforms of the usable voxels give, at every voxel, the largest sphere (Euclidean), cube
-(chessboard) and vertical cylinder (per-slice 2D Euclidean, sliding minimum along z) centred there:
-the coarse optimum. (2) Refinement: for a centre, the largest scale that passes the membership test
-is bisected (to 1e-3 relative), and a pattern search moves the centre (steps h down to h/8) and, for
-the cylinder, the volume-preserving aspect ratio. (3) The membership test (`contains`) samples the
-shape's solid on a grid of spacing `spacing` and its surface at spacing/2; the shape is accepted if
-u >= 0 at every sample. What it can miss: an unusable pocket thinner than the spacing lying
-between samples (e.g. a singular surface crossing only a corner between two samples).
+(chessboard) and vertical cylinder (per-slice 2D Euclidean, sliding minimum along z) centred there,
+and an upper bound on the volume of any such shape whose centre lies in the voxel's cell.
+(2) Global search: the few best well-separated centres are sized by bisection against the
+membership test; cells whose bound exceeds the best shape found are sampled again at h/2 (three grids
+by default), and again sized; (3) the best is refined by a pattern search of the centre (steps h
+down to h/8) and, for the cylinder, the volume-preserving aspect ratio. (4) The membership test
+(`contains`) samples the shape's solid on a grid of spacing `spacing` and its surface at spacing/2;
+the shape is accepted if u >= 0 at every sample. The result reports the largest bound left
+(`volume_bound`): no shape inside the region as sampled on the finest grid is larger. What the
+method can miss: an unusable pocket thinner than the spacing lying between samples (e.g. a singular
+surface crossing only a corner between two samples); the bound likewise speaks of the region as
+sampled.
 """
 
 from __future__ import annotations
@@ -60,6 +65,9 @@ class UsableShape:
         min_field: the smallest u over those samples (>= 0).
         larger_fails: the same shape 1 % larger fails the test at the centre and the 26
             neighbouring centres (offsets of half a grid step); False when not tested (no search).
+        volume_bound: an upper bound [m^3] on the volume of any such shape inside the region as
+            sampled on the finest grid (`largest_shape`); the answer is within
+            1 - volume / volume_bound of the optimum. Cylinders: among those at least one grid step tall.
     """
 
     shape: str
@@ -69,11 +77,17 @@ class UsableShape:
     spacing: float
     min_field: float
     larger_fails: bool
+    volume_bound: float = math.inf
 
     @property
     def volume(self) -> float:
         """Volume [m^3]."""
         return shape_volume(self.shape, self.size)
+
+    @property
+    def optimality_gap(self) -> float:
+        """1 - volume / volume_bound: how much larger (relative, in volume) the optimum can be."""
+        return 1.0 - self.volume / self.volume_bound
 
 
 def shape_volume(shape: str, size: Sequence[float]) -> float:
@@ -145,61 +159,154 @@ def contains(field: Field, shape: str, center: np.ndarray, size: Sequence[float]
     return float(np.min(field(pts)))
 
 
-def _coarse(shape: str, ok: np.ndarray, h: float) -> tuple[tuple[int, ...], tuple[float, ...]]:
-    """Voxel index of the best centre and the conservative size there, from distance transforms."""
+def _per_voxel(shape: str, ok: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per voxel of a sampled region (`ok`: the field >= 0 at the voxel centres, grid step h [m]):
+    the largest size found by distance transforms centred there, its volume, an upper bound on the
+    volume of any shape inside the region whose centre lies in the voxel's cell, and the half-extent
+    [m] of the shapes that bound allows (how far from the cell such a shape can reach).
+
+    The bounds hold for the sampled region (every voxel inside a shape inside the region is `ok`):
+    with v the voxel nearest the shape's centre (at most h/2 per axis away), every unusable voxel
+    lies outside the shape, so its distance from v exceeds the shape's half-size less the offset:
+
+    * sphere: r < h (e + sqrt(3)/2), e the Euclidean distance transform at v (voxels);
+    * cube: edge < h (2 c + 1), c the chessboard distance transform;
+    * vertical cylinder at least one step tall: over the 2m + 1 slices centred at v, all inside the
+      cylinder's height H < (2m + 3) h, the disk radius r < h (e_m + sqrt(2)/2), e_m the smallest
+      per-slice 2-D Euclidean distance transform at v's column over those slices; the bound is the
+      largest pi r^2 H over m.
+    """
     from scipy import ndimage
 
     padded = np.pad(ok, 1)  # the box's outside counts as unusable
     if shape == "sphere":
-        d = ndimage.distance_transform_edt(padded)[1:-1, 1:-1, 1:-1]
-        idx = np.unravel_index(np.argmax(d), d.shape)
-        return tuple(int(i) for i in idx), (max(d[idx] - 1.0, 0.0) * h,)
+        e = ndimage.distance_transform_edt(padded)[1:-1, 1:-1, 1:-1]
+        size = np.maximum(e - 1.0, 0.0)[..., None] * h
+        r_up = h * (e + math.sqrt(3) / 2)
+        return size, 4 / 3 * math.pi * size[..., 0] ** 3, 4 / 3 * math.pi * r_up**3, r_up
     if shape == "cube":
-        d = ndimage.distance_transform_cdt(padded, metric="chessboard")[1:-1, 1:-1, 1:-1]
-        idx = np.unravel_index(np.argmax(d), d.shape)
-        return tuple(int(i) for i in idx), (2 * max(d[idx] - 1.0, 0.0) * h,)
-    r2 = np.stack([ndimage.distance_transform_edt(padded[:, :, k]) for k in range(padded.shape[2])], -1)
-    r2 = np.maximum(r2[1:-1, 1:-1, 1:-1] - 1.0, 0.0)
-    best = -1.0
-    arg: tuple[tuple[int, ...], tuple[float, ...]] = ((0, 0, 0), (0.0, 0.0))
-    for k in range(ok.shape[2] // 2 + 1):
-        rk = ndimage.minimum_filter1d(r2, 2 * k + 1, axis=2, mode="constant", cval=0.0)
-        i = np.unravel_index(np.argmax(rk), rk.shape)
-        vol = rk[i] ** 2 * max(2 * k, 1)
-        if rk[i] > 0 and vol > best:
-            best, arg = vol, (tuple(int(j) for j in i), (rk[i] * h, max(2 * k, 1) * h))
-    return arg
+        c = ndimage.distance_transform_cdt(padded, metric="chessboard")[1:-1, 1:-1, 1:-1].astype(float)
+        size = 2 * np.maximum(c - 1.0, 0.0)[..., None] * h
+        s_up = h * (2 * c + 1)
+        return size, size[..., 0] ** 3, s_up**3, s_up / 2 * math.sqrt(3)
+    e2 = np.stack([ndimage.distance_transform_edt(padded[:, :, k]) for k in range(padded.shape[2])], -1)
+    e2 = e2[1:-1, 1:-1, 1:-1]
+    size = np.zeros((*ok.shape, 2))
+    vol = np.zeros(ok.shape)
+    bound = np.zeros(ok.shape)
+    reach = np.zeros(ok.shape)
+    for m in range(ok.shape[2] // 2 + 1):
+        em = ndimage.minimum_filter1d(e2, 2 * m + 1, axis=2, mode="constant", cval=0.0)
+        r, height = np.maximum(em - 1.0, 0.0) * h, max(2 * m, 1) * h
+        better = math.pi * r**2 * height > vol
+        size[better] = np.stack([r[better], np.full(int(better.sum()), height)], -1)
+        vol = np.where(better, math.pi * r**2 * height, vol)
+        r_up, h_up = h * (em + math.sqrt(2) / 2), (2 * m + 3) * h
+        v_up = np.where(em > 0, math.pi * r_up**2 * h_up, 0.0)
+        reach = np.where(v_up > 0, np.maximum(reach, np.hypot(r_up, h_up / 2)), reach)
+        bound = np.maximum(bound, v_up)
+    return size, vol, bound, reach
+
+
+@dataclass(frozen=True)
+class _Level:
+    """A sampled grid of one refinement level: points origin + j h, the voxels whose cells may hold
+    the optimum's centre (`region`) and their per-voxel results (`_per_voxel`)."""
+
+    origin: np.ndarray
+    h: float
+    region: np.ndarray
+    size: np.ndarray
+    vol: np.ndarray
+    bound: np.ndarray
+    reach: np.ndarray
+
+    def point(self, j: np.ndarray) -> np.ndarray:
+        return self.origin + np.asarray(j) * self.h
+
+
+def _level(field: Field, shape: str, origin: np.ndarray, h: float, n: tuple[int, ...],
+           region: np.ndarray | None) -> _Level:
+    axes = [origin[k] + h * np.arange(n[k]) for k in range(3)]
+    check_points("step", math.prod(n), hint="use a larger step")
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    ok = (field(grid.reshape(-1, 3)) >= 0).reshape(n)
+    size, vol, bound, reach = _per_voxel(shape, ok, h)
+    return _Level(origin, h, ok.copy() if region is None else region, size, vol, bound, reach)
+
+
+def _finer(field: Field, shape: str, lv: _Level, best: float) -> _Level | None:
+    """The next level at h/2 over the cells whose bound exceeds `best` (None if none does): each
+    cell holds 2 x 2 x 2 finer voxels (at +-h/4), so a centre in the cell is within h/4 of one."""
+    keep = lv.region & (lv.bound > best)
+    if not keep.any():
+        return None
+    idx = np.argwhere(keep)
+    pad = math.ceil(float(lv.reach[keep].max()) / lv.h) + 1  # shapes reach this far from their cells
+    lo_j = np.maximum(idx.min(axis=0) - pad, 0)
+    hi_j = np.minimum(idx.max(axis=0) + pad + 1, keep.shape)
+    sub = keep[lo_j[0]:hi_j[0], lo_j[1]:hi_j[1], lo_j[2]:hi_j[2]]
+    region = sub.repeat(2, 0).repeat(2, 1).repeat(2, 2)
+    return _level(field, shape, lv.point(lo_j) - lv.h / 4, lv.h / 2, region.shape, region)
+
+
+def _starts(lv: _Level, count: int) -> list[np.ndarray]:
+    """Up to `count` centres of the level, largest found size first, each at least 2 steps (per
+    axis) from those already taken."""
+    cand = np.argwhere(lv.region & (lv.vol > 0))
+    if not len(cand):
+        cand = np.argwhere(lv.region)
+    order = np.argsort(-lv.vol[tuple(cand.T)], kind="stable")
+    taken: list[np.ndarray] = []
+    for j in cand[order]:
+        if all(np.abs(j - t).max() >= 2 for t in taken):
+            taken.append(j)
+            if len(taken) == count:
+                break
+    return taken
 
 
 def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
-                  spacing: float | None = None, search: bool = True) -> UsableShape:
-    """The largest `shape` inside {field >= 0} within the box [lo, hi] [m] (see the module doc).
+                  spacing: float | None = None, search: bool = True, levels: int = 3,
+                  starts: int = 4) -> UsableShape:
+    """The largest `shape` inside {field >= 0} within the box `[lo, hi]` [m] (see the module doc).
+
+    Global search: the field sampled every `step`, distance transforms give at every voxel the
+    shape centred there and an upper bound on any shape centred in its cell (`_per_voxel`); the
+    `starts` best-separated centres are sized by bisection against the membership test; cells whose
+    bound exceeds the best tested shape are sampled again at half the step (`levels` grids in all),
+    and the best start of the last level is refined by a pattern search. `volume_bound` is the
+    largest bound left (or the best volume, if larger).
 
     Args:
-        step: grid step of the coarse search [m]; spacing: membership-test spacing (default step / 2).
-        search: False skips the pattern search (centre and aspect stay at the coarse optimum's):
-            a checked lower bound, several times cheaper.
+        step: grid step of the coarsest search [m].
+        spacing: membership-test spacing [m] (default step / 2).
+        search: False skips the pattern search and the finer levels (the coarse optimum's centre,
+            the size still bisected and checked): a checked lower bound, several times cheaper.
+        levels: grids sampled (step, step/2, ...), at least 1.
+        starts: centres sized per level.
     """
     _check_shape(shape)
     if not (step > 0 and math.isfinite(step)):
         raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
+    if levels < 1 or starts < 1:
+        raise InvalidInputError("levels" if levels < 1 else "starts", "must be at least 1")
     spacing = step / 2 if spacing is None else spacing
     lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
     check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
-    axes = [np.arange(a, b + step / 2, step) for a, b in zip(lo_, hi_, strict=True)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
-    ok = (field(grid.reshape(-1, 3)) >= 0).reshape(grid.shape[:-1])
-    if not ok.any():
+    n = tuple(len(np.arange(a, b + step / 2, step)) for a, b in zip(lo_, hi_, strict=True))
+    lv = _level(field, shape, lo_, step, n, None)
+    if not lv.region.any():
         raise InvalidInputError("kappa_max", EMPTY)
-    idx, size0 = _coarse(shape, ok, step)
-    center = grid[idx]
-    if min(size0) <= 0:
-        size0 = tuple(step / 4 for _ in size0)
 
     def fits(c: np.ndarray, size: Sequence[float]) -> bool:
         return contains(field, shape, c, size, spacing) >= 0
 
-    def max_scale(c: np.ndarray, base: tuple[float, ...]) -> float:
+    def max_scale(c: np.ndarray, base: tuple[float, ...], above: float = 0.0) -> float:
+        """The largest t (to 1e-3 relative) with t x base fitting at c; `above` when t x base
+        does not fit for t = above (one test: a pattern-search move that cannot improve)."""
+        if above > 0 and not fits(c, [above * s for s in base]):
+            return above
         lo_t, hi_t = 0.0, 1.0
         while fits(c, [hi_t * s for s in base]):
             lo_t, hi_t = hi_t, hi_t * 1.25
@@ -216,38 +323,65 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
             lo_t, hi_t = (mid, hi_t) if fits(c, [mid * s for s in base]) else (lo_t, mid)
         return lo_t
 
-    def sized(aspect: float) -> tuple[float, ...]:
-        if shape != "cylinder":
-            return size0
-        return (size0[0] * aspect, size0[1] / aspect**2)  # same volume for every aspect
+    tested: list[tuple[float, np.ndarray, tuple[float, ...]]] = []  # (volume, centre, size) of each start
+    bound = 0.0
+    for level in range(levels if search else 1):
+        for j in _starts(lv, starts if search else 1):
+            base = tuple(float(x) for x in lv.size[tuple(j)])
+            if min(base) <= 0:
+                base = (lv.h / 4,) * len(base)
+            t = max_scale(lv.point(j), base)
+            tested.append((shape_volume(shape, [t * x for x in base]), lv.point(j), tuple(t * x for x in base)))
+        best = max(v for v, _, _ in tested)
+        bound = float(lv.bound[lv.region].max())
+        if level + 1 < (levels if search else 1):
+            finer = _finer(field, shape, lv, best)
+            if finer is None:  # no cell can beat the best: the best is the bound
+                bound = best
+                break
+            lv = finer
 
-    aspect = 1.0
-    t = max_scale(center, sized(aspect))
-    delta = step if search else 0.0
-    while delta >= step / 8 and delta > 0:
-        improved = False
-        moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
-        if shape == "cylinder":
-            moves += [(3, s) for s in (-1, 1)]
-        for ax, s in moves:
-            c, a = center.copy(), aspect
-            if ax < 3:
-                c[ax] += s * delta
-            else:
-                a *= (1 + delta / max(size0[0], step)) ** s
-            t_new = max_scale(c, sized(a))
-            if t_new > t * (1 + 1e-4):
-                center, aspect, t, improved = c, a, t_new, True
-        if not improved:
-            delta /= 2
-    size = tuple(t * s for s in sized(aspect))
+    def polish(center: np.ndarray, size0: tuple[float, ...]) -> tuple[np.ndarray, tuple[float, ...]]:
+        """Pattern search of the centre (and the cylinder's aspect) from a tested start."""
+
+        def sized(aspect: float) -> tuple[float, ...]:
+            if shape != "cylinder":
+                return size0
+            return (size0[0] * aspect, size0[1] / aspect**2)  # same volume for every aspect
+
+        aspect, t = 1.0, 1.0
+        delta = step if search else 0.0
+        while delta >= step / 8 and delta > 0:
+            improved = False
+            moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
+            if shape == "cylinder":
+                moves += [(3, s) for s in (-1, 1)]
+            for ax, s in moves:
+                c, a = center.copy(), aspect
+                if ax < 3:
+                    c[ax] += s * delta
+                else:
+                    a *= (1 + delta / max(size0[0], step)) ** s
+                t_new = max_scale(c, sized(a), above=t * (1 + 1e-4))
+                if t_new > t * (1 + 1e-4):
+                    center, aspect, t, improved = c, a, t_new, True
+            if not improved:
+                delta /= 2
+        return center, tuple(t * x for x in sized(aspect))
+
+    # the two best starts at least a step apart are polished: they can lie in different basins
+    tested.sort(key=lambda r: -r[0])
+    firsts = [tested[0]]
+    firsts += [r for r in tested[1:] if np.abs(r[1] - tested[0][1]).max() >= step][: 1 if search else 0]
+    center, size = max((polish(c, sz) for _, c, sz in firsts), key=lambda r: shape_volume(shape, r[1]))
     final = contains(field, shape, center, size, spacing)
     bigger = [1.01 * s for s in size]
     offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * 3, indexing="ij"), -1).reshape(-1, 3)
     # (without the search the result is a lower bound, not claimed near-maximal: not tested)
     larger_fails = search and all(contains(field, shape, center + o, bigger, spacing) < 0 for o in offs)
-    n = len(shape_samples(shape, center, size, spacing))
-    return UsableShape(shape, center, size, n, spacing, final, larger_fails)
+    n_samples = len(shape_samples(shape, center, size, spacing))
+    return UsableShape(shape, center, size, n_samples, spacing, final, larger_fails,
+                       max(bound, shape_volume(shape, size)))
 
 
 # -- any mechanism ------------------------------------------------------------------------------------
@@ -309,7 +443,7 @@ def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, lim
 
 def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max: float = KAPPA_MAX,
            limits: str = "all", step: float = 0.01, spacing: float | None = None,
-           search: bool = True) -> UsableShape:
+           search: bool = True, levels: int = 3) -> UsableShape:
     """The largest `shape` in the usable workspace of a spatial mechanism (module docstring).
 
     Args:
@@ -317,6 +451,7 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
             first branch).
         search: False skips the pattern search of the centre (the coarse optimum's centre, the
             size still bisected and checked): faster, a lower bound on the optimum.
+        levels: grids of the global search (step, step/2, ...; `largest_shape`).
     """
     from kinematics.errors import UnsupportedRobotError
 
@@ -328,7 +463,7 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
                                     f"space; this mechanism's is {mech.task_dim}-dimensional")
     field = usable_field(mech, default_branch(mech) if branch is None else branch, kappa_max, limits)
     lo, hi = mech.bounding_box(limits)
-    return largest_shape(field, lo, hi, shape, step=step, spacing=spacing, search=search)
+    return largest_shape(field, lo, hi, shape, step=step, spacing=spacing, search=search, levels=levels)
 
 
 def default_branch(mech: Mechanism) -> str:

@@ -219,6 +219,7 @@ class BatchedKinematics:
             threads: Numba threads (default: all).
             out: a C-contiguous (N, 12) float array to write the rows into (saves the allocation
                 when a caller streams chunks through one buffer).
+
         Returns:
             positions [m] (N, 3), rotations (N, 3, 3) and both as (N, 12) rows.
         """

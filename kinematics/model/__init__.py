@@ -1,8 +1,9 @@
 """Robot models: loading URDFs (built-ins, paths, example-robot-data), loop-closure sidecars,
 Gepetto robot.yaml import, URDF XML helpers.
 
-Modules: `gepetto`, `loops`, `robot`, `urdf_file`, `urdf_xml`. The names a user starts from are listed once, in `__init__.pyi` (which type
-checkers read), and imported on first use; everything else is imported from its module.
+Modules: `gepetto`, `loops`, `robot`, `urdf_file`, `urdf_xml`. The names a user starts from are
+listed once, in `__init__.pyi` (which type checkers read), and imported on first use; everything
+else is imported from its module.
 """
 
 import lazy_loader as _lazy

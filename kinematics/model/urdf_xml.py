@@ -1,40 +1,24 @@
-"""Small helpers shared by the URDF generators and readers: exact number text, joint/link/visual
-elements, origins, axes and limits read back."""
+"""Small helpers shared by the URDF generators and readers: exact number text, an ElementTree
+builder of links, joints and visuals, origins, axes and limits read back."""
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from typing import Any
 
 import numpy as np
 
 
-def axis_reference(ik: Any, params: Any, half_span: float, samples: int, mode: int) -> tuple[np.ndarray, str]:
-    """A platform position on the base's z axis, within |z| <= half_span [m] on `samples` points,
-    where working mode `mode` (an index of the 8 sign labels, '---' = 7) is assembled with every
-    limit respected (mid-way along the valid stretch), else merely assembled: the reference
-    configuration the generators write. `ik(params, points)` is the mechanism's vectorised IK."""
-    z = np.linspace(-half_span, half_span, samples)
-    pts = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=-1)
-    res = ik(params, pts)
-    for ok in (res.within_limits[:, mode], res.reachable[:, mode]):
-        if ok.any():
-            idx = np.flatnonzero(ok)
-            return pts[idx[len(idx) // 2]], "---"
-    from kinematics.errors import InvalidInputError
-
-    raise InvalidInputError("design", "the platform cannot be assembled anywhere on the base's axis")
-
-
-def fmt17(x: float) -> str:
-    """A float with 17 significant digits (exact round trip through text)."""
-    return format(float(x) + 0.0, ".17g")  # + 0.0: no "-0"
+def num(x: float) -> str:
+    """A float as the shortest text that reads back as the same float (Python's repr), whole
+    numbers without ".0"."""
+    text = repr(float(x) + 0.0)  # + 0.0: no "-0.0"
+    return text[:-2] if text.endswith(".0") else text
 
 
 def vec(*xs: float) -> str:
-    """Space-separated `fmt17` numbers."""
-    return " ".join(fmt17(x) for x in xs)
+    """Space-separated `num` numbers."""
+    return " ".join(num(x) for x in xs)
 
 
 def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
@@ -57,30 +41,54 @@ def rot_z(a: float) -> np.ndarray:
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def joint(name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
-          axis: tuple[float, float, float] | None = None, limit: tuple[float, float] | None = None) -> str:
-    """A `<joint>` element's text."""
-    lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>',
-             f'    <child link="{child}"/>', f'    <origin xyz="{vec(*xyz)}" rpy="{vec(*rpy)}"/>']
-    if axis is not None:
-        lines.append(f'    <axis xyz="{vec(*axis)}"/>')
-    if limit is not None:
-        lines.append(f'    <limit lower="{fmt17(limit[0])}" upper="{fmt17(limit[1])}" effort="1000" velocity="10"/>')
-    lines.append("  </joint>")
-    return "\n".join(lines)
+def visual(shape: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
+           **size: float | tuple[float, ...]) -> ET.Element:
+    """A `<visual>` element: geometry `shape` ("box", "cylinder", "sphere") with its size
+    attributes (`size=(x, y, z)` for a box, `radius`, `length`) [m], placed at xyz/rpy."""
+    v = ET.Element("visual")
+    ET.SubElement(v, "origin", xyz=vec(*xyz), rpy=vec(*rpy))
+    attrs = {k: vec(*x) if isinstance(x, tuple) else num(x) for k, x in size.items()}
+    ET.SubElement(ET.SubElement(v, "geometry"), shape, attrs)
+    ET.SubElement(v, "material", name=material)
+    return v
 
 
-def link(name: str, *visuals: str) -> str:
-    """A `<link>` element's text with optional visuals."""
-    if not visuals:
-        return f'  <link name="{name}"/>'
-    return "\n".join([f'  <link name="{name}">', *visuals, "  </link>"])
+class UrdfBuilder:
+    """A URDF document built element by element (`xml.etree.ElementTree`); `text` gives it
+    indented, every number written so that it reads back as the same float (`num`)."""
 
+    def __init__(self, name: str, materials: dict[str, str]) -> None:
+        """A `<robot name=...>` with its materials (name -> "r g b a")."""
+        self.root = ET.Element("robot", name=name)
+        for material, rgba in materials.items():
+            ET.SubElement(ET.SubElement(self.root, "material", name=material), "color", rgba=rgba)
 
-def visual(geometry: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0)) -> str:
-    """A `<visual>` element's text."""
-    return (f'    <visual><origin xyz="{vec(*xyz)}" rpy="{vec(*rpy)}"/>'
-            f"<geometry>{geometry}</geometry><material name=\"{material}\"/></visual>")
+    def link(self, name: str, *visuals: ET.Element) -> None:
+        """Append a `<link>` with optional visuals."""
+        ET.SubElement(self.root, "link", name=name).extend(visuals)
+
+    def joint(self, name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
+              axis: tuple[float, float, float] | None = None, limit: tuple[float, float] | None = None) -> None:
+        """Append a `<joint>`: origin xyz [m] / rpy [rad], axis, limit (lower, upper) [m or rad]."""
+        j = ET.SubElement(self.root, "joint", name=name, type=kind)
+        ET.SubElement(j, "parent", link=parent)
+        ET.SubElement(j, "child", link=child)
+        ET.SubElement(j, "origin", xyz=vec(*xyz), rpy=vec(*rpy))
+        if axis is not None:
+            ET.SubElement(j, "axis", xyz=vec(*axis))
+        if limit is not None:
+            ET.SubElement(j, "limit", lower=num(limit[0]), upper=num(limit[1]), effort="1000", velocity="10")
+
+    def text(self, comment: str) -> str:
+        """The document: XML declaration, `comment` (lines, indented by two), then the robot."""
+        if "--" in comment:
+            from kinematics.errors import InvalidInputError
+
+            raise InvalidInputError("comment", "an XML comment cannot contain '--'")
+        ET.indent(self.root, "  ")
+        body = "\n".join("  " + line if line else "" for line in comment.splitlines())
+        head = ET.tostring(ET.Comment("\n" + body + "\n"), encoding="unicode")
+        return '<?xml version="1.0"?>\n' + head + "\n" + ET.tostring(self.root, encoding="unicode") + "\n"
 
 
 def origin_of(element: ET.Element) -> tuple[tuple[float, ...], tuple[float, ...]]:

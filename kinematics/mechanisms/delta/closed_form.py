@@ -45,17 +45,18 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import asdict, dataclass
-from dataclasses import replace as _replace
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from kinematics.errors import InvalidDesignError, InvalidInputError
+from kinematics.errors import InvalidDesignError
 from kinematics.mechanisms.base import SINGULAR_TOL, SINGULARITY_TYPES, classify
+from kinematics.mechanisms.three_limb import modes
+from kinematics.mechanisms.three_limb.modes import IKResult, Jacobians
+from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
 from kinematics.mechanisms.translational import (
     ASSEMBLY_MODES,
-    BOUNDARY_TOL,
     MODES,
     FKResult,
     intersect_spheres,
@@ -72,14 +73,8 @@ MECHANISM = "3-RUU Delta"
 """The sidecar's `mechanism:` value that enables these closed forms."""
 
 
-def _pair(name: str, pair: tuple[float, float]) -> None:
-    lo, hi = pair
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise InvalidInputError(name, f"need finite lower < upper, got {pair}")
-
-
 @dataclass(frozen=True)
-class DeltaParams:
+class DeltaParams(LimbDesign):
     """Design of a Delta robot; the defaults are the toolkit's built-in `delta`.
 
     Attributes:
@@ -107,29 +102,16 @@ class DeltaParams:
     rod_spacing: float = 0.08
 
     def __post_init__(self) -> None:
-        for name in ("R", "r", "la", "lb", "rod_spacing"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise InvalidInputError(name, f"must be a positive length [m], got {value}")
-        for name in ("cone", "elbow_socket", "platform_socket"):
-            if not math.isfinite(getattr(self, name)):
-                raise InvalidInputError(name, "must be finite")
-        if len(self.alpha) != 3 or not all(math.isfinite(a) for a in self.alpha):
-            raise InvalidInputError("alpha", f"need three finite limb angles, got {self.alpha}")
-        _pair("theta_limits", self.theta_limits)
+        self.check_common(("R", "r", "la", "lb", "rod_spacing"), ("cone", "elbow_socket", "platform_socket"))
+        check_pair("theta_limits", self.theta_limits)
         self._check_design()
 
     def _check_design(self) -> None:
-        """Reject degenerate geometry (InvalidDesignError carrying parameter, value, reason)."""
-        deg = [float(f"{math.degrees(a):.10g}") for a in self.alpha]
-        for i, j in ((0, 1), (1, 2), (0, 2)):
-            # angular distance mod 2 pi; 1e-9 rad: axes closer than ~1e-9 m apart on a 1 m base
-            if abs(math.remainder(self.alpha[i] - self.alpha[j], 2 * math.pi)) < 1e-9:
-                raise InvalidDesignError("alpha", deg, f"limbs {i + 1} and {j + 1} coincide (limb angles in "
-                                         "degrees must differ modulo 360)")
+        """Reject degenerate geometry (InvalidDesignError carrying parameter, value, reason;
+        coincident limbs: `check_common`)."""
         # Opposite limbs (180 deg apart) have parallel actuator axes: fine. All three axes
         # parallel needs all three angles equal mod 180, which with distinct angles mod 360 means
-        # two coincide, caught above.
+        # two coincide, refused by `check_common`.
         lo, hi = self.theta_limits
         if not (-math.pi < lo and hi < math.pi):
             raise InvalidDesignError("theta_limits", [math.degrees(lo), math.degrees(hi)],
@@ -147,25 +129,7 @@ class DeltaParams:
             raise InvalidDesignError("lb", self.lb, f"the forearm cannot span the gap between the elbow circle "
                                      f"and the platform joint: need lb > |R - r| - la = {abs(self.R - self.r) - self.la:g} m")
 
-    def as_dict(self) -> dict[str, Any]:
-        """Plain dict of the parameters (tuples as lists), SI units."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    def replace(self, **changes: Any) -> DeltaParams:
-        """A copy with some parameters changed (`dataclasses.replace`, validated by `__post_init__`)."""
-        return _replace(self, **changes)
-
-    # Derived geometry, shape (3, 3): row i belongs to limb i.
-    @functools.cached_property
-    def e(self) -> np.ndarray:
-        a = np.asarray(self.alpha)
-        return np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=-1)
-
-    @functools.cached_property
-    def t(self) -> np.ndarray:
-        a = np.asarray(self.alpha)
-        return np.stack([-np.sin(a), np.cos(a), np.zeros(3)], axis=-1)
-
+    # Derived geometry, shape (3, 3): row i belongs to limb i (e, t: `LimbDesign`).
     @functools.cached_property
     def base_points(self) -> np.ndarray:
         """A_i = R e_i [m]: where each actuator axis crosses its limb's plane."""
@@ -193,57 +157,33 @@ def _wrap(params: DeltaParams, theta: np.ndarray) -> np.ndarray:
     return (theta - centre + math.pi) % (2 * math.pi) + centre - math.pi
 
 
-def _points(p: np.ndarray) -> np.ndarray:
-    p = np.asarray(p, dtype=float)
-    if p.shape[-1:] != (3,):
-        raise InvalidInputError("position", f"expected shape (..., 3), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise InvalidInputError("position", "must be finite")
-    return p
-
-
-def _actuators(q: np.ndarray) -> np.ndarray:
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1:] != (3,):
-        raise InvalidInputError("q", f"expected 3 actuator angles, got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise InvalidInputError("q", "must be finite")
-    return q
-
-
 # -- inverse kinematics ----------------------------------------------------------------------
-class LimbSolutions(NamedTuple):
-    """Per-limb IK for points of shape S + (3,); root axis: 0 = "+", 1 = "-".
+@dataclass(frozen=True)
+class LimbSolutions(modes.LimbRoots):
+    """Per-limb IK (`LimbRoots`): q the upper-arm angles [rad], n the forearm directions
+    (C_i - E_i)/l_b; and
 
     Attributes:
-        q: S + (3, 2) actuator angles [rad] (NaN where the limb cannot reach).
-        n: S + (3, 2, 3) unit forearm directions (C_i - E_i)/l_b.
-        reach: S + (3,) the limb reaches the point.
         near: S + (3,) distance from C_i to the nearest point of the elbow circle [m].
         far: S + (3,) distance from C_i to the farthest point of the elbow circle [m];
             the limb reaches iff near <= l_b <= far.
     """
 
-    q: np.ndarray
-    n: np.ndarray
-    reach: np.ndarray
     near: np.ndarray
     far: np.ndarray
 
 
 def limb_ik(params: DeltaParams, p: np.ndarray) -> LimbSolutions:
-    """Both roots of every limb at every platform position p [m]."""
-    p = _points(p)
-    v = p[..., None, :] + (params.r - params.R) * params.e  # C_i - A_i, S + (3, 3)
+    """Both upper-arm angles theta = phi0 +/- atan2(sqrt(rho^2 - K^2), K) [rad] of every limb and
+    the forearm directions they give, at every platform position p [m]."""
+    v = modes.points(p)[..., None, :] + (params.r - params.R) * params.e  # C_i - A_i, S + (3, 3)
     x = np.einsum("...ij,ij->...i", v, params.e)
     y = np.einsum("...ij,ij->...i", v, params.t)
     h = v[..., 2]
     rho2 = x * x + h * h
     K = (rho2 + y * y + params.la**2 - params.lb**2) / (2 * params.la)
     disc = rho2 - K * K
-    # disc [m^2] down to -BOUNDARY_TOL lb^2 counts as zero: on the reach boundary rounding leaves +/-1e-17
-    reach = disc >= -BOUNDARY_TOL * params.lb**2
-    s = np.sqrt(np.where(reach, np.maximum(disc, 0.0), np.nan))
+    reach, s = modes.real_root(disc, params.lb)
     phi0 = np.arctan2(-h, x)
     half = np.arctan2(s, K)
     q = _wrap(params, np.stack([phi0 + half, phi0 - half], axis=-1))  # S + (3, 2)
@@ -293,27 +233,6 @@ def limb_limits(params: DeltaParams, limbs: LimbSolutions) -> tuple[np.ndarray, 
         return theta_ok, ce <= params.cone, cp <= params.cone
 
 
-class IKResult(NamedTuple):
-    """IK over all 8 working modes for points of shape S + (3,).
-
-    Attributes:
-        q: S + (8, 3) actuator angles per mode (order of MODES) [rad]; NaN where a limb cannot reach.
-        reachable: S + (8,) every limb reaches in that mode (limits ignored).
-        within_limits: S + (8,) reachable and every limit holds (actuators and both cones).
-        limbs: the per-limb solutions behind them.
-        limb_ok: S + (3, 2) per limb and root: reaches and respects its limits.
-    """
-
-    q: np.ndarray
-    reachable: np.ndarray
-    within_limits: np.ndarray
-    limbs: LimbSolutions
-    limb_ok: np.ndarray
-
-
-_MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in MODES])  # (8, 3)
-
-
 def ik(params: DeltaParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
     """Inverse kinematics in all 8 working modes at every position p [m].
 
@@ -322,15 +241,7 @@ def ik(params: DeltaParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
     """
     limbs = limb_ik(params, p)
     theta_ok, elbow_ok, platform_ok = limb_limits(params, limbs)
-    ok = limbs.reach[..., None] & theta_ok
-    if limits:
-        ok &= elbow_ok & platform_ok
-    idx = np.arange(3)
-    q = limbs.q[..., idx, _MODE_ROOTS]
-    all_reach = np.all(limbs.reach, axis=-1)[..., None]
-    reachable = np.broadcast_to(all_reach, all_reach.shape[:-1] + (len(MODES),))
-    within = np.all(ok[..., idx, _MODE_ROOTS], axis=-1)
-    return IKResult(q, reachable, within, limbs, ok)
+    return modes.by_mode(limbs, theta_ok, elbow_ok & platform_ok, limits)
 
 
 def limb_reasons(params: DeltaParams, limbs: LimbSolutions) -> list[dict[str, Any]]:
@@ -352,7 +263,7 @@ def limb_reasons(params: DeltaParams, limbs: LimbSolutions) -> list[dict[str, An
 # -- forward kinematics ----------------------------------------------------------------------
 def elbows(params: DeltaParams, q: np.ndarray) -> np.ndarray:
     """E_i = A_i + l_a d_i(theta_i) [m], shape S + (3, 3)."""
-    q = _actuators(q)
+    q = modes.actuators(q, "angles")
     return params.base_points + params.la * in_plane(params, q)
 
 
@@ -374,26 +285,9 @@ def fk_reason(params: DeltaParams, res: FKResult) -> str:
 
 
 # -- velocity and singularities ---------------------------------------------------------------
-class Jacobians(NamedTuple):
-    """Velocity matrices at positions S + (3,) with actuator angles S + (3,).
-
-    Attributes:
-        Jx: S + (3, 3), rows r_i = C_i - E_i [m].
-        Jq: S + (3,), the diagonal r_i . b_i [m^2/rad].
-        J: S + (3, 3), J_q^-1 J_x: thetadot = J pdot [rad/m] (inf rows where J_q_ii = 0).
-        iota_I, iota_II: S, the scale-free singularity measures.
-    """
-
-    Jx: np.ndarray
-    Jq: np.ndarray
-    J: np.ndarray
-    iota_I: np.ndarray
-    iota_II: np.ndarray
-
-
 def rod_vectors(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """r_i = C_i - E_i [m], shape S + (3, 3)."""
-    p = _points(p)
+    p = modes.points(p)
     return p[..., None, :] + params.r * params.e - elbows(params, q)
 
 
@@ -401,25 +295,13 @@ def jacobians(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> Jacobians:
     """J_x, J_q, J = J_q^-1 J_x and the singularity measures at (p, q)."""
     r = rod_vectors(params, p, q)
     bhat = in_plane(params, np.asarray(q, dtype=float) + math.pi / 2)  # dE/dtheta / l_a
-    jq = params.la * np.sum(r * bhat, axis=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        J = r / jq[..., None]
-    n = r / np.linalg.norm(r, axis=-1, keepdims=True)
-    iota_I = np.min(np.abs(np.sum(n * bhat, axis=-1)), axis=-1)
-    iota_II = np.abs(np.linalg.det(n))
-    return Jacobians(r, jq, J, iota_I, iota_II)
+    n = modes.unit_rods(r)
+    return modes.jacobians_of(r, params.la * np.sum(r * bhat, axis=-1), n, np.sum(n * bhat, axis=-1))
 
 
 def jacobian_inverse(params: DeltaParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """J^-1 = J_x^-1 J_q: pdot = J^-1 thetadot [m/rad] (raises where J_x is singular)."""
-    jac = jacobians(params, p, q)
-    if np.any(jac.iota_II <= SINGULAR_TOL):
-        raise InvalidInputError("position", "J_x is singular (type II): J has no inverse here")
-    return np.linalg.solve(jac.Jx, np.eye(3) * jac.Jq[..., None, :])
-
-
-def _deg(x: float) -> str:
-    return f"{x:.6g} rad ({math.degrees(x):.4g} deg)"
+    return modes.inverse_of(jacobians(params, p, q))
 
 
 def violations(params: DeltaParams, q: np.ndarray, n: np.ndarray) -> list[str]:
@@ -429,16 +311,17 @@ def violations(params: DeltaParams, q: np.ndarray, n: np.ndarray) -> list[str]:
         q: (3,) actuator angles [rad].
         n: (3, 3) unit forearm directions, row i for limb i.
     """
+    deg = modes.angle_text
     ce, cp = cone_angles(params, np.asarray(q, dtype=float), np.asarray(n, dtype=float))
     lo, hi = params.theta_limits
     out = []
     for i in range(3):
         lim = f"limb {i + 1}: "
         if not lo <= q[i] <= hi:
-            out.append(lim + f"theta = {_deg(q[i])} outside [{_deg(lo)}, {_deg(hi)}]")
+            out.append(lim + f"theta = {deg(q[i])} outside [{deg(lo)}, {deg(hi)}]")
         if ce[i] > params.cone:
-            out.append(lim + f"elbow ball joint at {_deg(ce[i])} from its socket axis, beyond the cone's {_deg(params.cone)}")
+            out.append(lim + f"elbow ball joint at {deg(ce[i])} from its socket axis, beyond the cone's {deg(params.cone)}")
         if cp[i] > params.cone:
-            out.append(lim + f"platform ball joint at {_deg(cp[i])} from its socket axis, beyond the cone's "
-                       f"{_deg(params.cone)}")
+            out.append(lim + f"platform ball joint at {deg(cp[i])} from its socket axis, beyond the cone's "
+                       f"{deg(params.cone)}")
     return out

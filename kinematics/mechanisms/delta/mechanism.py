@@ -18,45 +18,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from types import ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 
-from kinematics.mechanisms.base import (
-    Assemblies,
-    BranchIK,
-    MarginFn,
-    Mechanism,
-    PoseFK,
-    PoseIK,
-    PoseJacobians,
-    SingularFields,
-    Velocity,
-    parallel_forward,
-)
+from kinematics.mechanisms.base import MarginFn, SingularFields
 from kinematics.mechanisms.delta import closed_form as cf
 from kinematics.mechanisms.delta.scan import scan
-from kinematics.mechanisms.pose_reports import pose_fk, pose_ik, pose_jacobians
-
-LIMITS = ("all", "actuators")
-"""Which limits apply: every limit (actuator range and ball-joint cones), or the actuators only."""
+from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
+from kinematics.mechanisms.three_limb.modes import LIMITS as LIMITS
+from kinematics.mechanisms.three_limb.modes import check_limits
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' turns the upper arm from the line actuator "
                "axis -> platform joint towards larger theta, '-' the other way ('---': the usual elbows-out "
                "Delta); 'union': any mode")
 
 
-def _check_limits(limits: str) -> bool:
-    from kinematics.errors import UnknownChoiceError
-
-    if limits not in LIMITS:
-        raise UnknownChoiceError(limits, LIMITS)
-    return limits == "all"
-
-
 def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all") -> np.ndarray:
     """(N, 3, 2) per limb and root: the smallest slack [m] (see the module docstring)."""
-    passive = _check_limits(limits)
+    passive = check_limits(limits)
     limbs = cf.limb_ik(params, np.asarray(points, dtype=float))
     reach = np.minimum(params.lb - limbs.near, limbs.far - params.lb)  # (N, 3)
     lo, hi = params.theta_limits
@@ -69,40 +50,19 @@ def limb_margins(params: cf.DeltaParams, points: np.ndarray, limits: str = "all"
     return np.where(limbs.reach[..., None] & np.isfinite(out), out, np.minimum(reach, 0.0)[..., None])
 
 
-class Delta(Mechanism):
+class Delta(ThreeLimbMechanism):
     """Clavel's 3-RUU Delta robot of a given design."""
 
     family = "delta"
-    closed_loop = True
     description = "3-RUU Delta robot (closed forms)"
     actuator_unit = "rad"
-    branch_kind = "working mode"
-    branches = cf.MODES
     branch_legend = MODE_LEGEND
-    limit_sets = LIMITS
-    assembly_modes = cf.ASSEMBLY_MODES
+    closed_form: ClassVar[ModuleType] = cf
     iota_I_label = "iota_I = min |n.b|"
 
-    def __init__(self, params: cf.DeltaParams, name: str = "delta") -> None:
-        self.params = params
-        self.name = name
-
-    def parameters(self) -> dict[str, Any]:
-        return self.params.as_dict()
-
-    def design_parameters(self) -> dict[str, Any]:
-        return self.params.as_dict()
-
-    def pose_ik(self, point: np.ndarray) -> PoseIK:
-        res = cf.ik(self.params, point)
-        return pose_ik(res, lambda q, n: cf.violations(self.params, q, n), cf.limb_reasons(self.params, res.limbs))
-
-    def pose_fk(self, q: np.ndarray) -> PoseFK:
-        return pose_fk(cf.fk(self.params, q), q, lambda p: cf.rod_vectors(self.params, p, q), self.params.lb,
-                       lambda qq, n: cf.violations(self.params, qq, n), lambda res: cf.fk_reason(self.params, res))
-
-    def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
-        return pose_jacobians(cf.jacobians(self.params, point, q))
+    @property
+    def rod_length(self) -> float:
+        return float(self.params.lb)
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] that contains the workspace under `limits` (proved, not sampled).
@@ -115,7 +75,7 @@ class Delta(Mechanism):
         actuators only: any n). The box is the intersection of the three limbs' boxes; the elbow
         cones, which couple n to theta, are left out, so it is a superset.
         """
-        passive = _check_limits(limits)
+        passive = check_limits(limits)
         P = self.params
         lo_t, hi_t = P.theta_limits
         lo = np.full(3, -np.inf)
@@ -153,32 +113,10 @@ class Delta(Mechanism):
 
         return margin
 
-    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
-        res = cf.ik(self.params, points, limits=_check_limits(limits))
-        return BranchIK(res.q, np.asarray(res.reachable), res.within_limits)
-
-    def fk(self, q: np.ndarray) -> Assemblies:
-        res = cf.fk(self.params, q)
-        return Assemblies(res.p, np.isfinite(res.p).all(axis=-1), cf.ASSEMBLY_MODES)
-
-    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
-        jac = cf.jacobians(self.params, points, q)
-        return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
-
-    def reference_pose(self) -> tuple[np.ndarray, str]:
-        from kinematics.mechanisms.delta.urdf import reference_pose
-
-        return reference_pose(self.params)
-
-    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
-        from kinematics.mechanisms.delta.urdf import joint_values_at
-
-        return joint_values_at(self.params, point, self.check_branches([branch])[0])
-
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
         mode m where det[n_1; n_2; n_3] of that mode's forearm directions does."""
-        s = scan(self.params, np.asarray(points, dtype=float), _check_limits(limits))
+        s = scan(self.params, np.asarray(points, dtype=float), check_limits(limits))
         return SingularFields(s.margin, s.disc, s.det)
 
     def kernels(self) -> tuple[Any, ...]:

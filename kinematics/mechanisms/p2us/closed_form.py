@@ -44,9 +44,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import asdict, dataclass
-from dataclasses import replace as _replace
-from typing import Any, NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -54,6 +52,10 @@ from kinematics.errors import InvalidDesignError, InvalidInputError
 from kinematics.mechanisms.base import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.mechanisms.base import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.mechanisms.base import classify as classify
+from kinematics.mechanisms.three_limb import modes
+from kinematics.mechanisms.three_limb.modes import IKResult as IKResult
+from kinematics.mechanisms.three_limb.modes import Jacobians as Jacobians
+from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
 from kinematics.mechanisms.translational import ASSEMBLY_MODES as ASSEMBLY_MODES
 from kinematics.mechanisms.translational import BOUNDARY_TOL as BOUNDARY_TOL
 from kinematics.mechanisms.translational import MODES as MODES
@@ -68,14 +70,8 @@ PHI_CONVENTIONS: tuple[str, ...] = ("tangential",)
 """Readings of the second universal-joint angle phi (see the module docstring)."""
 
 
-def _check_pair(name: str, pair: tuple[float, float], lo_bound: float = -math.inf) -> None:
-    lo, hi = pair
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo_bound <= lo < hi):
-        raise InvalidInputError(name, f"need finite lower < upper (>= {lo_bound:g}), got {pair}")
-
-
 @dataclass(frozen=True)
-class P2USParams:
+class P2USParams(LimbDesign):
     """Design of a 3-[P2(US)] robot; defaults are paper B's Table 2 and eq. 30.
 
     Attributes:
@@ -113,34 +109,19 @@ class P2USParams:
             raise UnknownChoiceError(self.theta_convention, THETA_CONVENTIONS)
         if self.phi_convention not in PHI_CONVENTIONS:
             raise UnknownChoiceError(self.phi_convention, PHI_CONVENTIONS)
-        for name in ("b", "d", "L", "rod_spacing"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise InvalidInputError(name, f"must be a positive length [m], got {value}")
-        for name in ("beta", "theta_zero"):
-            if not math.isfinite(getattr(self, name)):
-                raise InvalidInputError(name, "must be finite")
-        if len(self.alpha) != 3 or not all(math.isfinite(a) for a in self.alpha):
-            raise InvalidInputError("alpha", f"need three finite limb angles, got {self.alpha}")
+        self.check_common(("b", "d", "L", "rod_spacing"), ("beta", "theta_zero"))
         self._check_design()
-        _check_pair("stroke", self.stroke)
-        _check_pair("theta_limits", self.theta_limits)
-        _check_pair("phi_limits", self.phi_limits)
+        check_pair("stroke", self.stroke)
+        check_pair("theta_limits", self.theta_limits)
+        check_pair("phi_limits", self.phi_limits)
         if not (-math.pi / 2 < self.phi_limits[0] and self.phi_limits[1] < math.pi / 2):
             raise InvalidInputError("phi_limits", "must lie within (-90, 90) degrees")
         if self.theta_limits[1] - self.theta_limits[0] >= 2 * math.pi:
             raise InvalidInputError("theta_limits", "must span less than 360 degrees")
 
     def _check_design(self) -> None:
-        """Reject degenerate geometry (InvalidDesignError): coincident limbs, d >= b, beta
-        outside [0, 90] degrees."""
-        for i, j in ((0, 1), (1, 2), (0, 2)):
-            # angular distance mod 2 pi; 1e-9 rad: limbs closer than ~1e-9 m apart on a 1 m base
-            gap = abs(math.remainder(self.alpha[i] - self.alpha[j], 2 * math.pi))
-            if gap < 1e-9:
-                raise InvalidDesignError("alpha", [float(f"{math.degrees(a):.10g}") for a in self.alpha],
-                                         f"limbs {i + 1} and {j + 1} coincide (limb angles in degrees "
-                                         "must differ modulo 360)")
+        """Reject degenerate geometry (InvalidDesignError): d >= b, beta outside [0, 90] degrees
+        (coincident limbs: `check_common`)."""
         if self.d >= self.b:
             raise InvalidDesignError("d", self.d, f"the platform radius d must be smaller than the base "
                                      f"radius b = {self.b:g} m (only b - d > 0 is a working design)")
@@ -148,25 +129,7 @@ class P2USParams:
             raise InvalidDesignError("beta", math.degrees(self.beta), "the rail angle below the horizontal "
                                      "must be within [0, 90] degrees")
 
-    def as_dict(self) -> dict[str, Any]:
-        """Plain dict of the parameters (tuples as lists), SI units."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    def replace(self, **changes: Any) -> P2USParams:
-        """A copy with some parameters changed (`dataclasses.replace`, validated by `__post_init__`)."""
-        return _replace(self, **changes)
-
-    # Derived geometry, shape (3, 3): row i belongs to limb i.
-    @functools.cached_property
-    def e(self) -> np.ndarray:
-        a = np.asarray(self.alpha)
-        return np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=-1)
-
-    @functools.cached_property
-    def t(self) -> np.ndarray:
-        a = np.asarray(self.alpha)
-        return np.stack([-np.sin(a), np.cos(a), np.zeros(3)], axis=-1)
-
+    # Derived geometry, shape (3, 3): row i belongs to limb i (e, t: `LimbDesign`).
     @functools.cached_property
     def w(self) -> np.ndarray:
         """Unit actuator directions (inward, down)."""
@@ -189,40 +152,26 @@ class P2USParams:
 
 
 # -- inverse kinematics ----------------------------------------------------------------------
-class LimbSolutions(NamedTuple):
-    """Per-limb IK for points of shape S + (3,); root axis: 0 = "+", 1 = "-".
+@dataclass(frozen=True)
+class LimbSolutions(modes.LimbRoots):
+    """Per-limb IK (`LimbRoots`): q the carriage positions [m], n the rod directions
+    (C_i - B_i)/L, reach where the discriminant >= -BOUNDARY_TOL L^2; and
 
     Attributes:
-        q: S + (3, 2) actuator values [m] (NaN where the limb cannot reach).
-        n: S + (3, 2, 3) unit rod directions (C_i - B_i)/L.
-        reach: S + (3,) the limb reaches the point (discriminant >= -BOUNDARY_TOL L^2).
         axis_distance: S + (3,) distance of C_i from the rail's axis [m] (reach iff <= L).
     """
 
-    q: np.ndarray
-    n: np.ndarray
-    reach: np.ndarray
     axis_distance: np.ndarray
 
 
-def _points(p: np.ndarray, name: str = "position") -> np.ndarray:
-    p = np.asarray(p, dtype=float)
-    if p.shape[-1:] != (3,):
-        raise InvalidInputError(name, f"expected shape (..., 3), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise InvalidInputError(name, "must be finite")
-    return p
-
-
 def limb_ik(params: P2USParams, p: np.ndarray) -> LimbSolutions:
-    """Both roots of every limb at every platform position p [m]."""
-    p = _points(p)
-    v = p[..., None, :] + (params.d - params.b) * params.e  # S + (3, 3)
+    """Both carriage positions q = A_i +/- sqrt(A_i^2 - G_i) [m] of every limb (paper eq. 18) and
+    the rod directions they give, at every platform position p [m]."""
+    v = modes.points(p)[..., None, :] + (params.d - params.b) * params.e  # S + (3, 3)
     A = np.einsum("...ij,ij->...i", v, params.w)
     vv = np.einsum("...ij,...ij->...i", v, v)
     disc = A * A - (vv - params.L**2)
-    reach = disc >= -BOUNDARY_TOL * params.L**2
-    root = np.sqrt(np.where(reach, np.maximum(disc, 0.0), np.nan))
+    reach, root = modes.real_root(disc, params.L)
     q = np.stack([A + root, A - root], axis=-1)  # S + (3, 2)
     n = (v[..., None, :] - q[..., None] * params.w[:, None, :]) / params.L
     dist = np.sqrt(np.maximum(vv - A * A, 0.0))
@@ -311,27 +260,6 @@ def passive_limits_ok(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np
     return theta_ok, phi_ok
 
 
-class IKResult(NamedTuple):
-    """IK over all 8 working modes for points of shape S + (3,).
-
-    Attributes:
-        q: S + (8, 3) actuator values per mode (order of MODES); NaN where a limb cannot reach.
-        reachable: S + (8,) every limb reaches in that mode (limits ignored).
-        within_limits: S + (8,) reachable and every limit holds (strokes, theta, phi).
-        limbs: the per-limb solutions behind them.
-        limb_ok: S + (3, 2) per limb and root: reaches and respects its limits.
-    """
-
-    q: np.ndarray
-    reachable: np.ndarray
-    within_limits: np.ndarray
-    limbs: LimbSolutions
-    limb_ok: np.ndarray
-
-
-_MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in MODES])  # (8, 3)
-
-
 def limb_limits(params: P2USParams, limbs: LimbSolutions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per limb and root: (stroke ok, theta ok, phi ok), each S + (3, 2)."""
     with np.errstate(invalid="ignore"):
@@ -348,30 +276,13 @@ def ik(params: P2USParams, p: np.ndarray, *, limits: bool = True) -> IKResult:
     """
     limbs = limb_ik(params, p)
     stroke_ok, theta_ok, phi_ok = limb_limits(params, limbs)
-    ok = limbs.reach[..., None] & stroke_ok
-    if limits:
-        ok &= theta_ok & phi_ok
-    idx = np.arange(3)
-    q = limbs.q[..., idx, _MODE_ROOTS]  # S + (8, 3)
-    all_reach = np.all(limbs.reach, axis=-1)[..., None]
-    reachable = np.broadcast_to(all_reach, all_reach.shape[:-1] + (len(MODES),))
-    within = np.all(ok[..., idx, _MODE_ROOTS], axis=-1)
-    return IKResult(q, reachable, within, limbs, ok)
+    return modes.by_mode(limbs, stroke_ok, theta_ok & phi_ok, limits)
 
 
 # -- forward kinematics ----------------------------------------------------------------------
-def _actuators(q: np.ndarray) -> np.ndarray:
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1:] != (3,):
-        raise InvalidInputError("q", f"expected 3 actuator values, got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise InvalidInputError("q", "must be finite")
-    return q
-
-
 def sphere_centres(params: P2USParams, q: np.ndarray) -> np.ndarray:
     """c_i = B_i - d e_i: the platform centre lies at distance L from each, S + (3, 3)."""
-    q = _actuators(q)
+    q = modes.actuators(q, "values")
     return params.base_points + q[..., None] * params.w - params.d * params.e
 
 
@@ -382,44 +293,18 @@ def fk(params: P2USParams, q: np.ndarray) -> FKResult:
 
 
 # -- velocity and singularities ---------------------------------------------------------------
-class Jacobians(NamedTuple):
-    """Velocity matrices at positions S + (3,) with actuator values S + (3,).
-
-    Attributes:
-        Jx: S + (3, 3), rows r_i = C_i - B_i [m].
-        Jq: S + (3,), the diagonal r_i . w_i [m].
-        J: S + (3, 3), J_q^-1 J_x: qdot = J pdot (inf rows where J_q_ii = 0).
-        iota_I, iota_II: S, the scale-free singularity measures.
-    """
-
-    Jx: np.ndarray
-    Jq: np.ndarray
-    J: np.ndarray
-    iota_I: np.ndarray
-    iota_II: np.ndarray
-
-
 def rod_vectors(params: P2USParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """r_i = C_i - B_i [m], shape S + (3, 3)."""
-    p = _points(p)
-    q = _actuators(q)
+    p = modes.points(p)
+    q = modes.actuators(q, "values")
     return p[..., None, :] + params.d * params.e - params.base_points - q[..., None] * params.w
 
 
 def jacobians(params: P2USParams, p: np.ndarray, q: np.ndarray) -> Jacobians:
     """J_x, J_q, J = J_q^-1 J_x and the singularity measures at (p, q)."""
     r = rod_vectors(params, p, q)
-    jq = np.einsum("...ij,ij->...i", r, params.w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        J = r / jq[..., None]
-    n = r / np.linalg.norm(r, axis=-1, keepdims=True)
-    iota_I = np.min(np.abs(np.einsum("...ij,ij->...i", n, params.w)), axis=-1)
-    iota_II = np.abs(np.linalg.det(n))
-    return Jacobians(r, jq, J, iota_I, iota_II)
-
-
-def _deg(x: float) -> str:
-    return f"{x:.6g} rad ({math.degrees(x):.4g} deg)"
+    n = modes.unit_rods(r)
+    return modes.jacobians_of(r, np.einsum("...ij,ij->...i", r, params.w), n, np.einsum("...ij,ij->...i", n, params.w))
 
 
 def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
@@ -429,6 +314,7 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
         q: (3,) actuator values [m].
         n: (3, 3) unit rod directions, row i for limb i.
     """
+    deg = modes.angle_text
     theta, phi = limit_angles(params, n)
     theta_ok, phi_ok = passive_limits_ok(params, n)
     theta_name = "theta (rod-rail angle)" if params.theta_convention == "rod-rail" else "theta"
@@ -441,16 +327,13 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
             out.append(lim + f"q = {q[i]:.6g} m above the stroke's {params.stroke[1]:g} m")
         if not theta_ok[i]:
             lo, hi = params.theta_limits
-            out.append(lim + f"{theta_name} = {_deg(theta[i])} outside [{_deg(lo)}, {_deg(hi)}]")
+            out.append(lim + f"{theta_name} = {deg(theta[i])} outside [{deg(lo)}, {deg(hi)}]")
         if not phi_ok[i]:
             lo, hi = params.phi_limits
-            out.append(lim + f"phi = {_deg(phi[i])} outside [{_deg(lo)}, {_deg(hi)}]")
+            out.append(lim + f"phi = {deg(phi[i])} outside [{deg(lo)}, {deg(hi)}]")
     return out
 
 
 def jacobian_inverse(params: P2USParams, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """J^-1 = J_x^-1 J_q: pdot = J^-1 qdot (raises where J_x is singular)."""
-    jac = jacobians(params, p, q)
-    if np.any(jac.iota_II <= SINGULAR_TOL):
-        raise InvalidInputError("position", "J_x is singular (type II): J has no inverse here")
-    return np.linalg.solve(jac.Jx, np.eye(3) * jac.Jq[..., None, :])
+    return modes.inverse_of(jacobians(params, p, q))

@@ -4,26 +4,15 @@ common interface (branches: the 8 working modes; limits: every limit, or the str
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from types import ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 
-from kinematics.mechanisms.base import (
-    UNION,
-    Assemblies,
-    BranchIK,
-    MarginFn,
-    Mechanism,
-    PoseFK,
-    PoseIK,
-    PoseJacobians,
-    SingularFields,
-    Velocity,
-    parallel_forward,
-)
+from kinematics.mechanisms.base import UNION, MarginFn, SingularFields
 from kinematics.mechanisms.p2us import closed_form as cf
-from kinematics.mechanisms.p2us.scan import LIMITS, bounding_box, check_limits, scan
-from kinematics.mechanisms.pose_reports import pose_fk, pose_ik, pose_jacobians
+from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
+from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
                "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
@@ -61,7 +50,7 @@ class P2USMargin:
         return margin
 
 
-class P2US(Mechanism):
+class P2US(ThreeLimbMechanism):
     """The 3-[P2(US)] translational parallel robot (paper B) of a given design.
 
     Attributes:
@@ -69,25 +58,15 @@ class P2US(Mechanism):
     """
 
     family = "p2us"
-    closed_loop = True
     description = "3-[P2(US)] translational parallel robot (closed forms)"
     actuator_unit = "m"
-    branch_kind = "working mode"
-    branches = cf.MODES
     branch_legend = MODE_LEGEND
-    limit_sets = LIMITS
-    assembly_modes = cf.ASSEMBLY_MODES
+    closed_form: ClassVar[ModuleType] = cf
     iota_I_label = "iota_I = min |n.w|"
 
-    def __init__(self, params: cf.P2USParams, name: str = "p2us") -> None:
-        self.params = params
-        self.name = name
-
-    def parameters(self) -> dict[str, Any]:
-        return self.params.as_dict()
-
-    def design_parameters(self) -> dict[str, Any]:
-        return self.params.as_dict()
+    @property
+    def rod_length(self) -> float:
+        return float(self.params.L)
 
     def parameter_sources(self, urdf_path: str) -> dict[str, str]:
         """Paper B's table for each parameter of a built-in design (`paper_b.SOURCES`)."""
@@ -96,27 +75,14 @@ class P2US(Mechanism):
         return parameter_sources(self.name, urdf_path)
 
     def limb_reasons(self, limbs: cf.LimbSolutions) -> list[dict[str, Any]]:
-        """Per-limb reachability at one point, with the reason when a limb cannot reach."""
         return [{"limb": i + 1, "reachable": bool(limbs.reach[i]),
                  "reason": None if limbs.reach[i] else (
                      f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the "
                      f"rail's axis, farther than the rod length L = {self.params.L:g} m")} for i in range(3)]
 
     def fk_reason(self, res: Any) -> str:
-        """Why a single FK query has no assembly."""
         return (f"no assembly: the three spheres of radius L = {self.params.L:g} m around the carriages do not "
                 f"meet (the rods would need to be {float(res.gap):.6g} m longer)")
-
-    def pose_ik(self, point: np.ndarray) -> PoseIK:
-        res = cf.ik(self.params, point)
-        return pose_ik(res, lambda q, n: cf.violations(self.params, q, n), self.limb_reasons(res.limbs))
-
-    def pose_fk(self, q: np.ndarray) -> PoseFK:
-        return pose_fk(cf.fk(self.params, q), q, lambda p: cf.rod_vectors(self.params, p, q), self.params.L,
-                       lambda qq, n: cf.violations(self.params, qq, n), self.fk_reason)
-
-    def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
-        return pose_jacobians(cf.jacobians(self.params, point, q))
 
     def kernels(self) -> tuple[Any, ...]:
         import kinematics.mechanisms.p2us.scan as scan_module
@@ -130,29 +96,6 @@ class P2US(Mechanism):
 
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
         return p2us_margin(self.params, self.check_branches(branches), limits)
-
-    def ik(self, points: np.ndarray, limits: str = "all") -> BranchIK:
-        res = cf.ik(self.params, points, limits=check_limits(limits))
-        return BranchIK(res.q, np.asarray(res.reachable), res.within_limits)
-
-    def fk(self, q: np.ndarray) -> Assemblies:
-        res = cf.fk(self.params, q)
-        exists = np.isfinite(res.p).all(axis=-1)
-        return Assemblies(res.p, exists, cf.ASSEMBLY_MODES)
-
-    def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
-        jac = cf.jacobians(self.params, points, q)
-        return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
-
-    def reference_pose(self) -> tuple[np.ndarray, str]:
-        from kinematics.mechanisms.p2us.urdf import reference_pose
-
-        return reference_pose(self.params)
-
-    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
-        from kinematics.mechanisms.p2us.urdf import joint_values_at
-
-        return joint_values_at(self.params, point, self.check_branches([branch])[0])
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         s = scan(self.params, points, limits)

@@ -27,11 +27,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from kinematics.errors import UnknownChoiceError
 from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, angle_bounds, rod_rail_bounds
-
-LIMITS = ("all", "actuators")
-"""Which limits a scan applies: every limit, or the actuator strokes only."""
+from kinematics.mechanisms.three_limb.modes import LIMITS as LIMITS
+from kinematics.mechanisms.three_limb.modes import check_limits as check_limits
 
 PAPER_VOLUME_M3 = 0.13397
 """Paper B, Sec. 8: the workspace volume with the limits of eq. 30 [m^3]."""
@@ -50,13 +48,6 @@ class ScanResult(NamedTuple):
     margin: np.ndarray
     det: np.ndarray
     disc: np.ndarray
-
-
-def check_limits(limits: str) -> bool:
-    """True when the passive limits apply; raises UnknownChoiceError for anything but LIMITS."""
-    if limits not in LIMITS:
-        raise UnknownChoiceError(limits, LIMITS)
-    return limits == "all"
 
 
 def kernel_geometry(params: P2USParams) -> np.ndarray:

@@ -19,8 +19,9 @@ The platform hangs from rod (1, 1) through a spherical joint modelled as three r
 the fixed `platform_mount` rotation chosen so that the gimbal lock (s_2 = +/-90 deg) falls at
 theta = mid-range -/+ 90 deg, outside the universal joint's range. The other five rod tips are
 closed onto their anchors by point constraints in the sidecar. Every design number appears
-verbatim in exactly one place, written with 17 significant digits, so generate -> read
-round-trips exactly.
+verbatim in exactly one place, written as the shortest text of the same float, so generate ->
+read round-trips exactly. The shared parts of the tree, the sidecar and the writing are
+`kinematics.mechanisms.three_limb.urdf`'s.
 
 The sidecar's `u_joint_angles` block records what the universal-joint limits bound
 (`parallel.THETA_CONVENTIONS`, `PHI_CONVENTIONS`). Under theta "elevation" the theta range is the
@@ -32,31 +33,21 @@ from __future__ import annotations
 
 import math
 import os
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
-from kinematics.errors import InvalidInputError, ModelFileError, UnsupportedRobotError
-from kinematics.mechanisms.p2us.closed_form import MODES as MODES_BY_INDEX
+from kinematics.errors import ModelFileError, UnsupportedRobotError
 from kinematics.mechanisms.p2us.closed_form import P2USParams, limb_ik, passive_angles
-from kinematics.model.urdf_xml import axis_of as _axis
-from kinematics.model.urdf_xml import axis_reference
-from kinematics.model.urdf_xml import fmt17 as _f
-from kinematics.model.urdf_xml import joint as _joint
-from kinematics.model.urdf_xml import limit_of as _limit
-from kinematics.model.urdf_xml import link as _link
-from kinematics.model.urdf_xml import origin_of as _origin
-from kinematics.model.urdf_xml import rot_y as _rot_y
-from kinematics.model.urdf_xml import rot_z as _rot_z
-from kinematics.model.urdf_xml import rpy_of as _rpy
-from kinematics.model.urdf_xml import vec as _v
-from kinematics.model.urdf_xml import visual as _visual
+from kinematics.mechanisms.three_limb import urdf as three_limb
+from kinematics.mechanisms.three_limb.reader import LayoutReader
+from kinematics.mechanisms.three_limb.urdf import LIMBS as LIMBS
+from kinematics.mechanisms.three_limb.urdf import RODS as RODS
+from kinematics.mechanisms.three_limb.urdf import SPHERICAL as SPHERICAL
+from kinematics.model.loops import sidecar_for
+from kinematics.model.urdf_xml import UrdfBuilder, axis_of, limit_of, num, origin_of, rot_y, rot_z, visual
 
 MECHANISM = "3-[P2(US)]"
-LIMBS = (1, 2, 3)
-RODS = (1, 2)
-SPHERICAL = ("s_1", "s_2", "s_3")
 
 
 DESIGNS: dict[str, P2USParams] = {
@@ -80,11 +71,6 @@ BUILTIN_DESIGNS = {"p2us": "table2", "p2us-results": "results"}
 """Built-in robot name -> the preset its committed URDF is generated from."""
 
 
-def _rod_offset(k: int, s: float) -> float:
-    """Lateral offset of rod k along the mount frame's y = -t_i: rod 1 sits on the +t_i side."""
-    return -0.5 * s if k == 1 else 0.5 * s
-
-
 def theta_centre(params: P2USParams) -> float:
     """The u_theta coordinate where the platform's spherical joint is farthest from gimbal lock:
     the middle of the rods' allowed swing (`P2USParams.theta_joint_centre`)."""
@@ -100,245 +86,138 @@ def theta_joint_limits(params: P2USParams) -> tuple[float, float]:
 def _platform_mount(params: P2USParams) -> tuple[np.ndarray, np.ndarray]:
     """Fixed placement (translation, rotation) from the s_3 body to the platform frame."""
     psi = params.theta_zero + theta_centre(params)
-    R_s3 = _rot_z(params.alpha[0] + math.pi) @ _rot_y(psi)  # world orientation of the s_3 body
-    e, t = params.e[0], params.t[0]
-    anchor = params.d * e + 0.5 * params.rod_spacing * t  # anchor_1_1 in platform (= world) axes
-    return R_s3.T @ (-anchor), R_s3.T
+    R_s3 = rot_z(params.alpha[0] + math.pi) @ rot_y(psi)  # world orientation of the s_3 body
+    anchor = params.d * params.e[0] + 0.5 * params.rod_spacing * params.t[0]  # anchor_1_1, platform axes
+    return three_limb.platform_mount(R_s3, anchor)
+
+
+MATERIALS = {"frame": "0.6 0.6 0.65 1", "rail": "0.3 0.3 0.35 1", "carriage": "0.95 0.55 0.1 1",
+             "rod": "0.2 0.45 0.85 1", **three_limb.JOINT_MATERIAL, "platform": "0.85 0.2 0.2 1"}
+
+
+def command(params: P2USParams) -> str:
+    """How this design is written, for the files' headers: `kinematics urdf p2us` with the preset
+    it is (`DESIGNS`) or "design flags" (no double hyphen: XML comments cannot hold one)."""
+    for preset, design in DESIGNS.items():
+        if params == design:
+            return f"`kinematics urdf p2us`, design preset {preset}"
+    return "`kinematics urdf p2us` with design flags"
 
 
 def urdf_text(params: P2USParams, name: str = "p2us") -> str:
-    """The URDF of a 3-[P2(US)] design."""
+    """The URDF of a 3-[P2(US)] design (`xml.etree.ElementTree`, indented)."""
     p = params
     L, s = p.L, p.rod_spacing
     rail = p.stroke[1] + 0.05
-    out = [
-        '<?xml version="1.0"?>',
-        f"<!-- {MECHANISM} translational parallel robot (paper B, Mazare et al. 2016), generated by",
-        "     `kinematics urdf p2us`. Loop closures and actuated joints: the .loops.yaml sidecar.",
-        f"     b={_f(p.b)} d={_f(p.d)} L={_f(p.L)} beta={_f(p.beta)} rad, rod spacing {_f(p.rod_spacing)} m. -->",
-        f'<robot name="{name}">',
-        '  <material name="frame"><color rgba="0.6 0.6 0.65 1"/></material>',
-        '  <material name="rail"><color rgba="0.3 0.3 0.35 1"/></material>',
-        '  <material name="carriage"><color rgba="0.95 0.55 0.1 1"/></material>',
-        '  <material name="rod"><color rgba="0.2 0.45 0.85 1"/></material>',
-        '  <material name="joint"><color rgba="0.15 0.15 0.15 1"/></material>',
-        '  <material name="platform"><color rgba="0.85 0.2 0.2 1"/></material>',
-        _link("base", _visual(f'<cylinder radius="{_f(p.b + 0.03)}" length="0.02"/>', "frame", xyz=(0, 0, 0.03))),
-    ]
+    urdf = UrdfBuilder(name, MATERIALS)
+    urdf.link("base", visual("cylinder", "frame", xyz=(0, 0, 0.03), radius=p.b + 0.03, length=0.02))
     for i, alpha in zip(LIMBS, p.alpha, strict=True):
-        out.append(_joint(f"limb_{i}_joint", "fixed", "base", f"limb_{i}", rpy=(0, 0, alpha)))
+        urdf.joint(f"limb_{i}_joint", "fixed", "base", f"limb_{i}", rpy=(0, 0, alpha))
         c, sn = math.cos(p.beta), math.sin(p.beta)
-        out.append(_link(f"limb_{i}", _visual(
-            f'<box size="{_v(rail, 0.03, 0.02)}"/>', "rail",
-            xyz=(p.b - 0.5 * rail * c, 0, -0.5 * rail * sn + 0.02), rpy=(0, p.beta, math.pi))))
-        out.append(_joint(f"slider_{i}", "prismatic", f"limb_{i}", f"carriage_{i}", xyz=(p.b, 0, 0),
-                          rpy=(0, p.beta, math.pi), axis=(1, 0, 0), limit=p.stroke))
-        out.append(_link(f"carriage_{i}", _visual(f'<box size="{_v(0.06, s + 0.04, 0.03)}"/>', "carriage")))
+        urdf.link(f"limb_{i}", visual("box", "rail", xyz=(p.b - 0.5 * rail * c, 0, -0.5 * rail * sn + 0.02),
+                                      rpy=(0, p.beta, math.pi), size=(rail, 0.03, 0.02)))
+        urdf.joint(f"slider_{i}", "prismatic", f"limb_{i}", f"carriage_{i}", xyz=(p.b, 0, 0),
+                   rpy=(0, p.beta, math.pi), axis=(1, 0, 0), limit=p.stroke)
+        urdf.link(f"carriage_{i}", visual("box", "carriage", size=(0.06, s + 0.04, 0.03)))
         for k in RODS:
-            y = _rod_offset(k, s)
-            out.append(_joint(f"mount_{i}_{k}_joint", "fixed", f"carriage_{i}", f"mount_{i}_{k}", xyz=(0, y, 0),
-                              rpy=(0, -p.beta, 0)))
-            out.append(_link(f"mount_{i}_{k}", _visual('<sphere radius="0.012"/>', "joint")))
-            out.append(_joint(f"u_theta_{i}_{k}", "revolute", f"mount_{i}_{k}", f"ucross_{i}_{k}",
-                              rpy=(0, p.theta_zero, 0), axis=(0, 1, 0), limit=theta_joint_limits(p)))
-            out.append(_link(f"ucross_{i}_{k}"))
-            out.append(_joint(f"u_phi_{i}_{k}", "revolute", f"ucross_{i}_{k}", f"rod_{i}_{k}",
-                              axis=(0, 0, 1), limit=p.phi_limits))
-            out.append(_link(f"rod_{i}_{k}", _visual(f'<cylinder radius="0.006" length="{_f(L)}"/>', "rod",
-                                                     xyz=(0.5 * L, 0, 0), rpy=(0, 0.5 * math.pi, 0))))
-            out.append(_joint(f"tip_{i}_{k}_joint", "fixed", f"rod_{i}_{k}", f"tip_{i}_{k}", xyz=(L, 0, 0)))
-            out.append(_link(f"tip_{i}_{k}", _visual('<sphere radius="0.01"/>', "joint")))
-    chain = ["tip_1_1", "sphere_a", "sphere_b", "sphere_c"]
-    for jname, parent, child, axis in zip(SPHERICAL, chain[:-1], chain[1:], ((0, 0, 1), (0, 1, 0), (1, 0, 0)), strict=True):
-        out.append(_joint(jname, "revolute", parent, child, axis=axis, limit=(-math.pi, math.pi)))
-        out.append(_link(child))
-    xyz, R = _platform_mount(p)
-    out.append(_joint("platform_joint", "fixed", "sphere_c", "platform", xyz=tuple(xyz), rpy=_rpy(R)))
-    out.append(_link("platform", _visual(f'<cylinder radius="{_f(p.d + 0.02)}" length="0.01"/>', "platform"),
-                     _visual('<sphere radius="0.008"/>', "joint")))
-    for i, alpha in zip(LIMBS, p.alpha, strict=True):
-        out.append(_joint(f"pmount_{i}_joint", "fixed", "platform", f"pmount_{i}", rpy=(0, 0, alpha)))
-        out.append(_link(f"pmount_{i}"))
-        for k in RODS:
-            out.append(_joint(f"anchor_{i}_{k}_joint", "fixed", f"pmount_{i}", f"anchor_{i}_{k}",
-                              xyz=(p.d, -_rod_offset(k, s), 0)))
-            out.append(_link(f"anchor_{i}_{k}"))
-    out.append("</robot>")
-    return "\n".join(out) + "\n"
+            # the mount frame's y is -t_i: rod 1 sits on the +t_i side
+            three_limb.add_rod(urdf, i, k, f"carriage_{i}", ("mount", (0, three_limb.rod_offset(k, s), 0), (0, -p.beta, 0)),
+                               ("u_theta", (0, p.theta_zero, 0), theta_joint_limits(p)), p.phi_limits, L)
+    three_limb.add_platform(urdf, _platform_mount(p), p.alpha, p.d, lambda k: -three_limb.rod_offset(k, s),
+                            visual("cylinder", "platform", radius=p.d + 0.02, length=0.01),
+                            visual("sphere", "joint", radius=0.008))
+    return urdf.text(f"""{MECHANISM} translational parallel robot (paper B, Mazare et al. 2016).
+Generated by {command(p)} (kinematics.mechanisms.p2us.urdf); do not edit.
+Loop closures and actuated joints: the .loops.yaml sidecar.
+b={num(p.b)} d={num(p.d)} L={num(p.L)} m, beta={num(p.beta)} rad, rod spacing {num(p.rod_spacing)} m.""")
 
 
 def reference_pose(params: P2USParams) -> tuple[np.ndarray, str]:
     """A platform position on the z axis where the robot is assembled in mode '---' with every
     limit respected (mid-way along the valid stretch of the axis), else merely assembled."""
-    from kinematics.mechanisms.p2us.closed_form import ik, mode_index
+    from kinematics.mechanisms.p2us.closed_form import ik
 
-    return axis_reference(ik, params, 3 * (params.b + params.L), 6001, mode_index("---"))
+    return three_limb.axis_reference(ik, params, 3 * (params.b + params.L), 6001)
 
 
 def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dict[str, float]:
     """Every joint value of the URDF tree with the platform at `p` [m] in working mode `mode`
     (loops closed), from the closed forms. Raises InvalidInputError where a limb cannot reach."""
-    from kinematics.mechanisms.p2us.closed_form import mode_index
-
-    m = mode_index(mode)
-    pos = np.asarray(p, dtype=float).reshape(3)
-    limbs = limb_ik(params, pos)
-    if not limbs.reach.all():
-        bad = [str(i + 1) for i in range(3) if not limbs.reach[i]]
-        raise InvalidInputError("position", f"limb(s) {', '.join(bad)} cannot reach {pos.tolist()}")
-    roots = [0 if c == "+" else 1 for c in MODES_BY_INDEX[m]]
-    q = limbs.q[np.arange(3), roots]
-    theta, phi = passive_angles(params, limbs.n[np.arange(3), roots])
-    values: dict[str, float] = {}
-    for i in LIMBS:
-        values[f"slider_{i}"] = float(q[i - 1])
-        for k in RODS:
-            values[f"u_theta_{i}_{k}"] = float(theta[i - 1])
-            values[f"u_phi_{i}_{k}"] = float(phi[i - 1])
-    values["s_1"] = -values["u_phi_1_1"]
-    values["s_2"] = theta_centre(params) - values["u_theta_1_1"]
-    values["s_3"] = 0.0
-    return values
+    q, n = three_limb.mode_solution(limb_ik, params, p, mode)
+    theta, phi = passive_angles(params, n)
+    return three_limb.tree_values("slider", q, "u_theta", theta, phi, theta_centre(params) - float(theta[0]))
 
 
 def reference_configuration(params: P2USParams) -> dict[str, float]:
     """Joint values of an assembled configuration (loops closed), for the sidecar."""
-    pos, mode = reference_pose(params)
-    return joint_values_at(params, pos, mode)
+    return joint_values_at(params, *reference_pose(params))
 
 
 def sidecar_text(params: P2USParams, urdf_name: str) -> str:
-    """The loop-closure sidecar (YAML) of the URDF written by `urdf_text`."""
-    ref = reference_configuration(params)
-    lines = [
-        f"# Loop closures of {urdf_name} ({MECHANISM}). Generated by `kinematics urdf p2us`.",
-        "# closures: each pair of frames must coincide (a 3D point constraint = a spherical joint).",
-        "# reference: an assembled configuration (loops closed), the closed-loop solver's start.",
-        "format: kinematics-loops/1",
-        f"mechanism: {MECHANISM}",
-        f"urdf: {urdf_name}",
-        "end_effector: platform",
-        "actuated: [" + ", ".join(f"slider_{i}" for i in LIMBS) + "]",
-        "u_joint_angles:  # what the universal-joint limits bound (kinematics.mechanisms.p2us.closed_form: THETA/PHI_CONVENTIONS)",
-        f"  theta: {params.theta_convention}",
-    ]
+    """The loop-closure sidecar (YAML) of the URDF written by `urdf_text`; its `u_joint_angles`
+    block says what the universal-joint limits bound (closed_form.THETA/PHI_CONVENTIONS)."""
+    angles: dict[str, object] = {"theta": params.theta_convention}
     if params.theta_convention != "elevation":
-        lines.append(f"  theta_limits: [{_f(params.theta_limits[0])}, {_f(params.theta_limits[1])}]  # rad")
-    lines += [
-        f"  phi: {params.phi_convention}",
-        "closures:",
-    ]
-    for i in LIMBS:
-        for k in RODS:
-            if (i, k) == (1, 1):
-                continue  # rod (1, 1) carries the platform in the tree
-            lines.append(f"  - {{name: S_{i}_{k}, type: point, frame1: tip_{i}_{k}, frame2: anchor_{i}_{k}}}")
-    lines.append("reference:")
-    lines += [f"  {name}: {_f(value)}" for name, value in ref.items()]
-    return "\n".join(lines) + "\n"
+        angles["theta_limits"] = [float(x) for x in params.theta_limits]  # rad
+    angles["phi"] = params.phi_convention
+    return three_limb.sidecar_text(MECHANISM, command(params), urdf_name, "slider", reference_configuration(params),
+                                   {"u_joint_angles": angles},
+                                   ["u_joint_angles: what the universal-joint limits bound (theta_limits in rad)."])
 
 
 def sidecar_path(urdf_path: str | os.PathLike[str]) -> Path:
     """`robot.urdf` -> `robot.loops.yaml`."""
-    p = Path(urdf_path)
-    return p.with_name(p.stem + ".loops.yaml")
+    return sidecar_for(Path(urdf_path))
 
 
-def write(params: P2USParams, path: str | os.PathLike[str], name: str | None = None) -> tuple[Path, Path]:
-    """Write the URDF to `path` and its sidecar beside it; returns both paths.
-
-    Both are written as one (`files.write_atomic_files`): on any failure neither file is
-    half-written, and files already there are left as they were.
-    """
-    urdf_path = Path(path)
-    side = sidecar_path(urdf_path)
-    robot_name = name or urdf_path.stem
-    urdf = urdf_text(params, robot_name)
-    loops = sidecar_text(params, urdf_path.name)
-    if not urdf_path.parent.is_dir():
-        raise ModelFileError(urdf_path.parent, "output directory does not exist")
-    from kinematics.files import write_atomic_files
-
-    write_atomic_files([(str(urdf_path), urdf), (str(side), loops)], "output")
-    return urdf_path, side
+write = three_limb.writer(urdf_text, sidecar_text)
 
 
 # -- reader -------------------------------------------------------------------------------------
 def read_params(urdf_path: str | os.PathLike[str], robot: str | None = None) -> P2USParams:
-    """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes).
-
-    Raises:
-        UnsupportedRobotError: naming the missing or inconsistent joint when the URDF does not
-            have that layout.
-    """
-    from kinematics.model.robot import check_urdf_file
-
-    root = check_urdf_file(urdf_path)
-    who = robot or Path(urdf_path).stem
-    joints = {j.get("name"): j for j in root.findall("joint")}
-
-    def need(name: str, kind: str) -> ET.Element:
-        j = joints.get(name)
-        if j is None:
-            raise UnsupportedRobotError(who, f"not a {MECHANISM}: missing joint {name!r} ({_layout_hint()})")
-        if j.get("type") != kind:
-            raise UnsupportedRobotError(who, f"not a {MECHANISM}: joint {name!r} is {j.get('type')}, expected {kind}")
-        return j
-
-    def same(what: str, values: list) -> object:
-        if any(v != values[0] for v in values[1:]):
-            raise UnsupportedRobotError(who, f"the closed forms need identical limbs/rods, but {what} differs: {values}")
-        return values[0]
-
-    alpha, b, beta, stroke, spacing, theta0, th_lim, ph_lim, L, d = ([] for _ in range(10))
+    """Read a 3-[P2(US)] design back from its URDF (the layout `urdf_text` writes) and the
+    `u_joint_angles` block of its sidecar (`read_conventions`); UnsupportedRobotError names the
+    missing or inconsistent joint when the URDF does not have that layout."""
+    layout = LayoutReader(urdf_path, robot, MECHANISM, _layout_hint())
+    need, fail = layout.need, layout.fail
+    alpha = layout.limb_angles()
+    b, beta, stroke, spacing, theta0, th_lim, ph_lim, L, d = ([] for _ in range(9))
     for i in LIMBS:
-        xyz, rpy = _origin(need(f"limb_{i}_joint", "fixed"))
-        if xyz != (0, 0, 0) or rpy[:2] != (0, 0):
-            raise UnsupportedRobotError(who, f"joint 'limb_{i}_joint' must be a pure rotation about z")
-        alpha.append(rpy[2])
-        slider = need(f"slider_{i}", "prismatic")
-        xyz, rpy = _origin(slider)
-        if xyz[1:] != (0, 0) or rpy[0] != 0 or rpy[2] != math.pi or _axis(slider) != (1, 0, 0):
-            raise UnsupportedRobotError(who, f"joint 'slider_{i}' must sit at (b, 0, 0), rpy (0, beta, pi), axis x")
+        slider, xyz, rpy = layout.placed(f"slider_{i}", "prismatic")
+        if xyz[1:] != (0, 0) or rpy[0] != 0 or rpy[2] != math.pi or axis_of(slider) != (1, 0, 0):
+            raise fail(f"joint 'slider_{i}' must sit at (b, 0, 0), rpy (0, beta, pi), axis x")
         b.append(xyz[0])
         beta.append(rpy[1])
-        stroke.append(_limit(slider))
+        stroke.append(limit_of(slider))
         for k in RODS:
-            xyz, rpy = _origin(need(f"mount_{i}_{k}_joint", "fixed"))
+            xyz, rpy = origin_of(need(f"mount_{i}_{k}_joint", "fixed"))
             if xyz[0] != 0 or xyz[2] != 0 or rpy != (0, -beta[-1], 0):
-                raise UnsupportedRobotError(who, f"joint 'mount_{i}_{k}_joint' must be (0, -/+s/2, 0), rpy (0, -beta, 0)")
+                raise fail(f"joint 'mount_{i}_{k}_joint' must be (0, -/+s/2, 0), rpy (0, -beta, 0)")
             spacing.append(2 * xyz[1] if k == 2 else -2 * xyz[1])
             ut = need(f"u_theta_{i}_{k}", "revolute")
-            xyz, rpy = _origin(ut)
-            if xyz != (0, 0, 0) or rpy[0] != 0 or rpy[2] != 0 or _axis(ut) != (0, 1, 0):
-                raise UnsupportedRobotError(who, f"joint 'u_theta_{i}_{k}' must be rpy (0, theta_zero, 0), axis y")
+            xyz, rpy = origin_of(ut)
+            if xyz != (0, 0, 0) or rpy[0] != 0 or rpy[2] != 0 or axis_of(ut) != (0, 1, 0):
+                raise fail(f"joint 'u_theta_{i}_{k}' must be rpy (0, theta_zero, 0), axis y")
             theta0.append(rpy[1])
-            th_lim.append(_limit(ut))
+            th_lim.append(limit_of(ut))
             up = need(f"u_phi_{i}_{k}", "revolute")
-            if _origin(up) != ((0, 0, 0), (0, 0, 0)) or _axis(up) != (0, 0, 1):
-                raise UnsupportedRobotError(who, f"joint 'u_phi_{i}_{k}' must have no offset and axis z")
-            ph_lim.append(_limit(up))
-            xyz, rpy = _origin(need(f"tip_{i}_{k}_joint", "fixed"))
-            if xyz[1:] != (0, 0) or rpy != (0, 0, 0):
-                raise UnsupportedRobotError(who, f"joint 'tip_{i}_{k}_joint' must be (L, 0, 0)")
-            L.append(xyz[0])
-            xyz, _ = _origin(need(f"anchor_{i}_{k}_joint", "fixed"))
+            if origin_of(up) != ((0, 0, 0), (0, 0, 0)) or axis_of(up) != (0, 0, 1):
+                raise fail(f"joint 'u_phi_{i}_{k}' must have no offset and axis z")
+            ph_lim.append(limit_of(up))
+            L.append(layout.tip_length(i, k, "L"))
+            xyz, _ = origin_of(need(f"anchor_{i}_{k}_joint", "fixed"))
             d.append(xyz[0])
             if xyz[1] != (0.5 if k == 1 else -0.5) * spacing[-1]:
-                raise UnsupportedRobotError(who, f"anchor_{i}_{k} is not on the same side as rod {i}_{k}'s joint")
-        _, rpy = _origin(need(f"pmount_{i}_joint", "fixed"))
-        if rpy != (0, 0, alpha[-1]):
-            raise UnsupportedRobotError(who, f"joint 'pmount_{i}_joint' must turn by alpha_{i} about z like 'limb_{i}_joint'")
-    for name in SPHERICAL:
-        need(name, "revolute")
-    conventions = read_conventions(urdf_path, who)
+                raise fail(f"anchor_{i}_{k} is not on the same side as rod {i}_{k}'s joint")
+    layout.check_platform(alpha)
+    conventions = read_conventions(urdf_path, layout.who)
     if "theta_limits" in conventions:
         th_lim = [conventions.pop("theta_limits")]
+    same = layout.same
     return P2USParams(
-        b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta),  # type: ignore[arg-type]
-        alpha=tuple(alpha), stroke=same("stroke", stroke), theta_limits=same("theta limits", th_lim),  # type: ignore[arg-type]
-        phi_limits=same("phi limits", ph_lim), theta_zero=same("theta_zero", theta0),  # type: ignore[arg-type]
-        rod_spacing=same("rod spacing", spacing), **conventions,  # type: ignore[arg-type]
+        b=same("b", b), d=same("d", d), L=same("L", L), beta=same("beta", beta), alpha=tuple(alpha),  # type: ignore[arg-type]
+        stroke=same("stroke", stroke), theta_limits=same("theta limits", th_lim), phi_limits=same("phi limits", ph_lim),
+        theta_zero=same("theta_zero", theta0), rod_spacing=same("rod spacing", spacing), **conventions,
     )
 
 

@@ -1,0 +1,235 @@
+"""Self-collision (and obstacle) distances of a robot: which pairs of bodies can collide, and
+their signed distances over batches of configurations, through coal (via Pinocchio).
+
+Pairs: every pair of collision geometries on different bodies, less
+
+* **adjacent** bodies: on the same joint, joined by one joint (parent and child), or joined by a
+  loop closure (the two frames of a closure constraint): they touch by design;
+* bodies **touching at the reference configuration** (signed distance <= `TOUCH_TOL`): in contact
+  by design, as an SRDF's "Default" disabled pairs;
+* pairs **disabled** by the caller (link names, e.g. from a loop sidecar's `collisions: disabled:`).
+
+Signed distance [m]: positive apart, negative in penetration. Between primitives (box, cylinder,
+sphere) it is coal's GJK/EPA distance, exact. Coal has no penetration depth between triangle
+meshes, so a pair with a mesh is measured on the meshes' convex hulls (coal's qhull) first: a hull
+contains its mesh, so where the hulls are apart the meshes are too, and the hulls' distance (a lower
+bound of the meshes') is the value; where the hulls overlap, the meshes' own collision test decides
+the sign: colliding, the hulls' (negative or zero) distance less `CONTACT_EPS`; apart, the meshes'
+own distance. The sign is therefore the meshes' own everywhere, the zero set their contact.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from kinematics.errors import InvalidInputError, UnknownNameError
+
+CONTACT_EPS = 1e-12
+"""Subtracted [m] from a colliding mesh pair's hull distance, so that colliding is always < 0."""
+
+GJK_TOL = 1e-10
+"""Coal's GJK/EPA stopping tolerance [m] for every pair (its default, 1e-6, lets a distance come
+out up to ~1e-7 m long, e.g. a hull farther than the mesh inside it)."""
+
+TOUCH_TOL = 1e-6
+"""Distance [m] at or below which two bodies count as touching at the reference configuration."""
+
+Reason = Literal["adjacent", "touching", "disabled"]
+
+
+@dataclass(frozen=True)
+class ExcludedPair:
+    """A pair of links left out of the collision checks, and why."""
+
+    first: str
+    second: str
+    reason: Reason
+
+
+class CollisionModel:
+    """The collision geometry of a robot, the pairs that can collide and their signed distances.
+
+    Build with `CollisionModel.from_robot`. `links[k]` is the link of geometry k; `pairs` are
+    geometry index pairs, `pair_names` their geometry names (Pinocchio's `<link>_<k>`),
+    `pair_links` their link names.
+    """
+
+    def __init__(self, robot: Any, geometry: Any, meshes: Any, excluded: Sequence[ExcludedPair]) -> None:
+        import pinocchio as pin
+
+        self.robot = robot
+        self.geometry = geometry
+        self.meshes = meshes
+        self.excluded = tuple(excluded)
+        self.links = tuple(robot.model.frames[g.parentFrame].name for g in geometry.geometryObjects)
+        self.pairs = tuple((int(p.first), int(p.second)) for p in geometry.collisionPairs)
+        self.pair_links = tuple((self.links[a], self.links[b]) for a, b in self.pairs)
+        names = [g.name for g in geometry.geometryObjects]
+        self.pair_names = tuple((names[a], names[b]) for a, b in self.pairs)
+        self._data = robot.model.createData()
+        self._gdata = _tight(pin.GeometryData(geometry))
+        # the pairs with a mesh, checked again on the meshes themselves (same pair order)
+        mesh_pairs = [n for n, (a, b) in enumerate(self.pairs)
+                      if geometry.geometryObjects[a].name in meshes or geometry.geometryObjects[b].name in meshes]
+        self._mesh_pairs = np.array(mesh_pairs, dtype=np.int64)
+        self._mesh_model = _mesh_model(robot, geometry, self.pairs, meshes) if mesh_pairs else None
+        self._mesh_data = _tight(pin.GeometryData(self._mesh_model)) if mesh_pairs else None
+
+    @classmethod
+    def from_robot(cls, robot: Any, *, disabled: Iterable[tuple[str, str]] = (),
+                   reference: np.ndarray | None = None, exclude_touching: bool = True,
+                   urdf_text: str | None = None) -> CollisionModel:
+        """Load `robot`'s collision geometry and choose the pairs to check.
+
+        Args:
+            robot: a loaded `Robot`; its URDF's `<collision>` elements are read (`GeometryError`
+                if one cannot be: an unknown shape or a missing mesh).
+            disabled: link-name pairs never checked (order does not matter).
+            reference: configuration (nq,) at which touching pairs are found (default: the
+                neutral configuration); it should be a valid, closed pose.
+            exclude_touching: leave out pairs touching at `reference`.
+            urdf_text: URDF text to read the geometry from instead of the robot's file.
+        """
+        import pinocchio as pin
+
+        from kinematics.model.geometry import geometry_model
+
+        geometry, _ = geometry_model(robot, "collision", urdf_text=urdf_text)
+        meshes = _convexify(geometry)
+        model = robot.model
+        links = [model.frames[g.parentFrame].name for g in geometry.geometryObjects]
+        known = sorted(set(links))
+        off = set()
+        for a, b in disabled:
+            for name in (a, b):
+                if name not in known:
+                    raise UnknownNameError(name, known)
+            off.add(frozenset((a, b)))
+        adjacent = _adjacent_joints(robot)
+        excluded: list[ExcludedPair] = []
+        seen: set[frozenset[str]] = set()
+        for i in range(geometry.ngeoms):
+            for k in range(i + 1, geometry.ngeoms):
+                ji, jk = (geometry.geometryObjects[n].parentJoint for n in (i, k))
+                key = frozenset((links[i], links[k]))
+                if ji == jk:
+                    continue  # one rigid body: no relative motion
+                reason: Reason | None = ("adjacent" if frozenset((ji, jk)) in adjacent
+                                         else "disabled" if key in off else None)
+                if reason is None:
+                    geometry.addCollisionPair(pin.CollisionPair(i, k))
+                elif key not in seen:
+                    seen.add(key)
+                    excluded.append(ExcludedPair(links[i], links[k], reason))
+        out = cls(robot, geometry, meshes, excluded)
+        if exclude_touching and out.pairs:
+            q0 = pin.neutral(model) if reference is None else np.asarray(reference, dtype=float)
+            d0 = out.distances(q0[None, :])[0]
+            touching = [n for n in range(len(out.pairs)) if d0[n] <= TOUCH_TOL]
+            if touching:
+                for n in reversed(touching):
+                    geometry.removeCollisionPair(geometry.collisionPairs[n])
+                keys = {frozenset(out.pair_links[n]) for n in touching}
+                more = [ExcludedPair(a, b, "touching") for a, b in (sorted(k) for k in keys if k not in seen)]
+                out = cls(robot, geometry, meshes, [*excluded, *sorted(more, key=lambda e: (e.first, e.second))])
+        return out
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        """Signed distance [m] of every pair at each configuration.
+
+        Args:
+            q: (N, nq) configurations.
+
+        Returns:
+            (N, P) distances, pair order as `pairs`; (N, 0) when no pair can collide.
+        """
+        import pinocchio as pin
+
+        q = np.asarray(q, dtype=float)
+        nq = self.robot.model.nq
+        if q.ndim != 2 or q.shape[1] != nq or not np.isfinite(q).all():
+            raise InvalidInputError("q", f"expected finite configurations of shape (N, {nq}), got {q.shape}")
+        out = np.empty((len(q), len(self.pairs)))
+        results = self._gdata.distanceResults
+        model, data = self.robot.model, self._data
+        for n, qn in enumerate(q):
+            pin.computeDistances(model, data, self.geometry, self._gdata, qn)
+            out[n] = [r.min_distance for r in results]
+            if self._mesh_model is None:
+                continue
+            overlap = self._mesh_pairs[out[n, self._mesh_pairs] <= 0.0]
+            if len(overlap):
+                pin.updateGeometryPlacements(model, data, self._mesh_model, self._mesh_data)
+                for k in overlap:
+                    if pin.computeCollision(self._mesh_model, self._mesh_data, int(k)):
+                        out[n, k] -= CONTACT_EPS
+                    else:
+                        out[n, k] = pin.computeDistance(self._mesh_model, self._mesh_data, int(k)).min_distance
+        return out
+
+    def margin(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest signed distance [m] over the pairs, and the index of the pair that has it
+        (-1, with +inf, where no pair can collide). Negative: the configuration collides."""
+        d = self.distances(q)
+        if d.shape[1] == 0:
+            return np.full(len(d), np.inf), np.full(len(d), -1)
+        k = np.argmin(d, axis=1)
+        return d[np.arange(len(d)), k], k
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: geometries, checked pairs and excluded pairs with reasons."""
+        return {
+            "geometries": [g.name for g in self.geometry.geometryObjects],
+            "pairs": [{"geometries": list(g), "links": list(k)} for g, k in zip(self.pair_names, self.pair_links, strict=True)],
+            "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in self.excluded],
+        }
+
+
+def _tight(data: Any) -> Any:
+    """`data` with every pair's GJK/EPA tolerance set to `GJK_TOL`."""
+    for request in data.distanceRequests:
+        request.gjk_tolerance = request.epa_tolerance = GJK_TOL
+    return data
+
+
+def _convexify(geometry: Any) -> dict[str, Any]:
+    """Replace every mesh by its convex hull, in place (coal's penetration depths need convex
+    shapes); returns the meshes by geometry name."""
+    import coal
+
+    meshes = {}
+    for g in geometry.geometryObjects:
+        if isinstance(g.geometry, coal.BVHModelBase):
+            meshes[g.name] = g.geometry
+            g.geometry.buildConvexHull(True, "Qt")
+            g.geometry = g.geometry.convex
+    return meshes
+
+
+def _mesh_model(robot: Any, hulls: Any, pairs: Sequence[tuple[int, int]], meshes: dict[str, Any]) -> Any:
+    """A copy of the hulls' geometry model with the meshes back in place and the same pairs."""
+    import pinocchio as pin
+
+    model = pin.GeometryModel()
+    for g in hulls.geometryObjects:
+        model.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame, g.placement,
+                                                   meshes.get(g.name, g.geometry)))
+    for a, b in pairs:
+        model.addCollisionPair(pin.CollisionPair(a, b))
+    return model
+
+
+def _adjacent_joints(robot: Any) -> set[frozenset[int]]:
+    """Joint pairs whose bodies touch by design: parent and child, and the two bodies of every loop
+    closure (their frames' joints)."""
+    model = robot.model
+    out = {frozenset((j, int(model.parents[j]))) for j in range(1, model.njoints)}
+    loops = getattr(robot, "loops", None)
+    for closure in getattr(loops, "closures", ()):
+        j1, j2 = (int(model.frames[robot.frame_id(f)].parentJoint) for f in (closure.frame1, closure.frame2))
+        out.add(frozenset((j1, j2)))
+    return out
