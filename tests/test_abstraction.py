@@ -131,6 +131,23 @@ def test_pose_fk_assemblies_solve_back_to_the_actuators(mech):
     assert not far.exists and far.reason and "no assembly" in far.reason and far.violations == ()
 
 
+def test_pose_fk_violations_match_the_ik_limit_flags(mech):
+    """An assembly breaks no limit in words exactly where the vectorised IK at its platform
+    position, in the working mode that gives back these actuators, is within limits."""
+    rng = np.random.default_rng(11)
+    lo, hi = mech.params.stroke if mech.family == "p2us" else mech.params.theta_limits
+    seen_both = [0, 0]
+    for q in lo + (hi - lo) * rng.random((40, 3)):
+        rep = mech.pose_fk(q)
+        for p, viol in zip(rep.p, rep.violations, strict=True):
+            ref = mech.ik(p[None])
+            match = np.all(np.abs(ref.q[0] - q) < 1e-9, axis=-1)
+            assert match.any()
+            assert (not viol) == bool((match & ref.within_limits[0]).any()), (q, p, viol)
+            seen_both[bool(viol)] += 1
+    assert min(seen_both) > 0  # both outcomes were met
+
+
 def test_pose_jacobians_match_finite_differences_of_the_ik(mech):
     """J (qdot = J pdot) of the report against central differences of the IK in the same working
     mode: step 1e-6 m, truncation ~ h^2 |q'''| ~ 1e-12, rounding ~ 1e-16 / 1e-6 = 1e-10: 1e-7 holds."""
