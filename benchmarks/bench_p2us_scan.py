@@ -26,10 +26,11 @@ import numpy as np
 from _timing import best_of, calibration, dump, machine_line, parse
 
 from kinematics.analyses.cells import adaptive_volume
-from kinematics.analyses.workspace import p2us_margin, p2us_workspace
+from kinematics.analyses.workspace import measure_workspace
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.mechanisms.p2us import scan as S
 from kinematics.mechanisms.p2us.closed_form import ik
+from kinematics.mechanisms.p2us.mechanism import P2US, p2us_margin
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot
 
@@ -133,13 +134,13 @@ def main() -> None:
 
     # -- volume ------------------------------------------------------------------------------
     for engine in ("columns", "cells"):  # warm-up (compile / load the kernels)
-        p2us_workspace(P, step=0.05, rtol=None, progress=False, engine=engine)
-    ref = p2us_workspace(P, step=args.step, rtol=args.ref_rtol, progress=False, max_points=400_000_000)
+        measure_workspace(P2US(P), step=0.05, rtol=None, progress=False, engine=engine)
+    ref = measure_workspace(P2US(P), step=args.step, rtol=args.ref_rtol, progress=False, max_points=400_000_000)
     V = ref.total
     out["reference"] = {"engine": "columns", "rtol": args.ref_rtol, **volume_figures(ref, V)}
-    cols = p2us_workspace(P, step=args.step, rtol=args.rtol, progress=False)
+    cols = measure_workspace(P2US(P), step=args.step, rtol=args.rtol, progress=False)
     out["columns"] = {"rtol": args.rtol, "step_m": args.step, "columns": cols.result.columns, **volume_figures(cols, V)}
-    ws = p2us_workspace(P, step=args.step, rtol=args.rtol, progress=False, engine="cells")
+    ws = measure_workspace(P2US(P), step=args.step, rtol=args.rtol, progress=False, engine="cells")
     r = ws.result
     out["cells"] = {"rtol": args.rtol, "step_m": args.step, "bounds_m3": [float(r.lower[-1]), float(r.upper[-1])],
                     "finest_step_m": r.finest_step, **volume_figures(ws, V)}

@@ -28,8 +28,8 @@ from _timing import calibration, dump, machine_line, parse
 
 from kinematics.analyses.cells import adaptive_volume
 from kinematics.analyses.columns import column_volume
-from kinematics.analyses.workspace import p2us_margin
 from kinematics.mechanisms.p2us.closed_form import MODES
+from kinematics.mechanisms.p2us.mechanism import p2us_margin
 from kinematics.mechanisms.p2us.scan import bounding_box
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot

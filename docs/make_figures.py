@@ -78,11 +78,12 @@ def _p2us_params():
 
 def p2us_workspace() -> plt.Figure:
     """Slices and a 3D view of the joint-limited workspace with its singular loci."""
-    from kinematics.analyses.singularities import p2us_singularities
+    from kinematics.analyses.singularities import singular_loci
+    from kinematics.mechanisms.p2us.mechanism import P2US
     from kinematics.views import plots
 
     P = _p2us_params()
-    return plots.p2us_workspace(P, "all", 0.01, singular=p2us_singularities(P, step=0.01, progress=False).locus)
+    return plots.p2us_workspace(P, "all", 0.01, singular=singular_loci(P2US(P), step=0.01, progress=False).locus)
 
 
 def p2us_workspace_actuators() -> plt.Figure:
@@ -94,21 +95,23 @@ def p2us_workspace_actuators() -> plt.Figure:
 
 def p2us_singular_loci() -> plt.Figure:
     """Type I/II/III loci over the strokes-only grid, the joint-limited workspace's points marked."""
-    from kinematics.analyses.singularities import p2us_singularities
+    from kinematics.analyses.singularities import singular_loci
+    from kinematics.mechanisms.p2us.mechanism import P2US
     from kinematics.views import plots
 
-    return plots.p2us_singular_loci(p2us_singularities(_p2us_params(), step=0.01, limits="actuators", progress=False))
+    return plots.p2us_singular_loci(singular_loci(P2US(_p2us_params()), step=0.01, limits="actuators", progress=False))
 
 
 def volume_convergence() -> plt.Figure:
     """Adaptive estimate and bounds per level against uniform grids (same estimator)."""
     from kinematics.analyses.cells import adaptive_volume
-    from kinematics.analyses.workspace import p2us_margin, p2us_workspace
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.p2us.mechanism import P2US, p2us_margin
     from kinematics.mechanisms.p2us.scan import bounding_box
     from kinematics.views import plots
 
     P = _p2us_params()
-    ws = p2us_workspace(P, step=0.02, rtol=1e-4, progress=False, engine="cells")
+    ws = measure_workspace(P2US(P), step=0.02, rtol=1e-4, progress=False, engine="cells")
     lo, hi = bounding_box(P)
     uniform = [(h, adaptive_volume(p2us_margin(P), lo, hi, h, None, progress=False).estimate[-1])
                for h in (0.02, 0.01, 0.005)]
@@ -118,13 +121,14 @@ def volume_convergence() -> plt.Figure:
 def volume_vs_theta_zero() -> plt.Figure:
     """Union volume (every limit) against the theta reference: how much the paper's number hinges
     on an angle convention it does not state."""
-    from kinematics.analyses.workspace import p2us_workspace
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.p2us.mechanism import P2US
     from kinematics.mechanisms.p2us.scan import PAPER_VOLUME_M3
 
     P = _p2us_params()
     zeros = np.radians(np.arange(-60, 61, 10))
-    vols = [p2us_workspace(P.replace(theta_zero=float(z)), step=0.02, rtol=1e-2, progress=False,
-                           max_points=20_000_000).total for z in zeros]
+    vols = [measure_workspace(P2US(P.replace(theta_zero=float(z))), step=0.02, rtol=1e-2, progress=False,
+                              max_points=20_000_000).total for z in zeros]
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(np.degrees(zeros), vols, "o-", label="ours, every limit, union of modes")
     ax.axhline(PAPER_VOLUME_M3, color="tab:red", ls="--", label="paper B: 0.13397 m^3")
@@ -136,12 +140,12 @@ def volume_vs_theta_zero() -> plt.Figure:
 
 def scara_workspace() -> plt.Figure:
     """SCARA: smallest radius over the joint grid and the plane, with the theta2 = 0 arc."""
-    from kinematics.analyses.singularities import scara_singularities
     from kinematics.mechanisms.scara.closed_form import ScaraParams
+    from kinematics.mechanisms.scara.joint_space import singular_set
     from kinematics.views import plots
 
     sp = ScaraParams.from_robot(load_robot("scara"))
-    return plots.scara_workspace(sp, scara_singularities(sp))
+    return plots.scara_workspace(sp, singular_set(sp))
 
 
 def _guidance(number: int, virtual: bool) -> plt.Figure:

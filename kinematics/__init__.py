@@ -14,50 +14,14 @@ Layers, each importing only those below it (enforced by import-linter, see pypro
 * `kinematics.views` - Meshcat scenes and figures
 * `kinematics.cli` - the command line (private: the library never imports it)
 
-Below them: `errors` (the `KinematicsError` hierarchy), `sizes`, `chunks`, `files`. The names
-below are re-exported here and imported on first use, so `import kinematics` stays light.
+Below them: `errors` (the `KinematicsError` hierarchy), `sizes`, `chunks`, `files`. The few names
+a user starts from are listed once, in `__init__.pyi` (which type checkers read), and imported on
+first use (`lazy_loader`), so `import kinematics` stays light; each package lists its own the same
+way, and everything else is imported from its module.
 """
 
-from __future__ import annotations
-
-import importlib
-from typing import TYPE_CHECKING, Any
-
-from kinematics.errors import KinematicsError
-
-if TYPE_CHECKING:
-    from kinematics.analyses.columns import column_volume
-    from kinematics.analyses.singularities import singular_loci
-    from kinematics.analyses.workspace import measure_workspace
-    from kinematics.mechanisms import Mechanism, mechanism_of
-    from kinematics.model.robot import Robot, load_robot
+import lazy_loader as _lazy
 
 __version__ = "0.1.0"
 
-_LAZY = {
-    "load_robot": "kinematics.model.robot",
-    "Robot": "kinematics.model.robot",
-    "Mechanism": "kinematics.mechanisms",
-    "mechanism_of": "kinematics.mechanisms",
-    "measure_workspace": "kinematics.analyses.workspace",
-    "singular_loci": "kinematics.analyses.singularities",
-    "column_volume": "kinematics.analyses.columns",
-}
-
-__all__ = [
-    "KinematicsError",
-    "Mechanism",
-    "Robot",
-    "__version__",
-    "column_volume",
-    "load_robot",
-    "measure_workspace",
-    "mechanism_of",
-    "singular_loci",
-]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

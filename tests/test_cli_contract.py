@@ -405,6 +405,8 @@ UNREACHABLE = [
     ["jacobian", "p2us", "--position", "10", "10", "10"],
     ["mobility", "p2us", "--position", "10", "10", "10"],
     ["mobility", "p2us", "--q", "2", "0.1", "0.1"],
+    ["mobility", "delta", "--position", "10", "10", "10"],
+    ["mobility", "delta", "--q", "3", "0", "0"],
     ["show", "p2us", "--position", "10", "10", "10", "--export", "v.html"],
     ["show", "p2us", "--q", "2", "0.1", "0.1", "--export", "v.html"],
 ]

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.analyses.boundary_mesh import margin_mesh, p2us_mesh
-from kinematics.analyses.usable import largest_shape, p2us_usable, shape_samples
-from kinematics.analyses.workspace import p2us_volume_monte_carlo
+from kinematics.analyses.boundary_mesh import margin_mesh, workspace_mesh
+from kinematics.analyses.usable import largest_shape, shape_samples, usable
+from kinematics.analyses.workspace import volume_monte_carlo
 from kinematics.mechanisms.p2us.closed_form import MODES, ik, jacobians
+from kinematics.mechanisms.p2us.mechanism import P2US
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot
 
@@ -82,7 +83,7 @@ def usable_independent(params, p: np.ndarray, kappa_max: float) -> np.ndarray:
 @pytest.mark.slow
 def test_p2us_usable_sphere(p2us_params):
     kappa_max = 10.0
-    res = p2us_usable(p2us_params, "sphere", kappa_max=kappa_max, step=0.02)
+    res = usable(P2US(p2us_params), "sphere", kappa_max=kappa_max, step=0.02)
     rng = np.random.default_rng(16)
     # 20 000 uniform points in the ball plus 20 000 on its surface, none used by the optimiser
     n = 20_000
@@ -94,7 +95,7 @@ def test_p2us_usable_sphere(p2us_params):
     assert not usable_independent(p2us_params, res.center + 1.01 * res.size[0] * d[n:], kappa_max).all()
     assert res.larger_fails
     # a tighter kappa bound can only shrink it
-    tight = p2us_usable(p2us_params, "sphere", kappa_max=3.0, step=0.02)
+    tight = usable(P2US(p2us_params), "sphere", kappa_max=3.0, step=0.02)
     assert tight.size[0] < res.size[0]
 
 
@@ -129,12 +130,12 @@ def test_ball_mesh_volume():
 
 
 def test_p2us_mesh_volume(p2us_params):
-    m = p2us_mesh(p2us_params, "---", 0.01)
+    m = workspace_mesh(P2US(p2us_params), "---", 0.01)
     assert m.watertight
     # mode --- is the whole union for this design (every other mode is empty), so the Monte-Carlo
     # union volume of the NumPy closed forms is an independent reference; tolerance: the grid
     # bound plus 4 standard errors
-    v, se = p2us_volume_monte_carlo(p2us_params, 200_000, np.random.default_rng(3))
+    v, se = volume_monte_carlo(P2US(p2us_params), 200_000, np.random.default_rng(3))
     assert abs(m.volume - v) <= m.tolerance + 4 * se
     assert abs(m.volume - v) <= 0.02 * v  # observed 0.6 %: far inside the grid bound
 

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from kinematics.analyses.columns import column_volume
-from kinematics.analyses.workspace import p2us_margin
 from kinematics.errors import InvalidInputError, UnknownChoiceError
 from kinematics.generic.loop_batch import SINGULAR_TOL, LoopBatch
 from kinematics.mechanisms.delta import closed_form as dl
 from kinematics.mechanisms.delta.urdf import read_params as delta_params
 from kinematics.mechanisms.p2us import closed_form as par
+from kinematics.mechanisms.p2us.mechanism import p2us_margin
 from kinematics.mechanisms.p2us.scan import bounding_box, scan
 from kinematics.mechanisms.p2us.urdf import read_params as p2us_params
 from kinematics.mechanisms.three_limb.modes import MODE_ROOTS

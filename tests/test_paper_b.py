@@ -168,9 +168,10 @@ def test_columns_are_exact_along_vertical_lines(results, rng):
 @pytest.mark.parametrize("limits, reference, ref_err", [("actuators", COLUMN_REFERENCE_M3, 1.4e-6),
                                                         ("all", COLUMN_REFERENCE_ALL_M3, 1.1e-6)])
 def test_working_mode_volume_against_the_column_reference(results, limits, reference, ref_err):
-    from kinematics.analyses.workspace import p2us_workspace
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.p2us.mechanism import P2US
 
-    ws = p2us_workspace(results, step=0.02, rtol=2e-3, modes=("---",), limits=limits, progress=False)
+    ws = measure_workspace(P2US(results), step=0.02, rtol=2e-3, branches=("---",), limits=limits, progress=False)
     err = float(ws.result.error[-1])
     # the estimator's own Richardson estimate must cover its distance from the reference (with the
     # reference's quadrature error); 3x: the estimate is of the last level's error, not a bound

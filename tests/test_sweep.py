@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from kinematics.analyses import sweep as sw
-from kinematics.analyses.workspace import p2us_volume_monte_carlo
+from kinematics.analyses.workspace import volume_monte_carlo
 from kinematics.errors import InvalidInputError, SweepError
 from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams, ik
+from kinematics.mechanisms.p2us.mechanism import P2US
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +68,7 @@ def test_sweep_rows_match_an_independent_computation(client):
         assert row["singularity_free_fraction"] == pytest.approx(ref["singularity_free_fraction"], abs=1e-12)
         assert 0 < row["conditioning_index"] < 1 and 0 < row["singularity_free_fraction"] <= 1
         # volume: Monte Carlo through the NumPy IK; 4 standard errors plus the requested 1 %
-        mc, se = p2us_volume_monte_carlo(params, 200_000, rng)
+        mc, se = volume_monte_carlo(P2US(params), 200_000, rng)
         assert abs(row["volume_m3"] - mc) <= 4 * se + 0.01 * mc
         assert row["volume_lower_m3"] <= row["volume_m3"] <= row["volume_upper_m3"]
     assert rows[0]["volume_m3"] != rows[1]["volume_m3"]  # the swept parameter reaches the design

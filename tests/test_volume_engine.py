@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 from kinematics.analyses.columns import ROOT_TOL, column_lengths, column_volume
-from kinematics.analyses.workspace import p2us_margin, p2us_workspace, scara_workspace
+from kinematics.analyses.workspace import measure_workspace
 from kinematics.errors import InvalidInputError
 from kinematics.mechanisms.p2us.closed_form import P2USParams
+from kinematics.mechanisms.p2us.mechanism import P2US, p2us_margin
 from kinematics.mechanisms.p2us.scan import bounding_box
 from kinematics.mechanisms.scara.closed_form import ScaraParams
+from kinematics.mechanisms.scara.mechanism import Scara
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +102,7 @@ def _scara_area_reference(sp: ScaraParams) -> float:
     At radius r each elbow's theta2 is fixed and theta1 sweeps its range of width w, so the elbow
     covers an arc of width w starting at lower1 + psi(theta2); two arcs of width w whose starts are
     delta apart cover w + |[w, 2 pi] & ([delta, delta + w] u [delta - 2 pi, delta + w - 2 pi])|.
-    (Independent of `workspace.scara_area_quadrature`, whose fixed Simpson rule converges only to
+    (Independent of `scara.joint_space.area_quadrature`, whose fixed Simpson rule converges only to
     first order at those kinks: 8.6e-6 relative off at its default 20001 nodes.)
     """
     from scipy.integrate import quad
@@ -134,16 +136,16 @@ def test_scara_area(scara):
     ring = math.pi * ((sp.l1 + sp.l2) ** 2 - (sp.l1 - sp.l2) ** 2)  # closed form
     assert _scara_area_reference(free) == pytest.approx(ring, rel=1e-12)
     for rtol, step in ((1e-3, 0.005), (1e-4, 0.005), (1e-6, 0.001)):
-        ws = scara_workspace(sp, step=step, rtol=rtol, progress=False, check=True)
+        ws = measure_workspace(Scara(sp), step=step, rtol=rtol, progress=False, check=True)
         r = ws.result
         assert r.converged
         assert abs(ws.total - exact) <= r.error[-1], (rtol, abs(ws.total - exact) / exact, r.error[-1] / exact)
     # At 5 mm the columns near the corners where a joint limit meets the annulus (wedges, whose
     # columns get shorter than the step) lose ~7e-7 of the area, above a 1e-6 estimate's 4e-7:
     # the blind spot of the module docstring. The half-step check must catch it.
-    ws = scara_workspace(sp, step=0.005, rtol=1e-6, progress=False, check=True)
+    ws = measure_workspace(Scara(sp), step=0.005, rtol=1e-6, progress=False, check=True)
     assert not ws.result.converged or abs(ws.total - exact) <= ws.error
-    r = scara_workspace(free, step=0.005, rtol=1e-6, progress=False)
+    r = measure_workspace(Scara(free), step=0.005, rtol=1e-6, progress=False)
     assert abs(r.total - ring) <= r.error
 
 
@@ -173,7 +175,7 @@ def test_p2us_unions_against_references(p2us_params, which):
     V, V_err = P2US_ACTUATORS_REFERENCE if which == "actuators" else P2US_REFERENCE[which]
     params = p2us_params.replace(b=0.35, L=0.38) if which == "design" else p2us_params
     limits = "actuators" if which == "actuators" else "all"
-    ws = p2us_workspace(params, step=0.01, rtol=1e-5, limits=limits, progress=False)
+    ws = measure_workspace(P2US(params), step=0.01, rtol=1e-5, limits=limits, progress=False)
     assert ws.result.converged
     assert abs(ws.total - V) + V_err <= ws.error, (abs(ws.total - V) / V, ws.error / V)
     assert ws.error <= 1e-5 * V * 1.0001
@@ -186,7 +188,7 @@ def test_p2us_results_working_mode_against_scipy_reference(p2us_results):
     from kinematics.mechanisms.p2us.urdf import read_params
 
     V, V_err = RESULTS_MODE_REFERENCE
-    ws = p2us_workspace(read_params(p2us_results.urdf_path), step=0.01, rtol=1e-5, modes=["---"],
+    ws = measure_workspace(P2US(read_params(p2us_results.urdf_path)), step=0.01, rtol=1e-5, branches=["---"],
                         limits="actuators", progress=False)
     assert ws.result.converged
     got, err = float(ws.result.estimate[0]), float(ws.result.error[0])
@@ -242,9 +244,9 @@ def test_piecewise_1d_locates_square_root_edges():
 def test_coarse_starts_are_right_or_not_converged(p2us_params, step):
     """The issue's cases: coarse --step values once gave confident wrong answers (even 0)."""
     ref, ref_err = P2US_REFERENCE["all"]
-    ws = p2us_workspace(p2us_params, step=step, rtol=1e-3, progress=False, check=True)
+    ws = measure_workspace(P2US(p2us_params), step=step, rtol=1e-3, progress=False, check=True)
     assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
-    ws = p2us_workspace(p2us_params, step=step, rtol=1e-5, progress=False, check=True)
+    ws = measure_workspace(P2US(p2us_params), step=step, rtol=1e-5, progress=False, check=True)
     assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
 
 
@@ -306,7 +308,7 @@ def test_slivers_of_other_modes_do_not_stall_the_engine(p2us_results):
     from kinematics.analyses.workspace import BRANCH_FLOOR
     from kinematics.mechanisms.p2us.urdf import read_params
 
-    ws = p2us_workspace(read_params(p2us_results.urdf_path), step=0.01, rtol=1e-3, limits="all", progress=False)
+    ws = measure_workspace(P2US(read_params(p2us_results.urdf_path)), step=0.01, rtol=1e-3, limits="all", progress=False)
     r = ws.result
     assert r.converged
     V, V_err = RESULTS_ALL_LIMITS_REFERENCE

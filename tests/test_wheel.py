@@ -97,8 +97,9 @@ def test_wheel_installs_and_runs_outside_the_repository(tmp_path):
 
     # -- contents: every module and package of the source tree, the URDFs, py.typed ----------------
     names = set(zipfile.ZipFile(whl).namelist())
-    modules = {str(p.relative_to(src)) for p in (src / "kinematics").rglob("*.py")}
+    modules = {str(p.relative_to(src)) for ext in ("*.py", "*.pyi") for p in (src / "kinematics").rglob(ext)}
     assert any(m.endswith("mechanisms/serial/__init__.py") for m in modules)  # the list below is not empty
+    assert "kinematics/analyses/__init__.pyi" in modules  # the public names lazy_loader reads at import
     assert sorted(modules - names) == [], "modules missing from the wheel"
     packages = {str(p.parent.relative_to(src)) for p in (src / "kinematics").rglob("__init__.py")}
     assert {"kinematics/mechanisms/serial", "kinematics/mechanisms/closed_loop"} <= packages

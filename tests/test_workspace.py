@@ -10,17 +10,16 @@ import pytest
 
 from kinematics.analyses import cells as volume
 from kinematics.analyses.cells import adaptive_volume, simplex_fraction
-from kinematics.analyses.singularities import p2us_singularities, paper_scan, scara_singularities
-from kinematics.analyses.workspace import (
-    p2us_volume_monte_carlo,
-    p2us_workspace,
-    scara_area_quadrature,
-    scara_workspace,
-)
+from kinematics.analyses.singularities import singular_loci
+from kinematics.analyses.workspace import measure_workspace, volume_monte_carlo
 from kinematics.errors import InvalidInputError, UnknownChoiceError, UnknownModeError
 from kinematics.mechanisms.p2us.closed_form import MODES, ik, jacobians, limb_ik
+from kinematics.mechanisms.p2us.mechanism import P2US
+from kinematics.mechanisms.p2us.paper_scan import paper_scan
 from kinematics.mechanisms.p2us.scan import bounding_box, scan
 from kinematics.mechanisms.scara.closed_form import ScaraParams
+from kinematics.mechanisms.scara.joint_space import area_quadrature, singular_set
+from kinematics.mechanisms.scara.mechanism import Scara
 
 
 def _box_points(params, n, rng):
@@ -144,24 +143,24 @@ def test_scara_area_two_ways(scara):
     (the same honesty margin as on the spheres above)."""
     sp = ScaraParams.from_robot(scara)
     exact = scara_area_closed_form(sp)
-    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False, engine="cells")
+    ws = measure_workspace(Scara(sp), step=0.01, rtol=1e-4, progress=False, engine="cells")
     assert ws.result.converged
     assert abs(ws.total - exact) <= 3 * ws.result.error[-1]
     assert ws.result.lower[-1] <= exact <= ws.result.upper[-1]
     # the quadrature's integrand r * (arc measure) jumps where an elbow meets its joint-2 limit,
     # so Simpson is first order there: error <= h * jump / area ~ 3e-5 m * 2.7 m / 0.97 m^2
     # ~ 8e-5 relative (h = 0.6 m / 20000); measured 1.0e-5
-    assert scara_area_quadrature(sp) == pytest.approx(exact, rel=1e-4)
+    assert area_quadrature(sp) == pytest.approx(exact, rel=1e-4)
     free = ScaraParams(sp.l1, sp.l2, (-math.pi, -math.pi), (math.pi, math.pi))
     ring = math.pi * ((sp.l1 + sp.l2) ** 2 - (sp.l1 - sp.l2) ** 2)
-    assert scara_area_quadrature(free) == pytest.approx(ring, rel=1e-6)
-    assert scara_workspace(free, step=0.01, rtol=1e-4, progress=False, engine="cells").total == pytest.approx(ring, rel=1e-4)
+    assert area_quadrature(free) == pytest.approx(ring, rel=1e-6)
+    assert measure_workspace(Scara(free), step=0.01, rtol=1e-4, progress=False, engine="cells").total == pytest.approx(ring, rel=1e-4)
 
 
 @pytest.mark.parametrize("limits", ["all", "actuators"])
 def test_p2us_volume_against_monte_carlo(p2us_params, limits):
-    ws = p2us_workspace(p2us_params, step=0.02, rtol=2e-3, limits=limits, progress=False, engine="cells")
-    mc, se = p2us_volume_monte_carlo(p2us_params, 1_000_000, np.random.default_rng(5), limits)
+    ws = measure_workspace(P2US(p2us_params), step=0.02, rtol=2e-3, limits=limits, progress=False, engine="cells")
+    mc, se = volume_monte_carlo(P2US(p2us_params), 1_000_000, np.random.default_rng(5), limits)
     assert abs(ws.total - mc) < 4 * se + 2e-3 * mc  # 4 standard errors + the requested rtol
     r = ws.result
     assert r.lower[-1] - 4 * se <= mc <= r.upper[-1] + 4 * se  # the bounds, checked independently
@@ -170,19 +169,19 @@ def test_p2us_volume_against_monte_carlo(p2us_params, limits):
 
 
 def test_p2us_workspace_modes_and_keys(p2us_params):
-    ws = p2us_workspace(p2us_params, step=0.03, rtol=None, modes=["---", "+++"], progress=False, engine="cells")
+    ws = measure_workspace(P2US(p2us_params), step=0.03, rtol=None, branches=["---", "+++"], progress=False, engine="cells")
     d = ws.as_dict()
     assert set(d["modes"]) == {"---", "+++"}
     assert {"volume_m3", "bounds_m3", "modes", "bbox", "points_evaluated", "step_m", "seconds"} <= set(d)
     with pytest.raises(UnknownModeError, match=r"\+\+\+"):
-        p2us_workspace(p2us_params, modes=["+*+"], progress=False)
+        measure_workspace(P2US(p2us_params), branches=["+*+"], progress=False)
 
 
 # -- singularities -------------------------------------------------------------------------------------------
 def test_singular_loci_lie_on_singularities(p2us_params):
     P = p2us_params
     step = 0.02
-    res = p2us_singularities(P, step=step, limits="actuators", progress=False)
+    res = singular_loci(P2US(P), step=step, limits="actuators", progress=False)
     loc = res.locus
     assert loc.count(1) and loc.count(2) and loc.count(3)
     r = scan(P, loc.points, "actuators")
@@ -197,7 +196,7 @@ def test_singular_loci_lie_on_singularities(p2us_params):
 
 def test_no_type_II_inside_the_limited_workspace(p2us_params):
     """Paper B: no singularity inside its joint-limited workspace (a finding, checked at 1 cm)."""
-    res = p2us_singularities(p2us_params, step=0.01, progress=False)
+    res = singular_loci(P2US(p2us_params), step=0.01, progress=False)
     assert not res.any_inside
     assert res.summary()["type_II"]["inside_workspace"] == 0
 
@@ -212,7 +211,7 @@ def test_paper_scan_counts(p2us_params):
 
 def test_scara_singular_arc(scara):
     sp = ScaraParams.from_robot(scara)
-    s = scara_singularities(sp, math.radians(2.0))
+    s = singular_set(sp, math.radians(2.0))
     assert s["theta2_zero_within_limits"] and not s["theta2_pi_within_limits"]
     r = np.hypot(*s["singular_points"].T)
     np.testing.assert_allclose(r, sp.l1 + sp.l2, atol=1e-12)
@@ -223,7 +222,7 @@ def test_scara_singular_arc(scara):
 
 def test_scara_area_meets_requested_rtol(scara):
     sp = ScaraParams.from_robot(scara)
-    ws = scara_workspace(sp, step=0.01, rtol=1e-4, progress=False)  # the column engine
+    ws = measure_workspace(Scara(sp), step=0.01, rtol=1e-4, progress=False)  # the column engine
     true_error = abs(ws.total - scara_area_closed_form(sp))
     # the requested tolerance is met, and the reported error is not smaller than the true one
     assert ws.result.converged and true_error <= 1e-4 * ws.total and true_error <= ws.error

@@ -1,6 +1,6 @@
 """Workspace boundaries as watertight triangle meshes (STL, PLY, glTF binary).
 
-The margin field (>= 0 inside, `kinematics.analyses.workspace.p2us_margin`) is sampled on a grid of step h
+A mechanism's margin field (>= 0 inside, `Mechanism.margin`) is sampled on a grid of step h
 over the workspace's bounding box padded by two steps, whose outer layer is forced negative so the
 iso-surface closes; scikit-image's marching cubes extracts the zero level set and trimesh checks
 that it is watertight and measures its enclosed volume.
@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinematics.errors import InvalidInputError
+from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import check_points, grid_points
 
 MESH_SUFFIXES = (".stl", ".ply", ".glb")
@@ -95,15 +96,13 @@ def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: ArrayLike, hi: A
     return BoundaryMesh(mesh, step, boundary)
 
 
-def p2us_mesh(params: object, mode: str = "---", step: float = 0.01, limits: str = "all") -> BoundaryMesh:
-    """The boundary of a 3-[P2(US)] working mode's workspace ("union": of all modes)."""
-    from kinematics.analyses.workspace import UNION, p2us_margin
-    from kinematics.mechanisms.p2us.closed_form import MODES, mode_index
-    from kinematics.mechanisms.p2us.scan import bounding_box
-
-    modes = tuple(MODES) if mode == UNION else (MODES[mode_index(mode)],)
-    field = p2us_margin(params, modes, limits)  # type: ignore[arg-type]
-    lo, hi = bounding_box(params)  # type: ignore[arg-type]
+def workspace_mesh(mech: Mechanism, branch: str = "---", step: float = 0.01, limits: str = "all") -> BoundaryMesh:
+    """The boundary of a branch's workspace ("union": of every branch) of a 3-D mechanism with a
+    margin (`Mechanism.margin`), over its bounding box at grid step `step` [m]."""
+    mech.require("margin", "a workspace boundary mesh")
+    chosen = mech.check_branches(None if branch == UNION else [branch])
+    field = mech.margin(chosen, limits)
+    lo, hi = mech.bounding_box(limits)
     return margin_mesh(lambda p: field(p)[:, -1], lo, hi, step)
 
 

@@ -1,6 +1,7 @@
 """Singularity scans: type I / II / III loci of any mechanism with singular fields (the
-3-[P2(US)], the Delta) over a Cartesian grid, paper B's own 512-point actuator scan, and the
-SCARA's theta2 = 0 boundary with its smallest-radius map.
+3-[P2(US)], the Delta) over a Cartesian grid. (Paper B's own 512-point actuator scan is
+`kinematics.mechanisms.p2us.paper_scan`; the SCARA's theta2 = 0 boundary with its smallest-radius
+map is `kinematics.mechanisms.scara.closed_form.singular_set`.)
 
 Loci are found where a mechanism's signed fields (`Mechanism.singular_fields`) change sign
 between grid neighbours (and placed by linear interpolation along that edge), which catches a
@@ -22,8 +23,6 @@ planar task space (x, y) is a single plane, and its loci are curves.
 
 from __future__ import annotations
 
-import itertools
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -32,17 +31,8 @@ from typing import Any
 import numpy as np
 
 from kinematics.analyses.cells import check_step
-from kinematics.errors import InvalidInputError
 from kinematics.mechanisms.base import Mechanism
-from kinematics.mechanisms.p2us.closed_form import (
-    MODES,
-    SINGULARITY_TYPES,
-    P2USParams,
-    classify,
-    fk,
-    jacobians,
-)
-from kinematics.mechanisms.scara.closed_form import ScaraParams
+from kinematics.mechanisms.translational import MODES
 from kinematics.sizes import check_points, grid_points
 
 
@@ -93,7 +83,7 @@ class SingularLocus:
 
 @dataclass(frozen=True)
 class SingularityScan:
-    """Result of `p2us_singularities`."""
+    """Result of `singular_loci`."""
 
     locus: SingularLocus
     step: float
@@ -195,14 +185,6 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
                            (lo.tolist(), hi.tolist()))
 
 
-def p2us_singularities(params: P2USParams, *, step: float = 0.01, limits: str = "all",
-                       modes: Sequence[str] = MODES, progress: bool = False) -> SingularityScan:
-    """`singular_loci` of the 3-[P2(US)] design `params`."""
-    from kinematics.mechanisms.p2us.mechanism import P2US
-
-    return singular_loci(P2US(params), step=step, limits=limits, branches=modes, progress=progress)
-
-
 def _assemble(found: list[tuple], branches: tuple[str, ...]) -> SingularLocus:
     if not found:
         e = np.empty(0)
@@ -217,76 +199,3 @@ def _assemble(found: list[tuple], branches: tuple[str, ...]) -> SingularLocus:
     near = np.isin(ends_a, type1_vertices) | np.isin(ends_b, type1_vertices)
     kind = np.where((kind == 2) & near, 3, kind)
     return SingularLocus(points, kind, which, inside, branches)
-
-
-# -- paper B's 512-point scan ------------------------------------------------------------------------
-def paper_scan(params: P2USParams, n: int = 8, tol: float | None = None) -> dict[str, Any]:
-    """Paper B's scan: n^3 actuator triples over the strokes (8^3 = 512), FK in both assembly modes,
-    each pose classified by the Gosselin-Angeles type and checked against every limit.
-
-    Returns counts per type (all poses and those within limits) and the poses themselves.
-    """
-    from kinematics.mechanisms.p2us.closed_form import SINGULAR_TOL, ik
-
-    q1 = np.linspace(*params.stroke, n)
-    q = np.array(list(itertools.product(q1, q1, q1)))
-    res = fk(params, q)
-    rows = []
-    counts: dict[str, dict[str, int]] = {}
-    for a in range(res.p.shape[-2]):
-        ok = res.exists & np.all(np.isfinite(res.p[:, a]), axis=-1)
-        p = res.p[ok, a]
-        qa = q[ok]
-        jac = jacobians(params, p, qa)
-        kinds = classify(jac.iota_I, jac.iota_II, SINGULAR_TOL if tol is None else tol)
-        sol = ik(params, p)
-        # the mode in which p's IK reproduces q, then its limits
-        match = np.all(np.isclose(sol.q, qa[:, None, :], atol=1e-9, rtol=0), axis=-1)
-        within = np.any(match & sol.within_limits, axis=-1)
-        for pk, qk, kk, wk, ik1, ik2 in zip(p, qa, kinds, within, jac.iota_I, jac.iota_II, strict=True):
-            name = SINGULARITY_TYPES[int(kk)]
-            rows.append({"q": qk.tolist(), "position": pk.tolist(), "assembly": a, "type": name,
-                         "within_limits": bool(wk), "iota_I": float(ik1), "iota_II": float(ik2)})
-            c = counts.setdefault(name, {"all": 0, "within_limits": 0})
-            c["all"] += 1
-            c["within_limits"] += int(wk)
-    iota = np.array([[r["iota_I"], r["iota_II"]] for r in rows])
-    return {"actuator_triples": len(q), "poses": len(rows), "tolerance": SINGULAR_TOL if tol is None else tol,
-            "counts": counts, "min_iota_I": float(iota[:, 0].min()), "min_iota_II": float(iota[:, 1].min()),
-            "rows": rows}
-
-
-# -- SCARA --------------------------------------------------------------------------------------------
-def scara_singularities(sp: ScaraParams, step: float = math.radians(1.0)) -> dict[str, Any]:
-    """The SCARA's singular set within its joint limits and a map of the smallest radius.
-
-    det J = l1 l2 sin(theta2) vanishes at theta2 = 0 (arm stretched, tip on r = l1 + l2) and at
-    theta2 = +/-pi (folded; outside the joint-2 range here). The locus is found on a joint grid of
-    step `step` [rad] by sign changes of det J along theta2 and interpolated; the smallest
-    manipulability radius is mapped on the same grid.
-    """
-    from kinematics.mechanisms.scara.closed_form import det_jacobian, fk, manipulability
-
-    if not (math.isfinite(step) and step > 0):
-        raise InvalidInputError("step", f"must be a positive angle [rad], got {step}")
-    check_points("angle step", ((sp.upper[0] - sp.lower[0]) / step + 1) * ((sp.upper[1] - sp.lower[1]) / step + 1),
-                 hint=f"{math.degrees(step):g} deg is too fine a joint-grid step")
-    t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, math.ceil((sp.upper[0] - sp.lower[0]) / step) + 1))
-    t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, math.ceil((sp.upper[1] - sp.lower[1]) / step) + 1))
-    Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1)
-    det = det_jacobian(sp, Q)
-    ell = manipulability(sp, Q)
-    a, b = det[:, :-1], det[:, 1:]
-    hit = (a == 0) | ((a > 0) != (b > 0))
-    i, j = np.nonzero(hit)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(a[i, j] == b[i, j], 0.0, a[i, j] / (a[i, j] - b[i, j]))
-    theta2 = t2[j] + frac * (t2[j + 1] - t2[j])
-    qs = np.stack([t1[i], theta2], axis=-1)
-    points = fk(sp, qs) if len(qs) else np.empty((0, 2))
-    return {
-        "theta1": t1, "theta2": t2, "min_radius": ell.radii[..., 0], "det": det,
-        "singular_q": qs, "singular_points": points,
-        "theta2_zero_within_limits": bool(sp.lower[1] <= 0.0 <= sp.upper[1]),
-        "theta2_pi_within_limits": bool(sp.lower[1] <= -math.pi or sp.upper[1] >= math.pi),
-    }

@@ -8,7 +8,7 @@ same file wherever it ran.
 
 Per design, on the union of the working modes' workspaces (every limit applied):
 
-* volume_m3: `workspace.p2us_workspace` at the sweep's step and tolerance;
+* volume_m3: `workspace.measure_workspace` at the sweep's step and tolerance;
 * singularity_free_fraction: share of the workspace's grid points where both scale-free measures
   (iota_I, iota_II) of the best working mode exceed `sing_tol`;
 * conditioning_index: the mean over those grid points of 1/kappa(J) (J = J_q^-1 J_x, kappa its
@@ -150,11 +150,12 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
     from kinematics.mechanisms.p2us.scan import bounding_box, scan
 
     one_kernel_thread()
-    from kinematics.analyses.workspace import p2us_workspace
+    from kinematics.analyses.workspace import measure_workspace
     from kinematics.mechanisms.p2us.closed_form import ik, jacobians
+    from kinematics.mechanisms.p2us.mechanism import P2US
 
     params = to_params(design)
-    ws = p2us_workspace(params, step=step, rtol=rtol, progress=False, engine="cells")
+    ws = measure_workspace(P2US(params), step=step, rtol=rtol, progress=False, engine="cells")
     cells = cast("VolumeEstimate", ws.result)
     lo, hi = bounding_box(params)
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]

@@ -473,13 +473,3 @@ def default_branch(mech: Mechanism) -> str:
     if not mech.branches:
         return "union"
     return "---" if "---" in mech.branches else mech.branches[0]
-
-
-# -- the 3-[P2(US)] (kept for callers holding parameters) ---------------------------------------------
-def p2us_usable(params: object, shape: str, *, mode: str = "---", kappa_max: float = KAPPA_MAX,
-                step: float = 0.01, spacing: float | None = None) -> UsableShape:
-    """The largest `shape` in the usable workspace of a 3-[P2(US)] (see the module doc)."""
-    from kinematics.mechanisms.p2us.mechanism import P2US
-
-    return usable(P2US(params), shape, branch=mode, kappa_max=kappa_max, step=step,  # type: ignore[arg-type]
-                  spacing=spacing)

@@ -5,13 +5,14 @@ their union.
 `kinematics.mechanisms.base`) with `kinematics.analyses.columns.column_volume` (exact columns,
 adaptive quadrature, with an error estimate); the earlier cell-refinement estimator
 `kinematics.analyses.cells.adaptive_volume` stays available (engine="cells", used by the design
-sweep and the benchmark). The margins are the families' own: the 3-[P2(US)]'s fused scan kernel
-(`p2us_margin`), the SCARA's reach and joint slacks (`scara_margin`), the Delta's reach, actuator
+sweep and the benchmark). The margins are the families' own (`Mechanism.margin`): the
+3-[P2(US)]'s fused scan kernel, the SCARA's reach and joint slacks, the Delta's reach, actuator
 and ball-joint slacks.
 
-Every limit comes from the URDF (through the family's `read_params` / `ScaraParams.from_robot`).
-Two independent checks, used by the tests: a Monte-Carlo volume from the NumPy closed forms of
-`kinematics.mechanisms.p2us.closed_form`, and the SCARA's area by a 1D quadrature over the radius.
+Every limit comes from the URDF (through `kinematics.mechanisms.mechanism_of`). Two independent
+checks, used by the tests: `volume_monte_carlo`, uniform samples through the mechanism's inverse
+kinematics (`Mechanism.ik`), and the SCARA's area by a 1D quadrature over the radius
+(`kinematics.mechanisms.scara.joint_space.area_quadrature`).
 """
 
 from __future__ import annotations
@@ -27,13 +28,6 @@ import numpy as np
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
 from kinematics.analyses.columns import ColumnVolume, column_volume
 from kinematics.mechanisms.base import UNION, Mechanism
-from kinematics.mechanisms.p2us.closed_form import MODES, P2USParams
-from kinematics.mechanisms.p2us.mechanism import P2US
-from kinematics.mechanisms.p2us.mechanism import p2us_margin as p2us_margin
-from kinematics.mechanisms.p2us.scan import bounding_box, check_limits
-from kinematics.mechanisms.scara.closed_form import ELBOWS, ScaraParams
-from kinematics.mechanisms.scara.mechanism import Scara
-from kinematics.mechanisms.scara.mechanism import scara_margin as scara_margin
 
 
 @dataclass(frozen=True)
@@ -122,7 +116,6 @@ takes ~3 s and reports each sliver with the error estimate it has (e.g. +++: 2.7
 The union and any branch above 1 % of it keep their own relative tolerance."""
 
 
-# -- 3-[P2(US)] -----------------------------------------------------------------------------------
 def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float,
              rtol: float | None, engine: str, progress: bool, max_points: int | None, check: bool
              ) -> ColumnVolume | VolumeEstimate:
@@ -162,83 +155,17 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
                      mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
 
 
-def p2us_workspace(params: P2USParams, *, step: float = 0.005, rtol: float | None = 1e-4,
-                   modes: Sequence[str] = MODES, limits: str = "all", name: str = "p2us",
-                   progress: bool = False, max_points: int | None = None, engine: str = "columns",
-                   check: bool = False) -> Workspace:
-    """`measure_workspace` of the 3-[P2(US)] design `params` [m^3]."""
-    return measure_workspace(P2US(params, name), step=step, rtol=rtol, branches=modes, limits=limits,
-                             progress=progress, max_points=max_points, engine=engine, check=check)
-
-
-def p2us_volume_monte_carlo(params: P2USParams, n: int, rng: np.random.Generator,
-                            limits: str = "all") -> tuple[float, float]:
-    """Union volume [m^3] and its standard error by uniform sampling of the bounding box, through
-    the NumPy closed forms (`parallel.ik`), independent of the scan kernel."""
-    from kinematics.mechanisms.p2us.closed_form import ik
-
-    lo, hi = bounding_box(params)
-    p = lo + (hi - lo) * rng.random((n, 3))
-    inside = ik(params, p, limits=check_limits(limits)).within_limits.any(axis=-1)
+def volume_monte_carlo(mech: Mechanism, n: int, rng: np.random.Generator,
+                       limits: str = "all") -> tuple[float, float]:
+    """The union's volume [m^3] (area [m^2] for a planar mechanism) and its standard error by
+    uniform sampling of the bounding box through the mechanism's inverse kinematics
+    (`Mechanism.ik`: for the closed-form families, the NumPy closed forms), independent of its
+    margin and of the volume engine."""
+    mech.require("ik", "a Monte-Carlo volume")
+    mech.check_limits(limits)
+    lo, hi = mech.bounding_box(limits)
+    p = lo + (hi - lo) * rng.random((n, mech.task_dim))
+    inside = mech.ik(p, limits).within_limits.any(axis=-1)
     box = float(np.prod(hi - lo))
     frac = float(inside.mean())
     return box * frac, box * math.sqrt(frac * (1 - frac) / n)
-
-
-# -- SCARA ----------------------------------------------------------------------------------------
-def scara_workspace(sp: ScaraParams, *, step: float = 0.005, rtol: float | None = 1e-4,
-                    elbows: Sequence[str] = ELBOWS, name: str = "scara", progress: bool = False,
-                    engine: str = "columns", check: bool = False) -> Workspace:
-    """`measure_workspace` of the planar arm `sp` [m^2]."""
-    return measure_workspace(Scara(sp, name), step=step, rtol=rtol, branches=elbows, progress=progress,
-                             engine=engine, check=check)
-
-
-def scara_area_quadrature(sp: ScaraParams, n: int = 20001, elbows: Sequence[str] = ELBOWS) -> float:
-    """Reachable area [m^2] as the integral over r of r x (measure of reachable polar angles).
-
-    At radius r each elbow's theta2 is fixed, and theta1 sweeps its range, so that elbow covers
-    the arc [lower1, upper1] + psi(theta2) of polar angles; the arcs' union is measured on the
-    circle. Composite Simpson over r in [|l1 - l2|, l1 + l2].
-    """
-    inner, outer = sp.reach
-    r = np.linspace(inner, outer, n)
-    c2 = np.clip((r * r - sp.l1**2 - sp.l2**2) / (2 * sp.l1 * sp.l2), -1.0, 1.0)
-    width = sp.upper[0] - sp.lower[0]
-    arcs = []
-    for elbow in elbows:
-        t2 = (-1.0 if elbow == "up" else 1.0) * np.arccos(c2)
-        ok = (t2 >= sp.lower[1]) & (t2 <= sp.upper[1])
-        start = sp.lower[0] + np.arctan2(sp.l2 * np.sin(t2), sp.l1 + sp.l2 * np.cos(t2))
-        arcs.append((start, ok))
-    measure = np.zeros(n)
-    for k in range(n):
-        ivs = [(a[k] % (2 * math.pi), width) for a, ok in arcs if ok[k]]
-        measure[k] = _circle_union(ivs)
-    f = r * measure
-    h = (outer - inner) / (n - 1)
-    return float(h / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum()))
-
-
-def _circle_union(arcs: list[tuple[float, float]]) -> float:
-    """Total length of a union of arcs (start in [0, 2 pi), length) on the unit circle."""
-    if not arcs:
-        return 0.0
-    if any(w >= 2 * math.pi for _, w in arcs):
-        return 2 * math.pi
-    pieces = []
-    for s, w in arcs:
-        e = s + w
-        if e > 2 * math.pi:
-            pieces += [(s, 2 * math.pi), (0.0, e - 2 * math.pi)]
-        else:
-            pieces.append((s, e))
-    pieces.sort()
-    total, cur_s, cur_e = 0.0, *pieces[0]
-    for s, e in pieces[1:]:
-        if s > cur_e:
-            total += cur_e - cur_s
-            cur_s, cur_e = s, e
-        else:
-            cur_e = max(cur_e, e)
-    return total + cur_e - cur_s

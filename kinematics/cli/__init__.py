@@ -13,6 +13,5 @@ handlers import NumPy, Pinocchio etc. when the command runs, so `kinematics --he
 
 from __future__ import annotations
 
-from kinematics.cli.app import main
+from kinematics.cli.app import main as main
 
-__all__ = ["main"]

@@ -99,14 +99,14 @@ def cmd_workspace_mesh(args: argparse.Namespace) -> int:
     return workspace_mesh(args, load(args), emit)
 
 
-def _params(robot: Robot) -> Any:
+def _p2us(robot: Robot) -> Any:
     from kinematics.errors import UnsupportedRobotError
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
     if mech.family != "p2us":
         raise UnsupportedRobotError(robot.name, "usable workspaces and boundary meshes support the 3-[P2(US)]")
-    return mech.params
+    return mech
 
 
 def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
@@ -151,12 +151,13 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 
 def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    from kinematics.analyses.boundary_mesh import export, p2us_mesh
+    from kinematics.analyses.boundary_mesh import export
+    from kinematics.analyses.boundary_mesh import workspace_mesh as mesh_of
 
     check_output(args.o, "-o", "mesh")
-    params = _params(robot)
+    mech = _p2us(robot)
     mode = args.mode or "---"
-    mesh = p2us_mesh(params, mode, args.step, args.limits)
+    mesh = mesh_of(mech, mode, args.step, args.limits)
     write_atomic(args.o, lambda tmp: export(mesh, tmp), "-o")
     payload = {"robot": robot.name, "mode": mode, "file": args.o, "faces": len(mesh.mesh.faces),
                "watertight": mesh.watertight, "volume_m3": mesh.volume, "step_m": args.step,

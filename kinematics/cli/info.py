@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from kinematics.cli.args import EXIT_OK, Command, is_parallel, load, robot_arg
+from kinematics.cli.args import EXIT_OK, Command, load, robot_arg
 from kinematics.cli.report import emit
 
 
@@ -20,27 +20,14 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     from kinematics.cli.report import key_values, table
     from kinematics.generic.serial import plane
+    from kinematics.mechanisms import mechanism_of
     from kinematics.model.robot import parser_agreement
 
     robot = load(args)
     agree = parser_agreement(robot)
-    params: dict[str, Any] = {}
-    sources: dict[str, str] = {}
-    if is_parallel(robot):
-        params = _parallel_parameters(robot)
-        if params:
-            from kinematics.mechanisms.p2us.paper_b import parameter_sources
-
-            sources = parameter_sources(robot.name, robot.urdf_path)
-    else:
-        from kinematics.errors import UnsupportedRobotError
-        from kinematics.mechanisms.scara.closed_form import ScaraParams
-
-        try:
-            sp = ScaraParams.from_robot(robot)
-            params = {"l1": sp.l1, "l2": sp.l2}
-        except UnsupportedRobotError:
-            pass
+    mech = mechanism_of(robot)
+    params = mech.design_parameters()
+    sources = mech.parameter_sources(str(robot.urdf_path)) if params else {}
     axes = plane(robot)
     mob = _loop_mobility(robot) if robot.loops is not None else None
     mobility = robot.nv if mob is None else mob["mobility"]
@@ -141,11 +128,3 @@ def _loops_payload(robot: Any) -> dict[str, Any] | None:
     if robot.loops is None:
         return None
     return robot.loops.as_dict()
-
-
-def _parallel_parameters(robot: Any) -> dict[str, Any]:
-    from kinematics.cli.parallel import family_of
-
-    found = family_of(robot)
-    return {} if found is None else found[1].as_dict()
-

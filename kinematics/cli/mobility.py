@@ -54,11 +54,11 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     if args.position is not None and args.q is not None:
         raise InvalidInputError("--position/--q", "give one of them, not both")
     if args.position is not None:
-        from kinematics.cli.parallel import position_arg, require_family
+        from kinematics.cli.parallel import position_arg, require_closed_forms
 
-        fam, params = require_family(robot)
+        mech = require_closed_forms(robot)
         p = position_arg(args)
-        values = fam.joint_values_at(params, p, args.mode or "---")
+        values = mech.joint_values(p, args.mode or "---")
         q = robot.configuration([values[n] for n in robot.joint_names])
         return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
     if args.q is not None:
@@ -69,28 +69,27 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
 
 
 def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | None:
-    """For a 3-[P2(US)] given --position or --q: None if the platform can be there, else the answer."""
-    from kinematics.mechanisms import mechanism_of
-
-    if (args.position is None) == (args.q is None) or mechanism_of(robot).family != "p2us":
+    """For a mechanism with closed forms given --position or --q: None if the platform can be
+    there, else the answer."""
+    if (args.position is None) == (args.q is None):
         return None
-    from kinematics.cli.parallel import actuated_arg, limb_reasons, params_of, position_arg
-    from kinematics.mechanisms.p2us.closed_form import fk, ik, mode_index
+    from kinematics.cli.parallel import actuated_arg, closed_forms, position_arg
 
-    params = params_of(robot)
+    mech = closed_forms(robot)
+    if mech is None:
+        return None
     if args.q is not None:
         q = actuated_arg(args, robot)
-        if fk(params, q).exists:
+        fk = mech.pose_fk(q)
+        if fk.exists:
             return None
-        return {"robot": robot.name, "q": q.tolist(), "reachable": False,
-                "reason": f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet"}
-    mode_index(args.mode or "---")  # a bad mode is bad input even where nothing reaches
+        return {"robot": robot.name, "q": q.tolist(), "reachable": False, "reason": fk.reason}
+    mech.check_branches([args.mode or "---"])  # a bad mode is bad input even where nothing reaches
     p = position_arg(args)
-    res = ik(params, p)
-    if res.limbs.reach.all():
+    ik = mech.pose_ik(p)
+    if all(lb["reachable"] for lb in ik.limbs):
         return None
-    reasons = [lb["reason"] for lb in limb_reasons(params, res.limbs) if lb["reason"]]
-    return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": "; ".join(reasons)}
+    return {"robot": robot.name, "position": p.tolist(), "reachable": False, "reason": ik.reason}
 
 
 def _freedom(f: Any) -> str:

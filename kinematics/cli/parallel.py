@@ -1,103 +1,42 @@
-"""CLI handlers for closed-loop robots: the closed forms of the mechanism families (3-[P2(US)],
-Delta; see `FAMILIES`), and the generic Pinocchio closed-loop solver for any other URDF + loop
-sidecar. Called from the command modules (`fk`, `ik`, `jacobian`, `mobility`, `views`)."""
+"""CLI handlers for closed-loop robots: the closed forms of a mechanism that answers single-pose
+reports (`Mechanism.pose_ik`, `pose_fk`, `pose_jacobians`: the 3-[P2(US)], the Delta), and the
+generic Pinocchio closed-loop solver for any other URDF + loop sidecar. Called from the command
+modules (`fk`, `ik`, `jacobian`, `mobility`, `views`)."""
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from kinematics.cli.report import Out, key_values, matrix, table
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
-from kinematics.mechanisms.p2us.closed_form import (
-    ASSEMBLY_MODES,
-    MODES,
-    SINGULAR_TOL,
-    SINGULARITY_TYPES,
-    P2USParams,
-    classify,
-    mode_index,
-)
-from kinematics.mechanisms.p2us.urdf import MECHANISM
+from kinematics.mechanisms import SINGULAR_TOL, SINGULARITY_TYPES, Mechanism, classify, mechanism_of
 from kinematics.model.robot import Robot
 
 EXIT_OK, EXIT_NO = 0, 1
 
-
-class Family(NamedTuple):
-    """A mechanism family with closed forms: what the ik/fk/jacobian/mobility commands need.
-
-    The functions take the family's parameters first; shapes and result fields are the same
-    for every family (8 working modes, 2 assembly modes, Jacobians with iota_I / iota_II).
-    """
-
-    mechanism: str
-    ik: Callable[..., Any]
-    fk: Callable[..., Any]
-    jacobians: Callable[..., Any]
-    rod_vectors: Callable[..., Any]
-    violations: Callable[..., list[str]]
-    limb_reasons: Callable[..., list[dict[str, Any]]]
-    fk_reason: Callable[..., str]
-    joint_values_at: Callable[..., dict[str, float]]
-    rod_length: Callable[[Any], float]
-    q_unit: str
-    iota_I: str
+POSE_REPORTS = frozenset({"pose_ik", "pose_fk", "pose_jacobians"})
+"""The `Mechanism` capabilities behind the closed-form answers of ik, fk and jacobian."""
 
 
-def _p2us_fk_reason(params: P2USParams, res: Any) -> str:
-    return (f"no assembly: the three spheres of radius L = {params.L:g} m around the carriages do not meet "
-            f"(the rods would need to be {float(res.gap):.6g} m longer)")
-
-
-def families() -> dict[str, Family]:
-    """The closed-form families' report functions, by `Mechanism.family`."""
-    from kinematics.mechanisms.delta import closed_form as delta
-    from kinematics.mechanisms.delta import urdf as delta_urdf
-    from kinematics.mechanisms.p2us import closed_form as parallel
-    from kinematics.mechanisms.p2us import urdf as p2us_urdf
-
-    return {
-        "p2us": Family(MECHANISM, parallel.ik, parallel.fk, parallel.jacobians, parallel.rod_vectors,
-                          parallel.violations, limb_reasons, _p2us_fk_reason, p2us_urdf.joint_values_at,
-                          lambda p: p.L, "m", "iota_I = min |n.w|"),
-        "delta": Family(delta.MECHANISM, delta.ik, delta.fk, delta.jacobians,
-                                delta.rod_vectors, delta.violations, delta.limb_reasons, delta.fk_reason,
-                                delta_urdf.joint_values_at, lambda p: p.lb, "rad", "iota_I = min |n.b|"),
-    }
-
-
-def family_of(robot: Robot) -> tuple[Family, Any] | None:
-    """The robot's mechanism family and its parameters read from its URDF, or None when it has
-    no closed forms (then the generic closed-loop solver answers)."""
-    from kinematics.mechanisms import mechanism_of
-
+def closed_forms(robot: Robot) -> Mechanism | None:
+    """The robot's mechanism when it answers single-pose reports in closed form (`POSE_REPORTS`),
+    else None (then the generic closed-loop solver answers)."""
     mech = mechanism_of(robot)
-    fam = families().get(mech.family)
-    return None if fam is None else (fam, mech.params)
+    return mech if mech.capabilities >= POSE_REPORTS else None
 
 
-def require_family(robot: Robot) -> tuple[Family, Any]:
-    found = family_of(robot)
-    if found is None:
+def require_closed_forms(robot: Robot) -> Mechanism:
+    mech = closed_forms(robot)
+    if mech is None:
+        from kinematics.mechanisms import families
+
         raise UnsupportedRobotError(robot.name, "closed-form IK needs a mechanism with closed forms ("
-                                    + ", ".join(f.mechanism for f in families().values()) + "); its sidecar declares mechanism "
+                                    + ", ".join(families()) + "); its sidecar declares mechanism "
                                     f"{robot.loops.mechanism if robot.loops else None!r}")
-    return found
-
-
-def params_of(robot: Robot) -> P2USParams:
-    """The closed-form parameters of a 3-[P2(US)] robot, read from its URDF."""
-    from kinematics.mechanisms import mechanism_of
-
-    mech = mechanism_of(robot)
-    if mech.family != "p2us":
-        raise UnsupportedRobotError(robot.name, f"not a {MECHANISM} (its sidecar declares mechanism "
-                                    f"{robot.loops.mechanism if robot.loops else None!r})")
-    return mech.params
+    return mech
 
 
 def position_arg(args: argparse.Namespace) -> np.ndarray:
@@ -108,18 +47,6 @@ def position_arg(args: argparse.Namespace) -> np.ndarray:
     if not np.all(np.isfinite(p)):
         raise InvalidInputError("--position", f"must be finite, got {p.tolist()}")
     return p
-
-
-def limb_reasons(params: P2USParams, limbs: Any) -> list[dict[str, Any]]:
-    """Per-limb reachability with the reason when a limb cannot reach."""
-    out = []
-    for i in range(3):
-        ok = bool(limbs.reach[i])
-        reason = None if ok else (
-            f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the rail's "
-            f"axis, farther than the rod length L = {params.L:g} m")
-        out.append({"limb": i + 1, "reachable": ok, "reason": reason})
-    return out
 
 
 def _solutions_report(title: str, key: str, columns: list[str], digits: int,
@@ -139,30 +66,24 @@ def _solutions_report(title: str, key: str, columns: list[str], digits: int,
 
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics ik p2us|delta --position X Y Z`: all working modes, limits, reasons."""
-    fam, params = require_family(robot)
+    mech = require_closed_forms(robot)
     p = position_arg(args)
-    res = fam.ik(params, p)
-    limbs = fam.limb_reasons(params, res.limbs)
-    solutions = []
-    for m, mode in enumerate(MODES):
-        if not res.reachable[m]:
-            continue
-        roots = [0 if c == "+" else 1 for c in mode]
-        n = res.limbs.n[np.arange(3), roots]
-        viol = fam.violations(params, res.q[m], n)
-        solutions.append({"q": res.q[m], "mode": mode, "within_limits": not viol, "violations": viol})
+    res = mech.pose_ik(p)
+    solutions = [{"q": res.q[m], "mode": mode, "within_limits": not res.violations[m], "violations": list(res.violations[m])}
+                 for m, mode in enumerate(mech.branches) if res.reachable[m]]
+    limbs = res.limbs
     reachable = any(s["within_limits"] for s in solutions)
     if reachable:
         reason = None
     elif not solutions:
-        reason = "; ".join(lb["reason"] for lb in limbs if lb["reason"])
+        reason = res.reason
     else:
         reason = f"every working mode breaks a limit ({len(solutions)} modes assemble; see violations)"
     payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": limbs}
 
     def human() -> str:
         title = f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
-        u = fam.q_unit
+        u = mech.actuator_unit
         return _solutions_report(title, "q", [f"q1 [{u}]", f"q2 [{u}]", f"q3 [{u}]"], 9, solutions, reason)
 
     out(args, payload, human)
@@ -189,13 +110,12 @@ def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics fk p2us|delta [--q Q1 Q2 Q3]`: both assembly modes (closed form); other loop
     robots through the Pinocchio closed-loop solver. Without --q: the actuator values of the
     default closed pose (`ClosedLoop.assembly`: the sidecar's reference, or a pose found)."""
-    found = family_of(robot)
-    if found is None:
+    mech = closed_forms(robot)
+    if mech is None:
         return _generic_fk(args, robot, out)
     if args.frame is not None and robot.frame_id(args.frame) != robot.frame_id():
         raise InvalidInputError("--frame", f"{robot.name}'s fk is its platform position from the closed forms "
                                 f"(frame {robot.tool_frame!r}); another frame is not computed")
-    fam, params = found
     if args.q is None:
         from kinematics.generic.closedloop import ClosedLoop
         from kinematics.mechanisms.closed_loop import closed_pose
@@ -204,19 +124,14 @@ def fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         q, where = pose.actuated, f"the actuator values of {pose.description}"
     else:
         q, where = actuated_arg(args, robot), "the given actuator values"
-    res = fam.fk(params, q)
-    solutions = []
-    if res.exists:
-        for k, mode in enumerate(ASSEMBLY_MODES):
-            pos = res.p[k]
-            n = fam.rod_vectors(params, pos, q) / fam.rod_length(params)
-            viol = fam.violations(params, q, n)
-            solutions.append({"position": pos, "mode": mode, "within_limits": not viol, "violations": viol})
-    reason = None if res.exists else fam.fk_reason(params, res)
+    res = mech.pose_fk(q)
+    solutions = [{"position": res.p[k], "mode": mode, "within_limits": not viol, "violations": list(viol)}
+                 for k, (mode, viol) in enumerate(zip(mech.assembly_modes, res.violations, strict=False))]
+    reason = res.reason
     payload = {"q": q, "configuration": where, "exists": bool(res.exists), "reason": reason, "solutions": solutions}
 
     def human() -> str:
-        return _solutions_report(f"actuators q = {q.tolist()} {fam.q_unit} ({where})", "position",
+        return _solutions_report(f"actuators q = {q.tolist()} {mech.actuator_unit} ({where})", "position",
                                  ["x [m]", "y [m]", "z [m]"], 12, solutions, reason)
 
     out(args, payload, human)
@@ -275,31 +190,29 @@ def _generic_fk(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics jacobian p2us|delta --position X Y Z [--mode M]`: J, J_x, J_q and the
     singularity type."""
-    found = family_of(robot)
-    if found is None:
+    mech = closed_forms(robot)
+    if mech is None:
         return _generic_jacobian(args, robot, out)
-    fam, params = found
     if args.q is not None:
         raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
     p = position_arg(args)
-    res = fam.ik(params, p)
+    res = mech.pose_ik(p)
     if args.mode is not None:
-        m = mode_index(args.mode)
+        m = mech.branches.index(mech.check_branches([args.mode])[0])
     else:  # the first mode within limits, else the first that assembles
         ok = np.flatnonzero(res.within_limits) if res.within_limits.any() else np.flatnonzero(res.reachable)
         m = int(ok[0]) if ok.size else 0
-    limbs = fam.limb_reasons(params, res.limbs)
+    mode = mech.branches[m]
     if not res.reachable[m]:
-        payload = {"position": p, "mode": MODES[m], "reachable": False,
-                   "reason": "; ".join(lb["reason"] for lb in limbs if lb["reason"])}
+        payload = {"position": p, "mode": mode, "reachable": False, "reason": res.reason}
         out(args, payload, lambda: f"platform at {p.tolist()} m is NOT reachable: {payload['reason']}")
         return EXIT_NO
     q = res.q[m]
-    jac = fam.jacobians(params, p, q)
+    jac = mech.pose_jacobians(p, q)
     kind = SINGULARITY_TYPES[int(classify(jac.iota_I, jac.iota_II))]
     J = jac.J if np.all(np.isfinite(jac.J)) else None
     payload = {
-        "position": p, "mode": MODES[m], "reachable": True, "within_limits": bool(res.within_limits[m]),
+        "position": p, "mode": mode, "reachable": True, "within_limits": bool(res.within_limits[m]),
         "q": q, "J": J, "Jx": jac.Jx, "Jq": np.diag(jac.Jq), "det_Jx": float(np.linalg.det(jac.Jx)),
         "det_Jq": float(np.prod(jac.Jq)), "singularity": kind,
         "measures": {"iota_I": float(jac.iota_I), "iota_II": float(jac.iota_II), "tolerance": SINGULAR_TOL},
@@ -307,11 +220,11 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     def human() -> str:
         return "\n".join([
-            f"platform at {p.tolist()} m, mode {MODES[m]}, q = {np.round(q, 9).tolist()} {fam.q_unit}",
+            f"platform at {p.tolist()} m, mode {mode}, q = {np.round(q, 9).tolist()} {mech.actuator_unit}",
             "J = Jq^-1 Jx (qdot = J pdot):", matrix(jac.J, 9) if J is not None else "  (infinite: type I)",
             "Jx:", matrix(jac.Jx, 9), "Jq (diagonal):", matrix(np.diag(jac.Jq), 9),
             key_values([("det Jx", payload["det_Jx"]), ("det Jq", payload["det_Jq"]),
-                        (fam.iota_I, jac.iota_I), ("iota_II = |det n|", jac.iota_II),
+                        (mech.iota_I_label, jac.iota_I), ("iota_II = |det n|", jac.iota_II),
                         ("singularity", f"{kind} (tolerance {SINGULAR_TOL:g})")], 9),
         ])
 

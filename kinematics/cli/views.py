@@ -53,12 +53,14 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
 
     import numpy as np
 
+    from kinematics.cli.parallel import POSE_REPORTS
     from kinematics.mechanisms import mechanism_of
     from kinematics.views import meshcat as viz
 
     mech = mechanism_of(robot)
     kind = mech.family
-    if kind in ("p2us", "delta"):
+    three_limb = mech.capabilities >= POSE_REPORTS  # the closed-form parallel robots (`parallel_view`)
+    if three_limb:
         unreachable = _parallel_checks(args, robot, mech)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     scene = viz.Scene(live=not args.export, skeleton=args.skeleton)
     try:
-        if kind in ("p2us", "delta"):
+        if three_limb:
             if args.guide is not None:
                 raise InvalidInputError("--guide", "guidance runs are for planar arms")
             actuators = None
@@ -157,29 +159,25 @@ def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[st
     reachable in --mode (else the answer to report, exit 1)."""
     import numpy as np
 
-    from kinematics.cli.parallel import families
     from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
 
-    fam = families()[mech.family]
-    params = mech.params
     if args.workspace or args.singularities:
         lo, hi = mech.bounding_box(args.limits)
         check_points("--step", grid_points(lo, hi, 0.02 if args.step is None else args.step), limit=MAX_VIEW_POINTS,
                      hint=f"{args.step or 0.02:g} m is too fine a step for a view")
     if args.q is not None and args.position is None and len(args.q) == 3:
-        res = fam.fk(params, np.array(args.q, dtype=float))
-        if res.exists:
+        fk = mech.pose_fk(np.array(args.q, dtype=float))
+        if fk.exists:
             return None
         return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
-                "reason": fam.fk_reason(params, res)}
+                "reason": fk.reason}
     if args.position is None:
         return None
     mode = mech.check_branches([args.mode or "---"])[0]
     m = mech.branches.index(mode)
     p = np.array(args.position, dtype=float)
-    sol = fam.ik(params, p)
+    sol = mech.pose_ik(p)
     if sol.reachable[m]:
         return None
-    reasons = [lb["reason"] for lb in fam.limb_reasons(params, sol.limbs) if lb["reason"]]
     return {"robot": robot.name, "position": p.tolist(), "mode": mode, "reachable": False,
-            "reason": "; ".join(reasons) or f"the limbs do not assemble in mode {mode}"}
+            "reason": sol.reason or f"the limbs do not assemble in mode {mode}"}

@@ -265,9 +265,9 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
     elif mech.family == "scara":
-        from kinematics.analyses.singularities import scara_singularities
+        from kinematics.mechanisms.scara.joint_space import singular_set
 
-        sing = scara_singularities(mech.params)
+        sing = singular_set(mech.params)
         singular_points = _scara_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
                                         "within_limits": sing["theta2_zero_within_limits"]}}
@@ -410,7 +410,7 @@ def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
 
 
 def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
-    """JSON-ready points of the SCARA's theta2 = 0 locus (from `scara_singularities`)."""
+    """JSON-ready points of the SCARA's theta2 = 0 locus (from `scara.joint_space.singular_set`)."""
     return [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
             for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
 
@@ -440,16 +440,16 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if mech.family == "serial":
         return _serial_singularities(args, robot, out)
     if mech.family == "scara":
-        from kinematics.analyses.singularities import scara_singularities
         from kinematics.errors import UnknownModeError
         from kinematics.mechanisms.scara.closed_form import ELBOWS
+        from kinematics.mechanisms.scara.joint_space import singular_set
 
         for mode in args.modes or ():  # the singular arc is both elbows'; still, a typo is bad input
             if mode not in ELBOWS:
                 raise UnknownModeError(mode, ELBOWS)
 
         params = mech.params
-        s = scara_singularities(params, math.radians(args.angle_step_deg))
+        s = singular_set(params, math.radians(args.angle_step_deg))
         pts = _scara_points(s)
         payload = {
             "robot": robot.name,
@@ -497,7 +497,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         "seconds": res.seconds,
     }
     if args.paper_scan:
-        from kinematics.analyses.singularities import paper_scan
+        from kinematics.mechanisms.p2us.paper_scan import paper_scan
 
         ps = paper_scan(mech.params)
         payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}

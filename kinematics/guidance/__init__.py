@@ -1,76 +1,10 @@
-"""Paper A's manual-guidance controller (admittance, saturation, virtual impedance) and its simulated experiments.
+"""Paper A's manual-guidance controller (admittance, saturation, virtual impedance) and its
+simulated experiments.
 
-Modules: `controller`, `simulation`. Public names are re-exported
-here and imported on first use, so importing the package stays light.
+Modules: `controller`, `simulation`. The names a user starts from are listed once, in `__init__.pyi` (which type
+checkers read), and imported on first use; everything else is imported from its module.
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-import importlib
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from kinematics.guidance.controller import (
-        Controller,
-        GuidanceParams,
-        Kinematics,
-        ScaraKinematics,
-        SerialKinematics,
-        Step,
-        virtual_gain,
-    )
-    from kinematics.guidance.simulation import (
-        EXPERIMENTS,
-        SINGULAR_RADIUS,
-        Experiment,
-        Profile,
-        ReactiveOperator,
-        Run,
-        StubbornOperator,
-        run_experiment,
-        simulate,
-    )
-
-_LAZY = {
-    "Controller": "controller",
-    "EXPERIMENTS": "simulation",
-    "Experiment": "simulation",
-    "GuidanceParams": "controller",
-    "Kinematics": "controller",
-    "Profile": "simulation",
-    "ReactiveOperator": "simulation",
-    "Run": "simulation",
-    "SINGULAR_RADIUS": "simulation",
-    "ScaraKinematics": "controller",
-    "SerialKinematics": "controller",
-    "Step": "controller",
-    "StubbornOperator": "simulation",
-    "run_experiment": "simulation",
-    "simulate": "simulation",
-    "virtual_gain": "controller",
-}
-
-__all__ = [
-    "EXPERIMENTS",
-    "SINGULAR_RADIUS",
-    "Controller",
-    "Experiment",
-    "GuidanceParams",
-    "Kinematics",
-    "Profile",
-    "ReactiveOperator",
-    "Run",
-    "ScaraKinematics",
-    "SerialKinematics",
-    "Step",
-    "StubbornOperator",
-    "run_experiment",
-    "simulate",
-    "virtual_gain",
-]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

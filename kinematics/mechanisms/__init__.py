@@ -3,36 +3,10 @@ dispatcher (`mechanism_of`, in `dispatch`) that decides what a loaded robot is.
 
 Families, one subpackage each: `scara` (planar 2R arm), `p2us` (3-[P2(US)]), `delta` (3-RUU
 Delta) with closed forms; `serial` (any open chain) and `closed_loop` (any URDF + loop sidecar)
-through the generic kinematics.
+through the generic kinematics. The public names are listed once, in `__init__.pyi`, and imported
+on first use.
 """
 
-from kinematics.mechanisms.base import (
-    CAPABILITIES,
-    SINGULAR_TOL,
-    SINGULARITY_TYPES,
-    UNION,
-    Assemblies,
-    BranchIK,
-    MarginFn,
-    Mechanism,
-    SingularFields,
-    Velocity,
-    classify,
-)
-from kinematics.mechanisms.dispatch import families, mechanism_of
+import lazy_loader as _lazy
 
-__all__ = [
-    "CAPABILITIES",
-    "SINGULARITY_TYPES",
-    "SINGULAR_TOL",
-    "UNION",
-    "Assemblies",
-    "BranchIK",
-    "MarginFn",
-    "Mechanism",
-    "SingularFields",
-    "Velocity",
-    "classify",
-    "families",
-    "mechanism_of",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -15,7 +15,11 @@ has them, vectorised maps over arrays of task points or actuator values:
   by the task velocity) and iota_II (locked actuators no longer hold the task point), both in
   [0, 1] with 0 singular; type I, II or III (both) below `SINGULAR_TOL`;
 * `singular_fields(points, limits)` -> signed fields whose sign changes between grid neighbours
-  mark type I (per limb) and type II (per branch) loci, for scans.
+  mark type I (per limb) and type II (per branch) loci, for scans;
+* single-pose reports, what `kinematics ik|fk|jacobian` print for a mechanism with closed forms:
+  `pose_ik(point)` (every branch, the limits each breaks, why a limb cannot reach),
+  `pose_fk(q)` (every assembly mode, or why none exists) and `pose_jacobians(point, q)` (the
+  loop equations' J_x, J_q and the singularity measures).
 
 A mechanism that lacks one of these says so: calling it raises `MissingCapabilityError` naming
 the capability, the purpose and what the mechanism does provide (`capabilities`). Analyses take a
@@ -42,7 +46,8 @@ MarginFn = Callable[[np.ndarray], np.ndarray]
 UNION = "union"
 """The label of the union of every branch (the margin's last column)."""
 
-CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values")
+CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values", "pose_ik", "pose_fk",
+                "pose_jacobians")
 """The optional parts of the interface, by method name."""
 
 
@@ -129,6 +134,65 @@ class SingularFields:
     det: np.ndarray
 
 
+@dataclass(frozen=True)
+class PoseIK:
+    """Inverse kinematics at one task point, for a report.
+
+    Attributes:
+        q: (B, a) actuator values per branch (NaN where the branch does not exist) [m or rad].
+        reachable: (B,) the branch exists (limits ignored).
+        within_limits: (B,) it exists and respects every limit.
+        violations: per branch, the limits it breaks in words (empty where it does not exist).
+        limbs: per limb, {"limb": 1-based index, "reachable": bool, "reason": why it cannot reach
+            (None when it can)}.
+    """
+
+    q: np.ndarray
+    reachable: np.ndarray
+    within_limits: np.ndarray
+    violations: tuple[tuple[str, ...], ...]
+    limbs: list[dict[str, Any]]
+
+    @property
+    def reason(self) -> str:
+        """Why no branch exists: the unreachable limbs' reasons, joined."""
+        return "; ".join(lb["reason"] for lb in self.limbs if lb["reason"])
+
+
+@dataclass(frozen=True)
+class PoseFK:
+    """Forward kinematics at one actuator vector, for a report.
+
+    Attributes:
+        p: (A, d) the task point of each assembly mode [m] (NaN where it does not exist).
+        exists: an assembly exists.
+        violations: per assembly mode, the limits it breaks in words (empty when none exists).
+        reason: why no assembly exists (None when one does).
+    """
+
+    p: np.ndarray
+    exists: bool
+    violations: tuple[tuple[str, ...], ...]
+    reason: str | None
+
+
+@dataclass(frozen=True)
+class PoseJacobians:
+    """The loop equations J_x pdot = diag(J_q) qdot at one pose.
+
+    Attributes:
+        Jx: (d, d) [m]. Jq: (a,) the diagonal of J_q.
+        J: (a, d) the inverse Jacobian J_q^-1 J_x (qdot = J pdot; inf/NaN where type I singular).
+        iota_I, iota_II: the scale-free singularity measures in [0, 1] (0 singular), scalars.
+    """
+
+    Jx: np.ndarray
+    Jq: np.ndarray
+    J: np.ndarray
+    iota_I: np.ndarray
+    iota_II: np.ndarray
+
+
 class Mechanism(ABC):
     """A robot as the analyses see it (see the module docstring).
 
@@ -146,6 +210,8 @@ class Mechanism(ABC):
         limit_sets: the accepted `limits` values; the first is the default.
         params: the family's design object (`P2USParams`, `DeltaParams`, `ScaraParams`), None
             for the generic families.
+        assembly_modes: the labels of `fk`'s assembly modes.
+        iota_I_label: how `iota_I` is computed, for reports (e.g. "iota_I = min |n.w|").
     """
 
     family: ClassVar[str]
@@ -160,6 +226,8 @@ class Mechanism(ABC):
     branch_legend: str = ""
     limit_sets: tuple[str, ...] = ("all",)
     params: Any = None
+    assembly_modes: tuple[str, ...] = ()
+    iota_I_label: str = "iota_I"
 
     # -- what the mechanism provides ---------------------------------------------------------
     @property
@@ -179,6 +247,16 @@ class Mechanism(ABC):
 
     def parameters(self) -> dict[str, Any]:
         """The design's parameters, JSON-ready (SI units)."""
+        return {}
+
+    def design_parameters(self) -> dict[str, Any]:
+        """The numbers that define a family's design, read back from its URDF, for `kinematics info`
+        (what the URDF's joint table does not show); empty for the generic families."""
+        return {}
+
+    def parameter_sources(self, urdf_path: str) -> dict[str, str]:
+        """Parameter -> where its value comes from (a paper's table, ...) when the robot is a
+        built-in design loaded from `urdf_path`; empty otherwise."""
         return {}
 
     def check_limits(self, limits: str) -> str:
@@ -230,6 +308,18 @@ class Mechanism(ABC):
     def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
         """Every URDF joint's value (loops closed) with the task point at `point` [m] in `branch`."""
         raise MissingCapabilityError(self.name, "joint_values", "joint values at a task point", self.capabilities)
+
+    def pose_ik(self, point: np.ndarray) -> PoseIK:
+        """Every branch's inverse kinematics at one task point (d,) [m], with every limit, for a report."""
+        raise MissingCapabilityError(self.name, "pose_ik", "inverse kinematics at a task point", self.capabilities)
+
+    def pose_fk(self, q: np.ndarray) -> PoseFK:
+        """Every assembly mode at one actuator vector (a,), with every limit, for a report."""
+        raise MissingCapabilityError(self.name, "pose_fk", "forward kinematics of the actuators", self.capabilities)
+
+    def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
+        """The loop-equation Jacobians at task point (d,) [m] with actuator values (a,)."""
+        raise MissingCapabilityError(self.name, "pose_jacobians", "Jacobians at a task point", self.capabilities)
 
     # -- derived -----------------------------------------------------------------------------
     def branch_velocity(self, points: np.ndarray, branch: str, limits: str = "all") -> tuple[Velocity, np.ndarray]:

@@ -38,9 +38,8 @@ the derivative bounds), `boxes` (level 0, evaluation at the boxes' centres, spli
 
 from __future__ import annotations
 
-from kinematics.analyses.serial_workspace.boxes import LEAF, SPLIT
-from kinematics.analyses.serial_workspace.kernels import radii
-from kinematics.analyses.serial_workspace.measure import serial_workspace
-from kinematics.analyses.serial_workspace.result import CellGrid, Mode, SerialWorkspace
+from kinematics.analyses.serial_workspace.kernels import radii as radii
+from kinematics.analyses.serial_workspace.measure import serial_workspace as serial_workspace
+from kinematics.analyses.serial_workspace.result import CellGrid as CellGrid
+from kinematics.analyses.serial_workspace.result import SerialWorkspace as SerialWorkspace
 
-__all__ = ["LEAF", "SPLIT", "CellGrid", "Mode", "SerialWorkspace", "radii", "serial_workspace"]

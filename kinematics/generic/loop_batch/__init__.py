@@ -36,33 +36,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from kinematics.generic.loop_batch.atlas import BranchSolutions
-from kinematics.generic.loop_batch.compiled import STALL, TOL, block_kernel, eval_kernel, lm_kernel
-from kinematics.generic.loop_batch.margins import LIMITS, assemble_kernel, slack_kernel
-from kinematics.generic.loop_batch.singular import Singularities
-from kinematics.generic.loop_batch.solver import SOLVERS, LoopBatch, loop_batch
-from kinematics.generic.loop_batch.structure import Block, BlockModel
-from kinematics.generic.loop_batch.warm import CACHE_POINTS, RECENT_POINTS, WARM_RADIUS_FACTOR
-from kinematics.generic.singularity import SINGULAR_TOL, SINGULARITY_TYPES
-
-__all__ = [
-    "CACHE_POINTS",
-    "LIMITS",
-    "RECENT_POINTS",
-    "SINGULARITY_TYPES",
-    "SINGULAR_TOL",
-    "SOLVERS",
-    "STALL",
-    "TOL",
-    "WARM_RADIUS_FACTOR",
-    "Block",
-    "BlockModel",
-    "BranchSolutions",
-    "LoopBatch",
-    "Singularities",
-    "kernels",
-    "loop_batch",
-]
+from kinematics.generic.loop_batch.atlas import BranchSolutions as BranchSolutions
+from kinematics.generic.loop_batch.compiled import TOL as TOL
+from kinematics.generic.loop_batch.compiled import block_kernel, eval_kernel, lm_kernel
+from kinematics.generic.loop_batch.margins import assemble_kernel, slack_kernel
+from kinematics.generic.loop_batch.singular import Singularities as Singularities
+from kinematics.generic.loop_batch.solver import SOLVERS as SOLVERS
+from kinematics.generic.loop_batch.solver import LoopBatch as LoopBatch
+from kinematics.generic.loop_batch.solver import loop_batch as loop_batch
+from kinematics.generic.singularity import SINGULAR_TOL as SINGULAR_TOL
 
 
 def kernels() -> tuple[Any, ...]:

@@ -1,7 +1,9 @@
 """Any URDF + loop sidecar without closed forms, as a mechanism; its closed poses and constrained
 Jacobians for reports."""
 
-from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
-from kinematics.mechanisms.closed_loop.poses import ClosedPose, closed_pose, constrained_jacobian, held_frames
+from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop as GenericClosedLoop
+from kinematics.mechanisms.closed_loop.poses import ClosedPose as ClosedPose
+from kinematics.mechanisms.closed_loop.poses import closed_pose as closed_pose
+from kinematics.mechanisms.closed_loop.poses import constrained_jacobian as constrained_jacobian
+from kinematics.mechanisms.closed_loop.poses import held_frames as held_frames
 
-__all__ = ["ClosedPose", "GenericClosedLoop", "closed_pose", "constrained_jacobian", "held_frames"]

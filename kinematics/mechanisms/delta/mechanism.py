@@ -58,6 +58,11 @@ class Delta(ThreeLimbMechanism):
     actuator_unit = "rad"
     branch_legend = MODE_LEGEND
     closed_form: ClassVar[ModuleType] = cf
+    iota_I_label = "iota_I = min |n.b|"
+
+    @property
+    def rod_length(self) -> float:
+        return float(self.params.lb)
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] that contains the workspace under `limits` (proved, not sampled).

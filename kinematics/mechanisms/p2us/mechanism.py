@@ -62,6 +62,27 @@ class P2US(ThreeLimbMechanism):
     actuator_unit = "m"
     branch_legend = MODE_LEGEND
     closed_form: ClassVar[ModuleType] = cf
+    iota_I_label = "iota_I = min |n.w|"
+
+    @property
+    def rod_length(self) -> float:
+        return float(self.params.L)
+
+    def parameter_sources(self, urdf_path: str) -> dict[str, str]:
+        """Paper B's table for each parameter of a built-in design (`paper_b.SOURCES`)."""
+        from kinematics.mechanisms.p2us.paper_b import parameter_sources
+
+        return parameter_sources(self.name, urdf_path)
+
+    def limb_reasons(self, limbs: cf.LimbSolutions) -> list[dict[str, Any]]:
+        return [{"limb": i + 1, "reachable": bool(limbs.reach[i]),
+                 "reason": None if limbs.reach[i] else (
+                     f"limb {i + 1} cannot reach: its platform joint is {limbs.axis_distance[i]:.6g} m from the "
+                     f"rail's axis, farther than the rod length L = {self.params.L:g} m")} for i in range(3)]
+
+    def fk_reason(self, res: Any) -> str:
+        return (f"no assembly: the three spheres of radius L = {self.params.L:g} m around the carriages do not "
+                f"meet (the rods would need to be {float(res.gap):.6g} m longer)")
 
     def kernels(self) -> tuple[Any, ...]:
         import kinematics.mechanisms.p2us.scan as scan_module

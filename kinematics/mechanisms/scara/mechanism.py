@@ -75,6 +75,10 @@ class Scara(Mechanism):
         p = self.params
         return {"l1": p.l1, "l2": p.l2, "lower": list(p.lower), "upper": list(p.upper)}
 
+    def design_parameters(self) -> dict[str, Any]:
+        """The link lengths (the joint limits are the URDF's)."""
+        return {"l1": self.params.l1, "l2": self.params.l2}
+
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         self.check_limits(limits)
         outer = self.params.reach[1]

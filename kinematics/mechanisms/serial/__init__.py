@@ -1,5 +1,4 @@
 """Any open-chain URDF as a mechanism (no closed forms: compiled batched kinematics)."""
 
-from kinematics.mechanisms.serial.mechanism import SerialArm
+from kinematics.mechanisms.serial.mechanism import SerialArm as SerialArm
 
-__all__ = ["SerialArm"]

@@ -15,51 +15,16 @@ Modules:
 
 from __future__ import annotations
 
-from kinematics.views.meshcat.mechanism_views import (
-    OPEN_LOOP_RTOL,
-    closed_loop_pose,
-    closed_loop_view,
-    conditioning_view,
-    parallel_view,
-)
-from kinematics.views.meshcat.scene import BACKGROUND, FOV_DEG, GRID_SQUARES, Scene
-from kinematics.views.meshcat.serial_views import (
-    NEAR_SINGULAR,
-    VIEW_CELLS,
-    default_pose,
-    scara_view,
-    serial_view,
-)
-from kinematics.views.meshcat.skeletons import (
-    SKELETON_SIZE,
-    SKELETON_STYLE,
-    Skeleton,
-    SkeletonJoint,
-    skeleton,
-    skeleton_transforms,
-)
-from kinematics.views.meshcat.visuals import visual_model
+from kinematics.views.meshcat.mechanism_views import closed_loop_pose as closed_loop_pose
+from kinematics.views.meshcat.mechanism_views import closed_loop_view as closed_loop_view
+from kinematics.views.meshcat.mechanism_views import conditioning_view as conditioning_view
+from kinematics.views.meshcat.mechanism_views import parallel_view as parallel_view
+from kinematics.views.meshcat.scene import Scene as Scene
+from kinematics.views.meshcat.serial_views import NEAR_SINGULAR as NEAR_SINGULAR
+from kinematics.views.meshcat.serial_views import default_pose as default_pose
+from kinematics.views.meshcat.serial_views import scara_view as scara_view
+from kinematics.views.meshcat.serial_views import serial_view as serial_view
+from kinematics.views.meshcat.skeletons import SKELETON_STYLE as SKELETON_STYLE
+from kinematics.views.meshcat.skeletons import skeleton_transforms as skeleton_transforms
+from kinematics.views.meshcat.visuals import visual_model as visual_model
 
-__all__ = [
-    "BACKGROUND",
-    "FOV_DEG",
-    "GRID_SQUARES",
-    "NEAR_SINGULAR",
-    "OPEN_LOOP_RTOL",
-    "SKELETON_SIZE",
-    "SKELETON_STYLE",
-    "VIEW_CELLS",
-    "Scene",
-    "Skeleton",
-    "SkeletonJoint",
-    "closed_loop_pose",
-    "closed_loop_view",
-    "conditioning_view",
-    "default_pose",
-    "parallel_view",
-    "scara_view",
-    "serial_view",
-    "skeleton",
-    "skeleton_transforms",
-    "visual_model",
-]

@@ -73,9 +73,9 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
         if singularities:
             from matplotlib.colors import to_rgb
 
-            from kinematics.analyses.singularities import scara_singularities
+            from kinematics.mechanisms.scara.joint_space import singular_set
 
-            pts = scara_singularities(sp)["singular_points"]
+            pts = singular_set(sp)["singular_points"]
             scene.add_points(np.hstack([pts, np.full((len(pts), 1), tool[2] + 0.002)]), name="overlays/singular",
                              colour=to_rgb(SCARA_SINGULAR_COLOUR), size=0.012,
                              label=f"singular: theta2 = 0 ({len(pts)} points)")

@@ -1,0 +1,11 @@
+from .batched import BatchedKinematics as BatchedKinematics
+from .closedloop import ClosedLoop as ClosedLoop
+from .closedloop import LoopSolution as LoopSolution
+from .manipulability import Ellipsoid as Ellipsoid
+from .manipulability import ellipsoid as ellipsoid
+from .serial import Pose as Pose
+from .serial import forward_kinematics as forward_kinematics
+from .serial import frame_jacobian as frame_jacobian
+from .serial import task_jacobian as task_jacobian
+from .singularity import SINGULAR_TOL as SINGULAR_TOL
+from .singularity import classify as classify

@@ -1,0 +1,16 @@
+from .base import CAPABILITIES as CAPABILITIES
+from .base import SINGULAR_TOL as SINGULAR_TOL
+from .base import SINGULARITY_TYPES as SINGULARITY_TYPES
+from .base import UNION as UNION
+from .base import Assemblies as Assemblies
+from .base import BranchIK as BranchIK
+from .base import MarginFn as MarginFn
+from .base import Mechanism as Mechanism
+from .base import PoseFK as PoseFK
+from .base import PoseIK as PoseIK
+from .base import PoseJacobians as PoseJacobians
+from .base import SingularFields as SingularFields
+from .base import Velocity as Velocity
+from .base import classify as classify
+from .dispatch import families as families
+from .dispatch import mechanism_of as mechanism_of

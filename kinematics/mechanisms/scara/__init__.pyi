@@ -1,0 +1,2 @@
+from .closed_form import ScaraParams as ScaraParams
+from .mechanism import Scara as Scara

@@ -1,0 +1,2 @@
+from . import meshcat as meshcat
+from . import plots as plots
