@@ -515,6 +515,9 @@ class ExactColumns:
     int64 and the inside extent along the axis of the last target (M, 2) (NaN where empty).
     """
 
+    method = "real roots of polynomials of degree <= 6"
+    """How the ends are found (for reports)."""
+
     def __init__(self, params: DeltaParams, modes: np.ndarray, passive: bool) -> None:
         self.passive = bool(passive)
         self.g = kernel_geometry(params)
