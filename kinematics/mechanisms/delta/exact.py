@@ -46,203 +46,27 @@ from numba import njit, prange
 
 from kinematics.mechanisms.base import MarginFn
 from kinematics.mechanisms.delta.closed_form import DeltaParams
+from kinematics.mechanisms.delta.roots import (
+    DEG,
+    ROOT_ERROR,
+    end_error,
+    poly_mul,
+    poly_value,
+    quadratic_roots,
+    real_roots,
+)
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
 
 __all__ = ["ROOT_ERROR", "DeltaMargin", "ExactColumns", "kernels"]
 
-ROOT_ERROR = 1e-14
-"""Least error [m] charged per interval end (the root's own rounding)."""
-
-_DEG = 6
+_DEG = DEG
 _NPOLY = 5  # per limb: reach, actuator low, actuator high, elbow cone, platform cone
 _CAP = 3 * (4 + 2 + 2 + 4 + 6) + 2
-_EPS = 2.220446049250313e-16
-
-
-@njit(cache=True)
-def _mul(a, b, out):  # pragma: no cover - compiled
-    """out = a * b (coefficients, lowest first; every array of length _DEG + 1, product degree <= _DEG)."""
-    out[:] = 0.0
-    for i in range(_DEG + 1):
-        if a[i] != 0.0:
-            for j in range(_DEG + 1 - i):
-                out[i + j] += a[i] * b[j]
-
-
-@njit(cache=True)
-def _horner(c, n, s):  # pragma: no cover - compiled
-    """(p(s), sum |c_k s^k|) for the polynomial c[0:n + 1]."""
-    v = 0.0
-    w = 0.0
-    a = abs(s)
-    for k in range(n, -1, -1):
-        v = v * s + c[k]
-        w = w * a + abs(c[k])
-    return v, w
-
-
-@njit(cache=True)
-def _end_error(c, n, z, lo, hi):  # pragma: no cover - compiled
-    """Rounding error [m] of the root z of c[0:n + 1]: 32 eps sum_k |c_k z^k| / |p'(z)|, within
-    [ROOT_ERROR, hi - lo]."""
-    _f, w = _horner(c, n, z)
-    d = 0.0
-    for k in range(n, 0, -1):
-        d = d * z + k * c[k]
-    return min(max(32.0 * _EPS * w / abs(d), ROOT_ERROR), hi - lo) if d != 0.0 else hi - lo
-
-
-@njit(cache=True)
-def _value(c, n, s):  # pragma: no cover - compiled
-    """p(s) for the polynomial c[0:n + 1]."""
-    v = 0.0
-    for k in range(n, -1, -1):
-        v = v * s + c[k]
-    return v
-
-
-@njit(cache=True)
-def _root(c, n, a, b, fa, fb):  # pragma: no cover - compiled
-    """The root of c[0:n + 1] in [a, b], where it is monotone with a sign change (fa = p(a),
-    fb = p(b)): Newton's iteration from the secant's root, bisecting whenever a step leaves the
-    bracket; once a step is below 1e-9 (1 + |x|) one more converges quadratically to the rounding level."""
-    x = a - fa * (b - a) / (fb - fa)
-    if not a < x < b:
-        x = 0.5 * (a + b)
-    last = False
-    for _ in range(200):
-        f = c[n]
-        d = 0.0
-        for k in range(n - 1, -1, -1):
-            d = d * x + f
-            f = f * x + c[k]
-        if f == 0.0:
-            return x
-        if (f < 0.0) == (fa < 0.0):
-            a, fa = x, f
-        else:
-            b = x
-        xn = x - f / d if d != 0.0 else 0.5 * (a + b)
-        if not a <= xn <= b:
-            xn = 0.5 * (a + b)
-        if last or b - a <= 4e-16 * (1.0 + abs(x)):
-            return xn
-        last = abs(xn - x) <= 1e-9 * (1.0 + abs(x))
-        x = xn
-    return x
-
-
-@njit(cache=True)
-def _bernstein_variations(c, n, lo, hi, bz):  # pragma: no cover - compiled
-    """Sign variations of c[0:n + 1]'s Bernstein coefficients on [lo, hi] (bz: a buffer), or -1
-    when one is too near zero to count: by Descartes' rule for the Bernstein basis, 0 means no
-    root in (lo, hi) and 1 exactly one."""
-    for k in range(n + 1):  # Taylor shift to lo (repeated synthetic division)
-        bz[k] = c[k]
-    for j in range(n):
-        for k in range(n - 1, j - 1, -1):
-            bz[k] += lo * bz[k + 1]
-    w = hi - lo
-    f = 1.0
-    for k in range(n + 1):
-        bz[k] *= f
-        f *= w
-    # monomial -> Bernstein: b_i = sum_{k <= i} C(i, k) / C(n, k) a_k, in place from the top
-    big = 0.0
-    for i in range(n, -1, -1):
-        acc = 0.0
-        cik = 1.0  # C(i, k)
-        cnk = 1.0  # C(n, k)
-        for k in range(i + 1):
-            acc += cik / cnk * bz[k]
-            cik = cik * (i - k) / (k + 1)
-            cnk = cnk * (n - k) / (k + 1)
-        bz[n + 1 + i] = acc
-        big = max(big, abs(acc))
-    v = 0
-    for i in range(n + 1):
-        b = bz[n + 1 + i]
-        if abs(b) <= 1e-11 * big:
-            return -1
-        if i > 0 and (b < 0.0) != (bz[n + i] < 0.0):
-            v += 1
-    return v
-
-
-@njit(cache=True)
-def _real_roots(c, lo, hi, out, err, ids, n_out, cid, work, crit):  # pragma: no cover - compiled
-    """Append the real roots of the polynomial c (length _DEG + 1) inside (lo, hi) to out[n_out:]
-    (with their rounding errors in err, tagged cid); returns the new count. work (_DEG + 1,
-    _DEG + 1), crit (_DEG + 2, 2 _DEG + 2): buffers. The Bernstein coefficients' sign variations
-    settle the usual cases (no root, one root); otherwise the derivatives' roots split [lo, hi]
-    into monotone pieces."""
-    n = _DEG
-    scale = 0.0
-    for k in range(_DEG + 1):
-        scale = max(scale, abs(c[k]))
-    while n > 0 and abs(c[n]) <= 1e-14 * scale:
-        n -= 1
-    if n == 0:
-        return n_out
-    v = _bernstein_variations(c, n, lo, hi, crit[_DEG + 1])
-    if v == 0:
-        return n_out
-    # work[k]: the k-th derivative of c
-    for k in range(_DEG + 1):
-        work[0, k] = c[k] if k <= n else 0.0
-    for j in range(1, n):
-        for k in range(n - j + 1):
-            work[j, k] = work[j - 1, k + 1] * (k + 1)
-    # crit[j]: lo, the sign-changing roots of derivative j in (lo, hi), hi; from the constant
-    # derivative n (no root) down to c itself
-    top = n - 1 if v != 1 else 0  # exactly one root: bracket it by [lo, hi] directly
-    crit[top + 1, 0], crit[top + 1, 1] = lo, hi
-    m = 0  # number of interior points at level j + 1
-    for j in range(top, -1, -1):
-        deg = n - j
-        cnt = 0
-        crit[j, 0] = lo
-        for q in range(m + 1):
-            a, b = crit[j + 1, q], crit[j + 1, q + 1]
-            fa = _value(work[j], deg, a)
-            fb = _value(work[j], deg, b)
-            if fa == 0.0 or fb == 0.0 or (fa < 0.0) == (fb < 0.0):
-                continue
-            cnt += 1
-            crit[j, cnt] = _root(work[j], deg, a, b, fa, fb)
-        crit[j, cnt + 1] = hi
-        m = cnt
-    for q in range(1, m + 1):
-        out[n_out] = crit[0, q]
-        err[n_out] = _end_error(c, n, crit[0, q], lo, hi)
-        ids[n_out] = cid
-        n_out += 1
-    return n_out
-
-
-@njit(cache=True)
-def _quadratic_roots(c, lo, hi, out, err, ids, n_out, cid):  # pragma: no cover - compiled
-    """`_real_roots` for c[0] + c[1] s + c[2] s^2 (c[2] != 0), by the quadratic formula in its
-    cancellation-free form."""
-    a, b, cc = c[2], c[1], c[0]
-    disc = b * b - 4.0 * a * cc
-    if not disc > 0.0:  # no root or a double one (a tangency: no sign change)
-        return n_out
-    sq = math.sqrt(disc)
-    q = -0.5 * (b + sq if b >= 0.0 else b - sq)  # |q| >= sqrt(disc) / 2 > 0
-    for k in range(2):
-        z = q / a if k == 0 else cc / q
-        if lo < z < hi:
-            out[n_out] = z
-            err[n_out] = _end_error(c, 2, z, lo, hi)
-            ids[n_out] = cid
-            n_out += 1
-    return n_out
 
 
 @njit(cache=True)
 def _through_rho2(b1, b0, rho2, c, lo, hi, out, err, ids, n_out, cid):  # pragma: no cover - compiled
-    """`_real_roots` of the quartic c = q(K(s)) when K is a function of rho^2 alone (y constant
+    """`real_roots` of the quartic c = q(K(s)) when K is a function of rho^2 alone (y constant
     along the column): the roots u of q(u) = u^2 + b1 u + b0, then rho^2(s) = 2 l_a u - c_K for
     each, quadratics both (rho2 (_DEG + 1): rho^2(s), with rho2[_DEG] holding 2 l_a and
     rho2[_DEG - 1] c_K)."""
@@ -263,7 +87,7 @@ def _through_rho2(b1, b0, rho2, c, lo, hi, out, err, ids, n_out, cid):  # pragma
             z = qq / a2 if k == 0 else (a0 - r) / qq
             if lo < z < hi:
                 out[n_out] = z
-                err[n_out] = _end_error(c, 4, z, lo, hi)
+                err[n_out] = end_error(c, 4, z, lo, hi)
                 ids[n_out] = cid
                 n_out += 1
     return n_out
@@ -307,7 +131,7 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     aux[0] = 1.0 if y1 == 0.0 else 0.0
     aux[1], aux[2] = -2.0 * la, cK
     D = P[0]
-    _mul(K, K, D)
+    poly_mul(K, K, D)
     for k in range(5):
         D[k] = (rho2[k] if k < 3 else 0.0) - D[k]
     for j in (1, 2):
@@ -327,7 +151,7 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     for k in range(3):
         a[k] = K[k] * cE
     a[0] -= la * cE + lb * cc
-    _mul(a, a, P[3])
+    poly_mul(a, a, P[3])
     for k in range(5):
         P[3, k] -= sE2 * D[k]
     m = la * cE + lb * cc
@@ -339,18 +163,18 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     b[:] = 0.0
     b[0] = -(se * x0 + st * y0 + spz * h0) - lb * cc
     b[1] = -(se * x1 + st * y1 + spz * h1)
-    _mul(rho2, b, a)
+    poly_mul(rho2, b, a)
     b[0] = la * (se * x0 + spz * h0)
     b[1] = la * (se * x1 + spz * h1)
     pp = P[4]
-    _mul(K, b, pp)  # l_a K (x e.s_P + h s_Pz)
+    poly_mul(K, b, pp)  # l_a K (x e.s_P + h s_Pz)
     for k in range(4):
         a[k] += pp[k]
-    _mul(a, a, pp)  # P^2
+    poly_mul(a, a, pp)  # P^2
     q0, q1 = la * (se * h0 - spz * x0), la * (se * h1 - spz * x1)  # Q
     _lin_mul(q0, q1, q0, q1, b)
     b[3:] = 0.0
-    _mul(b, D, a)
+    poly_mul(b, D, a)
     for k in range(_DEG + 1):
         pp[k] -= a[k]
 
@@ -373,7 +197,7 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, z
             n = _through_rho2(polys[i, _NPOLY + 1, 1], polys[i, _NPOLY + 1, 2], polys[i, _NPOLY], polys[i, 0], z0, z1,
                               cand, err, ids, n, 8 * i)
         else:
-            n = _real_roots(polys[i, 0], z0, z1, cand, err, ids, n, 8 * i, work, crit)
+            n = real_roots(polys[i, 0], z0, z1, cand, err, ids, n, 8 * i, work, crit)
     cand[n], err[n], ids[n] = z1, 0.0, -2
     n += 1
     _sort(cand, err, ids, n)
@@ -385,7 +209,7 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, z
         zm = 0.5 * (cand[k] + cand[k + 1])
         ok = True
         for i in range(3):
-            if _value(polys[i, 0], 4, zm) < 0.0:
+            if poly_value(polys[i, 0], 4, zm) < 0.0:
                 ok = False
         if ok:
             if lo_k < 0:
@@ -404,12 +228,12 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, z
     for i in range(3):
         for j in range(1, _NPOLY if passive else 3):
             if j < 3:  # actuator bounds: quadratics with leading coefficient -1 / (2 l_a) (of -K)
-                n = _quadratic_roots(polys[i, j], lo, hi, cand, err, ids, n, 8 * i + j)
+                n = quadratic_roots(polys[i, j], lo, hi, cand, err, ids, n, 8 * i + j)
             elif j == 3 and polys[i, _NPOLY + 1, 0] != 0.0:
                 n = _through_rho2(polys[i, _NPOLY + 1, 3], polys[i, _NPOLY + 1, 4], polys[i, _NPOLY], polys[i, 3], lo, hi,
                                   cand, err, ids, n, 8 * i + j)
             else:
-                n = _real_roots(polys[i, j], lo, hi, cand, err, ids, n, 8 * i + j, work, crit)
+                n = real_roots(polys[i, j], lo, hi, cand, err, ids, n, 8 * i + j, work, crit)
     cand[n], err[n], ids[n] = hi, hi_e, hi_id
     n += 1
     _sort(cand, err, ids, n)
