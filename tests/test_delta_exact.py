@@ -97,3 +97,38 @@ def test_exact_columns_against_the_generic_path(delta):
         else:
             assert np.all(exact[:, -1] <= gen[:, -1] + 5e-10)
             assert np.any(exact[:, -1] < gen[:, -1] - 1e-3)  # the cones do cut where the box does not
+
+
+def test_real_roots_of_polynomials_with_known_roots():
+    """`roots.real_roots` on polynomials built from their roots (up to 6 real ones at least 1e-3
+    apart, or fewer times s^2 + q with q > 0 for a complex pair), on intervals that cut some roots
+    off: exactly the roots inside, each to 1e-12 (the coefficients' rounding over a unit interval),
+    within its own error estimate plus that."""
+    from kinematics.mechanisms.delta.roots import DEG, real_roots
+
+    rng = np.random.default_rng(5)
+    out, err, ids = np.empty(64), np.empty(64), np.empty(64, np.int64)
+    work, stack = np.zeros((DEG + 1, DEG + 1)), np.zeros((64, 2 * DEG + 2))
+    checked = 0
+    for _ in range(300):
+        k = int(rng.integers(1, DEG + 1))
+        while True:
+            r = np.sort(rng.uniform(-1.0, 1.0, k))
+            if k == 1 or np.diff(r).min() > 1e-3:
+                break
+        c = np.polynomial.polynomial.polyfromroots(r) * rng.uniform(0.5, 2.0) * rng.choice([-1.0, 1.0])
+        if k <= DEG - 2 and rng.random() < 0.5:
+            c = np.polynomial.polynomial.polymul(c, [rng.uniform(0.01, 1.0), 0.0, 1.0])
+        coef = np.zeros(DEG + 1)
+        coef[:len(c)] = c
+        lo, hi = sorted(rng.uniform(-1.2, 1.2, 2))
+        want = r[(r > lo + 1e-9) & (r < hi - 1e-9)]
+        if np.any(np.abs(r - lo) <= 1e-9) or np.any(np.abs(r - hi) <= 1e-9):
+            continue
+        n = real_roots(coef, lo, hi, out, err, ids, 0, 3, work, stack)
+        got = np.sort(out[:n])
+        assert n == len(want), (r, lo, hi, got)
+        assert np.all(np.abs(got - want) <= 1e-12 + err[:n][np.argsort(out[:n])]), (got - want, err[:n])
+        assert np.all(ids[:n] == 3)
+        checked += n
+    assert checked > 200

@@ -25,11 +25,12 @@ A mode's margin is the minimum of its limbs' slacks and the union's the maximum 
 every target's margin keeps its sign between consecutive real roots: the reach quartics first
 (the columns' hull where every limb reaches), then the other polynomials' roots inside it, sorted;
 the scan kernel's own margin at each gap's midpoint says which gaps are inside. Nothing shorter
-than a sampling step can be missed. Real roots in an interval come from the derivatives' roots
-(between consecutive roots of p' the polynomial p is monotone: at most one root, found by Newton
-iteration safeguarded by bisection), so none is lost to a sampling grid. Each end is charged the
-rounding of its polynomial's evaluation over its slope, 32 eps sum_k |a_k s^k| / |p'(s)| (at
-least ROOT_ERROR): large only at near-tangencies, where it is honest.
+than a sampling step can be missed. Real roots in an interval come from Bernstein subdivision
+(`roots.real_roots`: no sign variation, no root; one, exactly one, found by safeguarded Newton),
+so none is lost to a sampling grid; the reach and elbow quartics of a column along which y is
+constant (every vertical column) are quadratics in K, solved in closed form (`_through_rho2`).
+Each end is charged the rounding of its polynomial's evaluation over its slope,
+32 eps sum_k |a_k s^k| / |p'(s)| (at least ROOT_ERROR): large only at near-tangencies.
 
 Each column also returns a *signature*, a hash of, per target, the constraint (limb, polynomial)
 that ends each inside interval, which `kinematics.analyses.columns` uses as the 3-[P2(US)]'s
@@ -315,7 +316,7 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_e
         err = np.empty(_CAP)
         ids = np.empty(_CAP, np.int64)
         work = np.zeros((_DEG + 1, _DEG + 1))
-        crit = np.zeros((_DEG + 2, 2 * _DEG + 2))
+        crit = np.zeros((64, 2 * _DEG + 2))
         prev_in = np.zeros(T, np.bool_)
         pm = np.empty(8)
         pt = np.zeros(3)

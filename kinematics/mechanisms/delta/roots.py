@@ -1,13 +1,16 @@
 """Real roots of polynomials of degree <= 6 inside an interval, compiled with Numba (for the
 Delta's exact columns, `kinematics.mechanisms.delta.exact`).
 
-Coefficients are stored lowest first in arrays of length DEG + 1. `real_roots` first counts the
-sign variations of the Bernstein coefficients on the interval (Descartes' rule for that basis: none
-means no root, one exactly one); otherwise the derivatives' sign-changing roots, found from the
-highest derivative down, split the interval into pieces where the polynomial is monotone, and
-each piece with a sign change holds exactly one root, found by Newton's iteration safeguarded by
-bisection. Every root found carries its rounding error 32 eps sum_k |a_k s^k| / |p'(s)| (at least
-ROOT_ERROR), large only near a double root.
+Coefficients are stored lowest first in arrays of length DEG + 1. `real_roots` works on the
+Bernstein coefficients on the interval: by Descartes' rule for that basis an interval whose
+coefficients have no sign variation holds no root and one with a single variation exactly one,
+found by Newton's iteration safeguarded by bisection (`monotone_root`); any other interval is
+halved (de Casteljau) until one of these holds or it is narrower than 1e-13 (1 + |s|). Every root
+found carries its rounding error 32 eps sum_k |a_k s^k| / |p'(s)| (at least ROOT_ERROR, and at
+least the interval's width where halving stopped), large only near a double root.
+
+Numba caches a kernel that calls these functions with the caller's module: after editing this
+file, delete the callers' cache (`__pycache__/exact.*.nb*`) or touch their modules.
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ def monotone_root(c, n, a, b, fa, fb):  # pragma: no cover - compiled
     """The root of c[0:n + 1] in [a, b], where it is monotone with a sign change (fa = p(a),
     fb = p(b)): Newton's iteration from the secant's root, bisecting whenever a step leaves the
     bracket; once a step is below 1e-9 (1 + |x|) one more converges quadratically to the rounding level."""
-    x = a - fa * (b - a) / (fb - fa)
+    x = a - fa * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
     if not a < x < b:
         x = 0.5 * (a + b)
     last = False
@@ -139,12 +142,29 @@ def bernstein_variations(c, n, lo, hi, bz):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def real_roots(c, lo, hi, out, err, ids, n_out, cid, work, crit):  # pragma: no cover - compiled
+def _variations(B, n):  # pragma: no cover - compiled
+    """Sign variations of B[0:n + 1], or -1 when a coefficient is too near zero to count."""
+    big = 0.0
+    for i in range(n + 1):
+        big = max(big, abs(B[i]))
+    v = 0
+    for i in range(n + 1):
+        if abs(B[i]) <= 1e-11 * big:
+            return -1
+        if i > 0 and (B[i] < 0.0) != (B[i - 1] < 0.0):
+            v += 1
+    return v
+
+
+@njit(cache=True)
+def real_roots(c, lo, hi, out, err, ids, n_out, cid, work, stack):  # pragma: no cover - compiled
     """Append the real roots of the polynomial c (length DEG + 1) inside (lo, hi) to out[n_out:]
     (with their rounding errors in err, tagged cid); returns the new count. work (DEG + 1,
-    DEG + 1), crit (DEG + 2, 2 DEG + 2): buffers. The Bernstein coefficients' sign variations
-    settle the usual cases (no root, one root); otherwise the derivatives' roots split [lo, hi]
-    into monotone pieces."""
+    DEG + 1), stack (S, 2 DEG + 2): buffers (S >= 64). Bernstein subdivision: an interval whose
+    coefficients have no sign variation holds no root, one with one variation exactly one (found
+    by `monotone_root`); any other is halved (de Casteljau) down to a width of 1e-13 (1 + |s|), where
+    an odd sign change counts as one root at its middle (its error: at least that width) and an even
+    one (a tangency) as none."""
     n = DEG
     scale = 0.0
     for k in range(DEG + 1):
@@ -153,39 +173,51 @@ def real_roots(c, lo, hi, out, err, ids, n_out, cid, work, crit):  # pragma: no 
         n -= 1
     if n == 0:
         return n_out
-    v = bernstein_variations(c, n, lo, hi, crit[DEG + 1])
-    if v == 0:
+    if bernstein_variations(c, n, lo, hi, stack[0]) == 0:
         return n_out
-    # work[k]: the k-th derivative of c
-    for k in range(DEG + 1):
-        work[0, k] = c[k] if k <= n else 0.0
-    for j in range(1, n):
-        for k in range(n - j + 1):
-            work[j, k] = work[j - 1, k + 1] * (k + 1)
-    # crit[j]: lo, the sign-changing roots of derivative j in (lo, hi), hi; from the constant
-    # derivative n (no root) down to c itself
-    top = n - 1 if v != 1 else 0  # exactly one root: bracket it by [lo, hi] directly
-    crit[top + 1, 0], crit[top + 1, 1] = lo, hi
-    m = 0  # number of interior points at level j + 1
-    for j in range(top, -1, -1):
-        deg = n - j
-        cnt = 0
-        crit[j, 0] = lo
-        for q in range(m + 1):
-            a, b = crit[j + 1, q], crit[j + 1, q + 1]
-            fa = poly_value(work[j], deg, a)
-            fb = poly_value(work[j], deg, b)
-            if fa == 0.0 or fb == 0.0 or (fa < 0.0) == (fb < 0.0):
+    for i in range(n + 1):  # the Bernstein coefficients on [lo, hi], then the interval
+        stack[0, i] = stack[0, n + 1 + i]
+    stack[0, DEG + 1], stack[0, DEG + 2] = lo, hi
+    top = 1
+    while top > 0:
+        top -= 1
+        B = stack[top]
+        a, b = B[DEG + 1], B[DEG + 2]
+        v = _variations(B, n)
+        if v == 0:
+            continue
+        small = b - a <= 1e-13 * (1.0 + abs(a)) or top + 2 > stack.shape[0]
+        width = 0.0
+        if v == 1:  # (every coefficient nonzero)
+            z = monotone_root(c, n, a, b, poly_value(c, n, a), poly_value(c, n, b))
+        elif small:  # the root's position is known to the interval's width
+            if B[0] * B[n] < 0.0:
+                z = 0.5 * (a + b)
+            elif B[n] == 0.0 and B[0] != 0.0:  # exactly at b (a halving point)
+                z = b
+            else:
                 continue
-            cnt += 1
-            crit[j, cnt] = monotone_root(work[j], deg, a, b, fa, fb)
-        crit[j, cnt + 1] = hi
-        m = cnt
-    for q in range(1, m + 1):
-        out[n_out] = crit[0, q]
-        err[n_out] = end_error(c, n, crit[0, q], lo, hi)
-        ids[n_out] = cid
-        n_out += 1
+            width = b - a
+        else:  # halve: de Casteljau at 1/2, the right half into row top + 1, the left in place
+            R = stack[top + 1]
+            for i in range(n + 1):
+                work[0, i] = B[i]
+            for j in range(1, n + 1):
+                for i in range(n + 1 - j):
+                    work[j, i] = 0.5 * (work[j - 1, i] + work[j - 1, i + 1])
+            for i in range(n + 1):
+                B[i] = work[i, 0]
+                R[i] = work[n - i, i]
+            m = 0.5 * (a + b)
+            B[DEG + 2] = m
+            R[DEG + 1], R[DEG + 2] = m, b
+            top += 2
+            continue
+        if lo < z < hi:
+            out[n_out] = z
+            err[n_out] = max(end_error(c, n, z, lo, hi), width)
+            ids[n_out] = cid
+            n_out += 1
     return n_out
 
 
