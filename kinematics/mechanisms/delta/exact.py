@@ -108,7 +108,7 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     t (4, _DEG + 1): a buffer."""
     ex, ey, tx, ty = g[7 * i], g[7 * i + 1], g[7 * i + 2], g[7 * i + 3]
     spx, spy, spz = g[7 * i + 4], g[7 * i + 5], g[7 * i + 6]
-    off, la, lb, lo, hi, cone, sock = g[21], g[22], g[23], g[24], g[25], g[27], g[28]
+    off, la, lb = g[21], g[22], g[23]
     vx, vy, vz = p0[0] + off * ex, p0[1] + off * ey, p0[2]
     ux, uy, uz = (1.0 if ax == 0 else 0.0), (1.0 if ax == 1 else 0.0), (1.0 if ax == 2 else 0.0)
     x0, x1 = vx * ex + vy * ey, ux * ex + uy * ey  # x = x0 + x1 s, likewise y and h
@@ -136,18 +136,17 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     for k in range(5):
         D[k] = (rho2[k] if k < 3 else 0.0) - D[k]
     for j in (1, 2):
-        th = lo if j == 1 else hi
-        cs, sn = math.cos(th), math.sin(th)
+        cs, sn = (g[30], g[31]) if j == 1 else (g[32], g[33])
         P[j, :] = 0.0
         P[j, 0] = cs * x0 - sn * h0 - K[0]
         P[j, 1] = cs * x1 - sn * h1 - K[1]
         P[j, 2] = -K[2]
     if not passive:
         return
-    cc = math.cos(cone)
+    cc = g[34]
     # elbow: ((K - l_a) cos c_E - l_b cos(cone))^2 - sin^2(c_E) D
     a = t[2]
-    cE, sE2 = math.cos(sock), math.sin(sock) ** 2
+    cE, sE2 = g[35], g[36]
     a[:] = 0.0
     for k in range(3):
         a[k] = K[k] * cE
@@ -345,7 +344,11 @@ class ExactColumns:
 
     def __init__(self, params: DeltaParams, modes: np.ndarray, passive: bool) -> None:
         self.passive = bool(passive)
-        self.g = kernel_geometry(params)
+        lo, hi = params.theta_limits
+        # the scan kernel's geometry, then the trigonometry `_limb_polys` needs (indices 30-36)
+        self.g = np.concatenate([kernel_geometry(params), [
+            math.cos(lo), math.sin(lo), math.cos(hi), math.sin(hi), math.cos(params.cone),
+            math.cos(params.elbow_socket), math.sin(params.elbow_socket) ** 2]])
         self.modes = np.ascontiguousarray(modes, dtype=np.int64)
 
     def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
