@@ -108,6 +108,10 @@ class SingularityScan:
         return bool(self.locus.interior.any())
 
 
+PLANES_POINTS = 1 << 18
+"""Grid points per `singular_fields` call (whole planes) for closed-form mechanisms."""
+
+
 def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, pb: np.ndarray,
            ia: np.ndarray, ib: np.ndarray, mode_cols: list[int], out: list[tuple]) -> None:
     """Sign changes along the edges a[k] -> b[k] (per-point arrays from `scan`)."""
@@ -162,20 +166,35 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
 
         bar = tqdm(total=planes, desc="singularities", unit="plane", delay=1.0, leave=False)
     prev = None
+    # closed forms (a design in `params`): a point's fields do not depend on the batch, so several
+    # planes go to one call (each call of a parallel kernel pays its threads' start-up); the
+    # generic solver, whose warm starts do depend on it, keeps one plane per call
+    per_call = max(1, PLANES_POINTS // len(ix)) if mech.params is not None else 1
+    fields: Any = None
+    block: Any = None
     for k in range(planes):
-        xyz = [lo[0] + step * ix, lo[1] + step * iy] + ([np.full(len(ix), lo[2] + step * k)] if len(dims) == 3 else [])
-        pts = np.stack(xyz, axis=1)
-        r = mech.singular_fields(pts, limits)
-        cur = {"margin": r.margin, "det": r.det, "disc": r.limb}
+        if k % per_call == 0:
+            ks = np.arange(k, min(planes, k + per_call))
+            zs = [np.full(len(ix) * len(ks), np.repeat(lo[2] + step * ks, len(ix)))] if len(dims) == 3 else []
+            block = np.stack([np.tile(lo[0] + step * ix, len(ks)), np.tile(lo[1] + step * iy, len(ks))] + zs, axis=1)
+            fields = mech.singular_fields(block, limits)
+        sl = slice((k % per_call) * len(ix), (k % per_call + 1) * len(ix))
+        pts = block[sl]
+        cur = {"margin": fields.margin[sl], "det": fields.det[sl], "disc": fields.limb[sl]}
         ids = plane_ids + k * len(plane_ids)
         grid = np.arange(len(ix)).reshape(dims[0], dims[1])
-        for sa, sb in ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel())):
+        signs = np.concatenate([cur["disc"] >= 0, cur["det"] > 0], axis=1)
+        for ea, eb in ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel())):
+            # only an edge whose ends differ in some sign can cross a locus (the same hits, in order)
+            e = np.flatnonzero((signs[ea] != signs[eb]).any(axis=1))
+            sa, sb = ea[e], eb[e]
             _edges({n: v[sa] for n, v in cur.items()}, {n: v[sb] for n, v in cur.items()},
                    pts[sa], pts[sb], ids[sa], ids[sb], mode_cols, found)
         if prev is not None:
-            pcur, pprev, idprev = pts, prev[1], prev[2]
-            _edges(prev[0], cur, pprev, pcur, idprev, ids, mode_cols, found)
-        prev = (cur, pts, ids)
+            e = np.flatnonzero((prev[3] != signs).any(axis=1))
+            _edges({n: v[e] for n, v in prev[0].items()}, {n: v[e] for n, v in cur.items()}, prev[1][e], pts[e],
+                   prev[2][e], ids[e], mode_cols, found)
+        prev = (cur, pts, ids, signs)
         if bar is not None:
             bar.update(1)
     if bar is not None:

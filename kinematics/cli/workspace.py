@@ -297,7 +297,9 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         print(f"warning: {_not_converged(ws)}", file=sys.stderr)
 
     def human() -> str:
-        return _report(ws, payload, paper, mech)
+        exact = getattr(mech.margin(branches, args.limits), "exact_columns", None)
+        return _report(ws, payload, paper, mech,
+                       None if exact is None else getattr(exact, "method", "roots of quadratics"))
 
     out(args, payload, human)
     return 0
@@ -334,7 +336,8 @@ def _not_converged(ws: Any) -> str:
     return f"not converged on {len(failed)} of {len(ws.targets)} targets ({detail}); {advice}"
 
 
-def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mechanism) -> str:
+def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mechanism, exact: str | None) -> str:
+    """The human report; `exact`: how the margin's exact columns find their ends (None: sampled)."""
     unit = "m^2" if ws.planar else "m^3"
     key = "area" if ws.planar else "volume"
     r = ws.result
@@ -353,8 +356,8 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
         ("method", ("cell refinement" if payload.get("method") != "columns" else
                     "sampled columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
-                    f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar else
-                    "exact columns (roots of quadratics) + Gauss rules between located breaks; a feature narrower "
+                    f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar or exact is None else
+                    f"exact columns ({exact}) + Gauss rules between located breaks; a feature narrower "
                     f"than the node spacing {fmt(r.step)} m across columns can be missed")),
         *([("not converged", _not_converged(ws))] if not r.converged else []),
         ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),

@@ -101,17 +101,11 @@ class Delta(ThreeLimbMechanism):
         return lo, hi
 
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
+        from kinematics.mechanisms.delta.exact import DeltaMargin
+
         cols = [cf.MODES.index(b) for b in self.check_branches(branches)]
         self.check_limits(limits)
-        params = self.params
-
-        passive = limits == "all"
-
-        def margin(points: np.ndarray) -> np.ndarray:
-            m = scan(params, points, passive).margin[:, cols]  # (N, B)
-            return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
-
-        return margin
+        return DeltaMargin(self.params, cols, limits == "all")
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of
@@ -120,6 +114,6 @@ class Delta(ThreeLimbMechanism):
         return SingularFields(s.margin, s.disc, s.det)
 
     def kernels(self) -> tuple[Any, ...]:
-        from kinematics.mechanisms.delta.scan import kernels
+        from kinematics.mechanisms.delta import exact, scan
 
-        return kernels()
+        return (*scan.kernels(), *exact.kernels())

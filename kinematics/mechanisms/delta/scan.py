@@ -31,7 +31,7 @@ from numba import njit, prange
 from kinematics.mechanisms.delta.closed_form import DeltaParams
 from kinematics.mechanisms.translational import BOUNDARY_TOL
 
-__all__ = ["DeltaScan", "kernel_geometry", "kernels", "scan"]
+__all__ = ["DeltaScan", "kernel_geometry", "kernels", "limb_kernel", "scan"]
 
 
 class DeltaScan(NamedTuple):
@@ -110,6 +110,9 @@ def _limb(px, py, pz, g, i, passive, out):  # pragma: no cover - compiled
         out[4 + 3 * r] = nz
     return (lb - near) * (far - lb)
 
+
+limb_kernel = _limb
+"""One limb's slacks at a point, compiled (`kinematics.mechanisms.delta.exact` tests its columns' gaps with it)."""
 
 _BLOCK = 256
 """Points per work item of the parallel loop (the per-limb scratch arrays are allocated once per block)."""

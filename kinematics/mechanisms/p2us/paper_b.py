@@ -223,16 +223,17 @@ def binding_limits(params: Any, mode: str = WORKING_MODE, n: int = 200_000, seed
     """How much volume each passive limit removes from a mode's strokes-only workspace [m^3]:
     a seeded Monte Carlo through the NumPy closed forms (volume, standard error), so a report can
     say which limits bind and by how much. A limit that never binds in the sample reports 0."""
-    from kinematics.mechanisms.p2us.closed_form import ik, limb_limits, mode_index
+    from kinematics.mechanisms.p2us.closed_form import limb_ik, limb_limits, mode_index
     from kinematics.mechanisms.p2us.scan import bounding_box
 
+    mode_index(mode)
     lo, hi = bounding_box(params)
     p = lo + (hi - lo) * np.random.default_rng(seed).random((n, 3))
-    res = ik(params, p, limits=False)
-    inside = res.within_limits[:, mode_index(mode)]
+    limbs = limb_ik(params, p)
+    stroke_ok, theta_ok, phi_ok = limb_limits(params, limbs)  # once: `ik` would evaluate them again
     roots = [0 if c == "+" else 1 for c in mode]
-    _, theta_ok, phi_ok = limb_limits(params, res.limbs)
     idx = np.arange(3)
+    inside = np.all((limbs.reach[..., None] & stroke_ok)[:, idx, roots], axis=-1)  # strokes only
     box = float(np.prod(hi - lo))
     out: dict[str, Any] = {"mode": mode, "samples": n}
     for name, ok in (("theta", theta_ok), ("phi", phi_ok)):
