@@ -623,7 +623,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     if not some and nheld[k] > 0:
                         for q in range(S):
                             verdict = warm[i, k, q, warm.shape[3] - 1]
-                            if need[q] and not (verdict == 0.0):
+                            if need[q] and verdict != 0.0:  # NaN (not tried there) restarts too
                                 some = True
                     if not some:
                         break
