@@ -88,6 +88,7 @@ class ColumnVolume:
             check, the two runs agree on it within their estimates (`converged` also needs the
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
+        root_tol: sampled columns: the width [m] every root was bracketed to.
     """
 
     estimate: np.ndarray
@@ -102,6 +103,7 @@ class ColumnVolume:
     box: np.ndarray
     target_converged: np.ndarray
     check_agrees: np.ndarray
+    root_tol: float = ROOT_TOL
 
 
 def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:
@@ -555,7 +557,7 @@ def column_volume(
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
         target_converged=agrees & _within(first.estimate, first.error, rtol, floor)
         & _within(second.estimate, error, rtol, floor),
-        check_agrees=agrees,
+        check_agrees=agrees, root_tol=second.root_tol,
     )
 
 
@@ -697,5 +699,5 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         step=step, cell=8 * step, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
-        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool),
+        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool), root_tol=root_tol,
     )
