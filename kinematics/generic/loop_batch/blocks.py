@@ -12,7 +12,9 @@ least-squares points of targets outside), else (2) the atlas configuration of th
 also tried where a neighbour's end stalled less than the continuation radius from closure (a
 neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
 `restarts` quasi-random starts of the block's unknowns where another slot of the block was found
-or the block holds joints of earlier blocks that closed. Blocks are solved in a dependency order,
+or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
+(a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
+where it was tried and not found means no restarts). Blocks are solved in a dependency order,
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.

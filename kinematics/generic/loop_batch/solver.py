@@ -15,7 +15,8 @@ is reported absent (margin < 0): most likely in a branch region that does not co
 reference position's branch of the same label and is far from the batch's other points, or next
 to the workspace's boundary where the nearest solved point lies outside, its least-squares point
 leads nowhere and the atlas start lies in another basin (restarts are not spent on a labelling
-block with no root at all: outside they would cost most of the time). Solutions whose label is
+block with no root at all, nor on a block built on closed blocks where the neighbour that gave the
+start found no root of that slot either: outside they would cost most of the time). Solutions whose label is
 not in the atlas (assembly modes absent at the reference position) are counted in
 `BranchSolutions.unlabelled`, not returned. Two physically different poses with the same label at
 one target keep only the one nearest the reference (counted in `conflicts`).
