@@ -1,12 +1,12 @@
 """Every command on every Gepetto model folder, as a user runs them: status, time and figures.
 
 Run: python benchmarks/bench_models.py [--models DIR] [--only NAME ...] [--timeout S] [--jobs N]
-                                        [--quick] [--json | --markdown] [--from-json FILE]
+                                        [--rtol R] [--quick] [--json | --markdown] [--from-json FILE]
 
 Each (model, command) is one subprocess, `python -m kinematics COMMAND MODEL ... --json`, against
 this tree's code, with a time limit (the whole process group is killed at the limit). Commands:
 `info`, `fk`, `jacobian`, `mobility` (no --q: each closed loop at its default closed pose),
-`workspace-volume --rtol 1e-2` with `--range JOINT=-pi:pi` for every actuator (an open tree: every
+`workspace-volume --rtol 1e-2` (`--rtol`: another; the command's default is 1e-3) with `--range JOINT=-pi:pi` for every actuator (an open tree: every
 joint the URDF gives no range), and `show --export` to a temporary HTML file. `--quick` is a smoke
 run: info, fk and mobility only, 30 s limit, two at a time.
 
@@ -46,7 +46,7 @@ MODELS = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
 COMMANDS = ("info", "fk", "jacobian", "mobility", "workspace-volume", "show")
 QUICK_COMMANDS = ("info", "fk", "mobility")
 RTOL = 1e-2
-JSON_KEYS = ("machine", "models_dir", "commands", "timeout_s", "jobs", "quick", "skipped", "rows")
+JSON_KEYS = ("machine", "models_dir", "commands", "timeout_s", "jobs", "quick", "rtol", "skipped", "rows")
 ROW_KEYS = ("model", "command", "status", "seconds", "value", "error_estimate", "figure", "error")
 STATUS = {0: "ok", 1: "unreachable", 2: "error"}
 
@@ -69,11 +69,11 @@ def unbounded_actuators(folder: Path) -> list[str]:
     return list(robot.loops.actuated) if robot.loops is not None else list(robot.unranged)
 
 
-def argv_of(command: str, folder: Path, tmp: Path) -> list[str]:
+def argv_of(command: str, folder: Path, tmp: Path, rtol: float = RTOL) -> list[str]:
     """The command line after `python -m kinematics`."""
     argv = [command, str(folder), "--json"]
     if command == "workspace-volume":
-        argv += ["--rtol", repr(RTOL)]
+        argv += ["--rtol", repr(rtol)]
         for joint in unbounded_actuators(folder):
             argv += ["--range", f"{joint}={-math.pi!r}:{math.pi!r}"]
     elif command == "show":
@@ -183,7 +183,8 @@ def markdown(result: dict[str, Any]) -> str:
     counts: dict[str, int] = {}
     for r in rows:
         counts[r["status"]] = counts.get(r["status"], 0) + 1
-    out += ["", ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + f" of {len(rows)} runs; time limit "
+    out += ["", ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + f" of {len(rows)} runs; "
+            f"workspace-volume at rtol {result.get('rtol', RTOL):g}; time limit "
             f"{result['timeout_s']:g} s per run, {result['jobs']} at a time; " + machine_line(m)
             + (f"; load average at the end {m['load_average_end'][0]:.2f}" if "load_average_end" in m else "")]
     return "\n".join(out)
@@ -205,6 +206,7 @@ def main() -> None:
     ap.add_argument("--commands", nargs="+", choices=COMMANDS, default=list(COMMANDS), help="commands to run")
     ap.add_argument("--timeout", type=float, default=120.0, help="time limit per command [s] (default 120)")
     ap.add_argument("--jobs", type=int, default=1, help="commands run at a time (default 1: undisturbed timings)")
+    ap.add_argument("--rtol", type=float, default=RTOL, help=f"workspace-volume's --rtol (default {RTOL:g})")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
     ap.add_argument("--markdown", action="store_true", help="print docs/models.md's table")
     ap.add_argument("--from-json", type=Path, metavar="FILE", help="with --markdown: the table of a saved --json run")
@@ -214,7 +216,7 @@ def main() -> None:
         return
     machine = calibration()
     result: dict[str, Any] = {"machine": machine, "models_dir": str(args.models), "commands": list(args.commands),
-                              "timeout_s": args.timeout, "jobs": args.jobs, "quick": bool(args.quick),
+                              "timeout_s": args.timeout, "jobs": args.jobs, "quick": bool(args.quick), "rtol": args.rtol,
                               "skipped": None, "rows": []}
     if not args.models.is_dir():
         result["skipped"] = f"no model folders at {args.models} (give --models DIR)"
@@ -229,7 +231,7 @@ def main() -> None:
             ap.error(f"no such model folder(s) under {args.models}: {', '.join(unknown)}")
         models = [m for m in models if m in set(args.only)]
     with tempfile.TemporaryDirectory(prefix="bench_models_") as tmp:
-        jobs = [(c, argv_of(c, args.models / m, Path(tmp)), m) for m in models for c in args.commands]
+        jobs = [(c, argv_of(c, args.models / m, Path(tmp), args.rtol), m) for m in models for c in args.commands]
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             result["rows"] = list(pool.map(lambda j: measure(*j, args.timeout), jobs))
     machine["load_average_end"] = list(os.getloadavg())

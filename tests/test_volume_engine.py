@@ -71,6 +71,31 @@ def test_column_lengths_are_exact_on_a_ball():
     assert np.all(err <= 2 * ROOT_TOL) and ends[:, 0].tolist() == [2, 2, 2, 2, 0]
 
 
+def test_roots_of_a_margin_that_jumps_cost_one_evaluation_per_halving():
+    """A closed loop's margin jumps at the reach boundary (its capped slack inside, minus a small
+    residual outside). Roots are still bracketed to root_tol, and a bracket that keeps stalling is
+    bisected: about log2(step / root_tol) evaluations a root, where Illinois false position alone
+    needed about twice as many."""
+    from kinematics.analyses.columns import _Counter
+
+    def jump(p):  # the unit disc; inside a constant 1 m, outside minus the distance to it
+        r = np.linalg.norm(p, axis=1)
+        return np.where(r <= 1.0, 1.0, 1.0 - r)
+
+    base = np.array([[0.0], [0.3], [0.6], [0.9], [0.99]])
+    step, tol = 0.05, 1e-9
+    counter = _Counter(2)
+    ell, err, ends = column_lengths(jump, base, -1.3, 1.3, step, counter=counter, root_tol=tol)
+    exact = 2 * np.sqrt(1 - base[:, 0] ** 2)
+    # each of the two ends is bracketed to tol, its midpoint within tol / 2 of the root
+    np.testing.assert_allclose(ell[:, 0], exact, rtol=0, atol=2 * tol)
+    assert np.all(err <= 2 * tol) and np.all(err > 0) and ends[:, 0].tolist() == [2] * 5
+    roots = 2 * len(base)
+    refine = counter.points - len(base) * (math.ceil(2.6 / step) + 1)
+    # bisection alone: ceil(log2(step / tol)) = 26 halvings; two stalls of false position first
+    assert refine <= roots * (math.ceil(math.log2(step / tol)) + 4), refine / roots
+
+
 def test_thin_interval_shorter_than_the_step_can_be_missed_and_longer_is_found():
     slab = 0.004  # inside set: |z - 0.0123| <= 0.002, a 4 mm interval
 

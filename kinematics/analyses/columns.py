@@ -16,7 +16,9 @@ narrower than the node spacing in both quadrature directions can.
 
 **Sampled columns** (any other margin): the margin every `step` along the column, every sign
 change bracketed and refined (Illinois false position with a bisection safeguard and Brent's
-tolerance nudge) to a bracket narrower than `ROOT_TOL` = 1e-12 m; nested `adaptive_1d`.
+tolerance nudge; bisection from a bracket's second stall on, where the margin jumps, as a
+closed loop's does at the reach boundary) to a bracket narrower than `root_tol` (default
+`ROOT_TOL` = 1e-12 m; the brackets' widths are part of the error estimate); nested `adaptive_1d`.
 
 `adaptive_1d`: a Gauss-Legendre rule on every interval and on its two halves, the halves' sum
 as its value and |whole - halves| as its error estimate, plus the variation bound
@@ -40,6 +42,7 @@ into the outer integral.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -85,6 +88,7 @@ class ColumnVolume:
             check, the two runs agree on it within their estimates (`converged` also needs the
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
+        root_tol: sampled columns: the width [m] every root was bracketed to.
     """
 
     estimate: np.ndarray
@@ -99,6 +103,7 @@ class ColumnVolume:
     box: np.ndarray
     target_converged: np.ndarray
     check_agrees: np.ndarray
+    root_tol: float = ROOT_TOL
 
 
 def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:
@@ -134,6 +139,7 @@ def column_lengths(
     step: float,
     axis: int = -1,
     counter: _Counter | None = None,
+    root_tol: float = ROOT_TOL,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Inside length of each column per target, the bound on its root-bracket error, and its
     number of interval ends (its topology; an end on the box's face counts too).
@@ -144,6 +150,7 @@ def column_lengths(
         z0: the column's start along `axis` [m].
         z1: the column's end along `axis` [m].
         step: sampling step [m].
+        root_tol: width [m] to which every root is bracketed.
 
     Returns:
         (M, T) lengths [m], (M, T) sums of the final bracket widths [m], (M, T) interval ends.
@@ -184,7 +191,8 @@ def column_lengths(
                 counter.lo = np.minimum(counter.lo, p_in.min(axis=0))
                 counter.hi = np.maximum(counter.hi, p_in.max(axis=0))
         if len(c):
-            root, width, evals = _refine(margin, b[c], zs[k], zs[k + 1], vals[c, k, t], vals[c, k + 1, t], t, others, ax)
+            root, width, evals = _refine(margin, b[c], zs[k], zs[k + 1], vals[c, k, t], vals[c, k + 1, t], t, others, ax,
+                                         tol=root_tol)
             if counter is not None:
                 counter.points += evals
             left_in = inside[c, k, t]
@@ -200,22 +208,26 @@ def column_lengths(
 
 def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.ndarray, b: np.ndarray,
             fa: np.ndarray, fb: np.ndarray, target: np.ndarray, others: list[int], ax: int,
-            max_iter: int = 200) -> tuple[np.ndarray, np.ndarray, int]:
+            max_iter: int = 200, tol: float = ROOT_TOL) -> tuple[np.ndarray, np.ndarray, int]:
     """Roots of target columns of the margin in the brackets [a, b] (f(a), f(b) of opposite signs).
 
     Illinois false position; a point closer than the tolerance to an end is nudged to the
     tolerance (Brent), and a bracket that did not halve in two steps is bisected, so every bracket
-    ends narrower than ROOT_TOL. Returns (root, final bracket width, margin evaluations).
+    ends narrower than `tol`. A bracket that stalls a second time is bisected from then on: the
+    margin jumps there (a closed loop's margin falls from its slack to minus a small residual at
+    the reach boundary), where false position needs about two evaluations per halving.
+    Returns (root, final bracket width, margin evaluations).
     """
     lo, hi = a.copy(), b.copy()
     flo, fhi = fa.copy(), fb.copy()
     side = np.zeros(len(lo), np.int8)  # which end moved last: -1 lo, +1 hi (Illinois halving)
     width_two_ago = hi - lo
     width_prev = hi - lo
+    stalls = np.zeros(len(lo), np.int8)
     d = len(others) + 1
     evals = 0
     for it in range(max_iter):
-        active = np.flatnonzero(hi - lo > ROOT_TOL)
+        active = np.flatnonzero(hi - lo > tol)
         if len(active) == 0:
             break
         L, H, FL, FH = lo[active], hi[active], flo[active], fhi[active]
@@ -224,10 +236,11 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         x = np.where(np.isfinite(x), x, 0.5 * (L + H))
         stalled = 0.5 * width_two_ago[active] < W
         if it >= 2:
-            x = np.where(stalled, 0.5 * (L + H), x)
-        tol = 0.45 * ROOT_TOL
-        x = np.where(x - L < tol, L + tol, x)
-        x = np.where(H - x < tol, H - tol, x)
+            stalls[active] += stalled
+            x = np.where(stalled | (stalls[active] >= 2), 0.5 * (L + H), x)
+        nudge = 0.45 * tol
+        x = np.where(x - L < nudge, L + nudge, x)
+        x = np.where(H - x < nudge, H - nudge, x)
         pts = np.empty((len(active), d))
         pts[:, others] = base[active]
         pts[:, ax] = x
@@ -487,6 +500,7 @@ def column_volume(
     max_points: int = MAX_POINTS,
     progress: bool = False,
     floor: float = 0.0,
+    root_tol: float = ROOT_TOL,
 ) -> ColumnVolume:
     """Measure {x in [lo, hi] : margin(x)[:, t] >= 0} for every target t by column integration.
 
@@ -504,6 +518,8 @@ def column_volume(
         max_points: budget of margin evaluations; when it runs out, converged is False.
         floor: every target's tolerance is at least rtol x floor x the last target's measure (for
             a workspace: the union's), so a sliver of a branch is not measured to rtol of its own.
+        root_tol: sampled columns: width [m] to which every root is bracketed (at least ROOT_TOL;
+            the widths are part of the error estimate).
     """
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
@@ -513,6 +529,8 @@ def column_volume(
     for name, v in (("step", step), ("rtol", rtol)):
         if not (math.isfinite(v) and v > 0):
             raise InvalidInputError(name, f"must be positive, got {v}")
+    if not (math.isfinite(root_tol) and root_tol >= ROOT_TOL):
+        raise InvalidInputError("root_tol", f"must be at least ROOT_TOL = {ROOT_TOL:g} m, got {root_tol}")
     if rtol < RTOL_FLOOR:
         raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
                                         f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
@@ -523,7 +541,7 @@ def column_volume(
     if start > max_points:
         raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
                                         "use a larger step")
-    run = _run_exact if _exact_of(margin, d) is not None else _run_sampled
+    run = _run_exact if _exact_of(margin, d) is not None else functools.partial(_run_sampled, root_tol=root_tol)
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check:
         return first
@@ -543,7 +561,7 @@ def column_volume(
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
         target_converged=agrees & _within(first.estimate, first.error, rtol, floor)
         & _within(second.estimate, error, rtol, floor),
-        check_agrees=agrees,
+        check_agrees=agrees, root_tol=second.root_tol,
     )
 
 
@@ -630,7 +648,7 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
 
 def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
          order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
-         floor: float = 0.0) -> ColumnVolume:
+         floor: float = 0.0, root_tol: float = ROOT_TOL) -> ColumnVolume:
     d = lo.shape[0]
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     others = [k for k in range(d) if k != ax]
@@ -645,7 +663,7 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         return pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step)))
 
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter)
+        ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter, root_tol)
         if bar is not None:
             bar.update(len(base))
         return ell, err, ends
@@ -685,5 +703,5 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         step=step, cell=8 * step, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
-        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool),
+        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool), root_tol=root_tol,
     )

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
-from kinematics.analyses.columns import ColumnVolume, column_volume
+from kinematics.analyses.columns import ROOT_TOL, ColumnVolume, column_volume
 from kinematics.mechanisms.base import UNION, Mechanism
 
 
@@ -127,8 +127,17 @@ def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
 
         raise UnknownChoiceError(engine, ("columns", "cells"))
     kw = {} if max_points is None else {"max_points": max_points}
-    return column_volume(margin, lo, hi, step=step, rtol=1e-2 if rtol is None else rtol, check=check,
-                         progress=progress, floor=BRANCH_FLOOR, **kw)
+    rtol = 1e-2 if rtol is None else rtol
+    return column_volume(margin, lo, hi, step=step, rtol=rtol, check=check, progress=progress, floor=BRANCH_FLOOR,
+                         root_tol=root_tolerance(rtol, step), **kw)
+
+
+def root_tolerance(rtol: float, step: float) -> float:
+    """Width [m] to which sampled columns bracket their roots: 1e-3 x rtol x step (at least ROOT_TOL).
+    A column has a few ends, each bracket's width enters the error estimate, so the brackets add
+    about 1e-3 x rtol x (ends x step / column length) of the measure: nothing beside rtol, while a
+    margin that jumps at the boundary (a closed loop's) costs one evaluation per halving."""
+    return max(ROOT_TOL, 1e-3 * rtol * step)
 
 
 def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | None = 1e-4,

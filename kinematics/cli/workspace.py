@@ -355,7 +355,8 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
         (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
         ("method", ("cell refinement" if payload.get("method") != "columns" else
-                    "sampled columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
+                    f"sampled columns (roots to {fmt(getattr(r, 'root_tol', 0.0), 2)} m) + adaptive Gauss quadrature; "
+                    "inside intervals or gaps "
                     f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar or exact is None else
                     f"exact columns ({exact}) + Gauss rules between located breaks; a feature narrower "
                     f"than the node spacing {fmt(r.step)} m across columns can be missed")),

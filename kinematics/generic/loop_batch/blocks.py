@@ -12,7 +12,9 @@ least-squares points of targets outside), else (2) the atlas configuration of th
 also tried where a neighbour's end stalled less than the continuation radius from closure (a
 neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
 `restarts` quasi-random starts of the block's unknowns where another slot of the block was found
-or the block holds joints of earlier blocks that closed. Blocks are solved in a dependency order,
+or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
+(a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
+where it was tried and not found means no restarts). Blocks are solved in a dependency order,
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
@@ -38,14 +40,20 @@ class _Slots(NamedTuple):
     found: np.ndarray  # (N, K, S)
     dist: np.ndarray  # (N, K, S) distance to the reference of the kept root
     res: np.ndarray  # (N, K, S) best residual of the starts aimed at the slot (inf: not tried; 0: found)
-    end: np.ndarray  # (N, K, S, cmax) each block's unknowns per slot: its kept root where found, else
-    # where the slot's best start ended
+    end: np.ndarray  # (N, K, S, cmax + 1) each block's unknowns per slot: its kept root where found, else
+    # where the slot's best start ended; then the slot's outcome (`_outcome`: 1 found, 0 tried and not
+    # found, NaN not tried), which a neighbour's start carries to the kernel's restart rule
     counts: np.ndarray  # (N, 2) unlabelled roots, conflicts
 
     @classmethod
     def empty(cls, N: int, K: int, S: int, cmax: int) -> _Slots:
         return cls(np.zeros((N, K, S), dtype=np.bool_), np.full((N, K, S), np.inf),
-                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax), np.nan), np.zeros((N, 2), dtype=np.int64))
+                   np.full((N, K, S), np.inf), np.full((N, K, S, cmax + 1), np.nan), np.zeros((N, 2), dtype=np.int64))
+
+    def record_outcome(self) -> None:
+        """Write each slot's outcome into the last entry of `end` (1 found, 0 tried and not found, NaN
+        not tried)."""
+        self.end[..., -1] = np.where(self.found, 1.0, np.where(np.isfinite(self.res), 0.0, np.nan))
 
 
 class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
@@ -164,7 +172,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         best = np.full(N, np.inf)  # distance to the nearest start's source (inf: none)
         cached = None
         if warm:
-            best, cached = self._nearest_cached(p, (K, S, cmax))
+            best, cached = self._nearest_cached(p, (K, S, cmax + 1))
         # continuation inside the batch: every 64th point, then every 8th, then the rest, each
         # level from the nearest point of the levels before; the points are taken level by level
         # (order) so that each level's slots are one contiguous slice of the arrays
@@ -178,7 +186,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
                 taken[level] = True
         order = np.concatenate(levels) if levels else np.arange(0)
         q, best = p[order], best[order]
-        starts = np.full((N, K, S, cmax), np.nan)
+        starts = np.full((N, K, S, cmax + 1), np.nan)
         if cached is not None:
             near = np.isfinite(best)
             starts[near] = cached[order[near]]
@@ -195,7 +203,9 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
                 starts[a:b][near], best[a:b][near] = slots.end[src[near]], d[near]
                 far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
                 starts[a:b][far] = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
-            self._solve_slots(q[a:b], starts[a:b], _Slots(*(v[a:b] for v in slots)), every_block)
+            level_slots = _Slots(*(v[a:b] for v in slots))
+            self._solve_slots(q[a:b], starts[a:b], level_slots, every_block)
+            level_slots.record_outcome()
             a = b
         x = np.empty((N, B, n))
         end_x = np.empty((N, B, n))
@@ -212,7 +222,8 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
                                end_x)
 
     def _solve_slots(self, p: np.ndarray, starts: np.ndarray, out: _Slots, every_block: bool = False) -> None:
-        """Every block slot at targets p from warm starts (N, K, S, cmax) (NaN: none), written to
+        """Every block slot at targets p from warm starts (N, K, S, cmax + 1) (NaN: none; the last
+        entry: the outcome of the slot at the start's source point, `_Slots.record_outcome`), written to
         `out` (rows of the caller's arrays); a slot no live branch needs is skipped unless
         every_block."""
         tb = self._block_tables

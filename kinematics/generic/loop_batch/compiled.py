@@ -609,11 +609,22 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                         continue
                 if attempt == 2 * S:
                     # restarts only where the block has some root, or where the blocks it builds on
-                    # closed (a closure that cannot close there is rare; a target a limb cannot
-                    # reach is not: restarting those would cost most of the time outside)
-                    some = nheld[k] > 0
+                    # closed (a target a limb cannot reach would otherwise cost restarts) and a
+                    # missing slot has no neighbour's verdict that it is absent: its start came from
+                    # no neighbour, or from one where the slot was found (the last entry of a warm
+                    # start: 1 found there, 0 tried and not found, NaN not tried). A closure that
+                    # cannot close where a neighbour within the continuation radius could not either
+                    # (the five-bar's second chain outside its reach) is not restarted: a region
+                    # entered from outside is found from the neighbour's least-squares end (at the
+                    # fold) or the atlas start
+                    some = False
                     for q in range(S):
                         some = some or found[i, k, q]
+                    if not some and nheld[k] > 0:
+                        for q in range(S):
+                            verdict = warm[i, k, q, warm.shape[3] - 1]
+                            if need[q] and verdict != 0.0:  # NaN (not tried there) restarts too
+                                some = True
                     if not some:
                         break
                 s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts

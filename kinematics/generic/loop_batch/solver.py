@@ -6,7 +6,8 @@ their margins (`margin`) to the volume engine; `loop_batch` caches one per robot
 `ClosedLoop.constrained_jacobian`) tells what the actuators move: if they never turn the end
 effector the mechanism is translational (task = position, orientation held at R_0: the 3-[P2(US)],
 the Delta); otherwise the task is the d = (number of actuators) position axes best determined by
-them (the planar five-bar: x, y). Mechanisms whose actuators drive a rotation of the end effector
+them (the planar five-bar: x, y; for two actuators and a planar motion, `motion_plane`'s plane).
+Mechanisms whose actuators drive a rotation of the end effector
 (a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
 
 **What the search can miss.** A branch that exists at a target but is reached from none of the
@@ -15,7 +16,8 @@ is reported absent (margin < 0): most likely in a branch region that does not co
 reference position's branch of the same label and is far from the batch's other points, or next
 to the workspace's boundary where the nearest solved point lies outside, its least-squares point
 leads nowhere and the atlas start lies in another basin (restarts are not spent on a labelling
-block with no root at all: outside they would cost most of the time). Solutions whose label is
+block with no root at all, nor on a block built on closed blocks where the neighbour that gave the
+start found no root of that slot either: outside they would cost most of the time). Solutions whose label is
 not in the atlas (assembly modes absent at the reference position) are counted in
 `BranchSolutions.unlabelled`, not returned. Two physically different poses with the same label at
 one target keep only the one nearest the reference (counted in `conflicts`).
@@ -113,6 +115,14 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         lin, ang = G[:3], G[3:]
         size = max(float(np.linalg.norm(lin)), 1e-300)
         translational = float(np.linalg.norm(ang)) * _length(robot, q) <= 1e-9 * size
+        if task_axes is None and n_act == 2:
+            from kinematics.generic.motion_plane import motion_plane
+
+            # a planar motion's task is its plane (one decision for every command), where the
+            # actuators determine both of its axes there
+            plane = motion_plane(robot)
+            if plane is not None and np.linalg.svd(lin[list(plane.axes)], compute_uv=False)[-1] > 1e-9 * size:
+                task_axes = plane.axes
         if task_axes is None:
             best, axes = -1.0, None
             for comb in itertools.combinations(range(3), n_act):

@@ -114,10 +114,23 @@ class GenericClosedLoop(Mechanism):
 
         return kernels()
 
+    @functools.cached_property
+    def plane(self) -> Any:
+        """`kinematics.generic.motion_plane.MotionPlane` of the end effector's closed motion, or None
+        (spatial)."""
+        from kinematics.generic.motion_plane import motion_plane
+
+        return motion_plane(self.robot)
+
     def parameters(self) -> dict[str, Any]:
         loops = self.robot.loops
-        return {"closures": len(loops.closures) if loops else 0,
-                "actuated": list(loops.actuated) if loops else [], "end_effector": self.robot.tool_frame}
+        out: dict[str, Any] = {"closures": len(loops.closures) if loops else 0,
+                               "actuated": list(loops.actuated) if loops else [], "end_effector": self.robot.tool_frame}
+        if self.plane is not None:
+            # an area is measured in this plane; another assembly mode can move in a parallel one
+            i, j = (_AXES[a] for a in self.plane.axes)
+            out["plane"] = f"{i}-{j} at {_AXES[self.plane.normal]} = {self.plane.offset:.6g} m"
+        return out
 
     def _require_actuator_ranges(self, purpose: str = "a workspace") -> None:
         loops = self.robot.loops
