@@ -47,7 +47,7 @@ UNION = "union"
 """The label of the union of every branch (the margin's last column)."""
 
 CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values", "pose_ik", "pose_fk",
-                "pose_jacobians")
+                "pose_jacobians", "joint_singularities", "reference_results", "paper_scan", "sweep_parameters")
 """The optional parts of the interface, by method name."""
 
 
@@ -320,6 +320,33 @@ class Mechanism(ABC):
     def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
         """The loop-equation Jacobians at task point (d,) [m] with actuator values (a,)."""
         raise MissingCapabilityError(self.name, "pose_jacobians", "Jacobians at a task point", self.capabilities)
+
+    def joint_singularities(self, angle_step: float | None = None) -> dict[str, Any]:
+        """The singular set swept over a joint grid (`angle_step` [rad], None: the default), for
+        a mechanism whose singularities are known in joint space (a planar 2R arm's theta2 = 0, pi):
+        keys `singular_points` (N, d) [m], `singular_q` (N, n) [rad], `grid`, `min_radius` and the
+        family's flags."""
+        raise MissingCapabilityError(self.name, "joint_singularities", "a joint-space singular set",
+                                     self.capabilities)
+
+    def reference_results(self, urdf_path: str, limits: str, per_mode: dict[str, float],
+                          union: float) -> dict[str, Any]:
+        """Published results to set beside a measured workspace (per_mode: each branch's measure,
+        union: theirs [m^3 or m^2]): JSON-ready keys for the workspace-volume report."""
+        raise MissingCapabilityError(self.name, "reference_results", "a comparison with published results",
+                                     self.capabilities)
+
+    def reference_lines(self, results: dict[str, Any]) -> list[str]:
+        """Human lines of `reference_results` (none for a mechanism without them)."""
+        return []
+
+    def paper_scan(self) -> dict[str, Any]:
+        """The paper's own singularity scan of this design, as published (counts and poses)."""
+        raise MissingCapabilityError(self.name, "paper_scan", "the paper's singularity scan", self.capabilities)
+
+    def sweep_parameters(self) -> Any:
+        """The design parameters a design sweep (`kinematics.analyses.sweep`) varies."""
+        raise MissingCapabilityError(self.name, "sweep_parameters", "a design sweep", self.capabilities)
 
     # -- derived -----------------------------------------------------------------------------
     def branch_velocity(self, points: np.ndarray, branch: str, limits: str = "all") -> tuple[Velocity, np.ndarray]:

@@ -74,6 +74,27 @@ class P2US(ThreeLimbMechanism):
 
         return parameter_sources(self.name, urdf_path)
 
+    def reference_results(self, urdf_path: str, limits: str, per_mode: dict[str, float],
+                          union: float) -> dict[str, Any]:
+        """Paper B's volume beside ours and the passive limits' share (`paper_b.reference_report`)."""
+        from kinematics.mechanisms.p2us.paper_b import reference_report
+
+        return reference_report(self.params, self.name, urdf_path, limits, per_mode, union)
+
+    def reference_lines(self, results: dict[str, Any]) -> list[str]:
+        from kinematics.mechanisms.p2us.paper_b import reference_lines
+
+        return reference_lines(results)
+
+    def paper_scan(self) -> dict[str, Any]:
+        """Paper B's 8 x 8 x 8 actuator scan (`paper_scan.paper_scan`)."""
+        from kinematics.mechanisms.p2us.paper_scan import paper_scan
+
+        return paper_scan(self.params)
+
+    def sweep_parameters(self) -> cf.P2USParams:
+        return self.params
+
     def limb_reasons(self, limbs: cf.LimbSolutions) -> list[dict[str, Any]]:
         return [{"limb": i + 1, "reachable": bool(limbs.reach[i]),
                  "reason": None if limbs.reach[i] else (

@@ -242,3 +242,51 @@ def binding_limits(params: Any, mode: str = WORKING_MODE, n: int = 200_000, seed
         out[name] = {"volume_m3": box * f, "standard_error_m3": box * float(np.sqrt(f * (1 - f) / n)),
                      "convention": params.theta_convention if name == "theta" else params.phi_convention}
     return out
+
+
+def reference_report(params: Any, robot_name: str, urdf_path: str | os.PathLike[str], limits: str,
+                     per_mode: dict[str, float], union: float) -> dict[str, Any]:
+    """The workspace-volume report's paper-B keys: `design` (the built-in name or the URDF path),
+    `binding_limits` (the volume each passive limit removes from the working mode) and, for the
+    built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction page,
+    a note on why they differ), `paper_volume_m3` and `ratio_to_paper` (working mode over paper).
+
+    Args:
+        per_mode: measured volume [m^3] of each working mode; union: their union's [m^3].
+    """
+    c = volume_comparison(robot_name, urdf_path, limits, per_mode, union)
+    out: dict[str, Any] = {"design": c.pop("design"), "binding_limits": binding_limits(params)}
+    if c:
+        c["note"] = volume_note(out["design"], limits)
+        out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
+    return out
+
+
+def reference_lines(report: dict[str, Any]) -> list[str]:
+    """Human lines of `reference_report`."""
+    c = report.get("paper_b", {"design": report["design"]})
+    lines = comparison_lines({**c, "design": report["design"]})
+    if "binding_limits" in report:
+        b = report["binding_limits"]
+        lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
+            f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
+            for k in ("theta", "phi")))
+    return lines + ([c["note"]] if "note" in c else [])
+
+
+def volume_note(design: str, limits: str) -> str:
+    """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
+    if design == "p2us-results":
+        return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
+                "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
+                "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
+    common = ("Table 2's dimensions do not give paper B's computed results; the geometry that does is the "
+              "built-in p2us-results (docs/paper-b-reproduction.md). Paper B defines neither the universal "
+              "joints' zero references nor which working modes it counts. ")
+    if limits == "all":
+        return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "
+                         "limb's vertical plane) only working mode '---' respects the theta range, so every mode "
+                         "but '---' is empty and the union is that one mode. See docs/workspace.md.")
+    return common + ("With the actuator strokes alone, every working mode has a workspace and their union is "
+                     "close to the paper's figure; the passive-joint limits are what shrink ours. See "
+                     "docs/workspace.md.")

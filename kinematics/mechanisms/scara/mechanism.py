@@ -75,6 +75,12 @@ class Scara(Mechanism):
         p = self.params
         return {"l1": p.l1, "l2": p.l2, "lower": list(p.lower), "upper": list(p.upper)}
 
+    def joint_singularities(self, angle_step: float | None = None) -> dict[str, Any]:
+        """det J = l1 l2 sin(theta2) = 0 over the joint grid (`joint_space.singular_set`)."""
+        from kinematics.mechanisms.scara.joint_space import singular_set
+
+        return singular_set(self.params) if angle_step is None else singular_set(self.params, angle_step)
+
     def design_parameters(self) -> dict[str, Any]:
         """The link lengths (the joint limits are the URDF's)."""
         return {"l1": self.params.l1, "l2": self.params.l2}
