@@ -34,6 +34,7 @@ from kinematics.mechanisms.p2us.scan import bounding_box, check_limits
 from kinematics.mechanisms.scara.closed_form import ELBOWS, ScaraParams
 from kinematics.mechanisms.scara.mechanism import Scara
 from kinematics.mechanisms.scara.mechanism import scara_margin as scara_margin
+from kinematics.sizes import MAX_POINTS
 
 
 @dataclass(frozen=True)
@@ -133,9 +134,9 @@ def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
         from kinematics.errors import UnknownChoiceError
 
         raise UnknownChoiceError(engine, ("columns", "cells"))
-    kw = {} if max_points is None else {"max_points": max_points}
     return column_volume(margin, lo, hi, step=step, rtol=1e-2 if rtol is None else rtol, check=check,
-                         progress=progress, floor=BRANCH_FLOOR, **kw)
+                         progress=progress, floor=BRANCH_FLOOR,
+                         max_points=MAX_POINTS if max_points is None else max_points)
 
 
 def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | None = 1e-4,
