@@ -49,6 +49,13 @@ ITERATIONS = 60
 """Levenberg-Marquardt steps per seed at most (a warm start needs a few, a far seed ~10-30)."""
 
 
+FAR = 0.02
+"""[m] A target whose first two descents (warm start, nearest sample) end farther than this from
+it gets no more restarts: with tens of thousands of samples the nearest one lies within a few
+millimetres of any reached point, so a target that far is outside; the restarts are spent where
+the sign is at stake, near the boundary."""
+
+
 @dataclass(frozen=True)
 class Profile:
     """A solid of revolution for the volume engine: the (rho, z) profile's margin and box, the
@@ -78,12 +85,14 @@ class Profile:
 class Reach:
     """The reachability search of `robot`'s frame (see the module docstring)."""
 
-    def __init__(self, robot: Robot, frame: str | None = None, *, samples: int = 40_000, restarts: int = 6,
+    def __init__(self, robot: Robot, frame: str | None = None, *, samples: int | None = None, restarts: int = 6,
                  seed: int = 0) -> None:
         self.robot, self.frame = robot, frame
         self.kin = compile_frame(robot, frame)
         self.setup: Setup = setup(robot, self.kin)
-        self.samples, self.restarts, self.seed = samples, restarts, seed
+        # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
+        self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
+        self.restarts, self.seed = restarts, seed
         s, kin = self.setup, self.kin
         dof_of = {d.idx_v: i for i, d in enumerate(robot.dofs)}
         self.chain_dofs = np.array([dof_of[int(v)] for v in kin.idx_v])
@@ -187,7 +196,7 @@ class Reach:
         if self.setup.mode == "revolved":
             seeds[:, :, 0] = (self._azimuth(targets)[:, None] - az[idx] + math.pi) % (2 * math.pi) - math.pi
         return kernels.search(targets, np.ascontiguousarray(seeds), self.lo, self.hi, *self.args, REACH_TOL,
-                              ITERATIONS, kernels.CHUNK)
+                              ITERATIONS, kernels.CHUNK, FAR)
 
     def margin(self, points: np.ndarray) -> np.ndarray:
         """(N, 1) margins [m] at task points (N, d)."""

@@ -10,7 +10,9 @@ with g > 0):
 
 accepted when c decreases (then lambda / 3), otherwise lambda x 8 (Marquardt's scaled damping).
 A run stops when |t - f| <= `tol` (the target is reached), when no damping decreases c, when a
-step's decrease of the distance is below 5 % of its excess over tol, or after `iters` steps. Seeds are tried in order and the search for a target
+step's decrease of the distance is below 5 % of its excess over tol, or after `iters` steps.
+A target whose first two descents end farther than `far` from it is not searched further (the
+other seeds are for targets near the boundary, where the sign is at stake). Seeds are tried in order and the search for a target
 stops at its first reached seed; an unreached target keeps the smallest distance over all seeds.
 
 The kernel takes targets in chunks of consecutive rows (a column of the volume engine is one
@@ -199,9 +201,10 @@ def _descend(t, q, lo, hi, kind, axis, rot, tra, fp, tol, iters, S):  # pragma: 
 
 
 @njit(cache=True, parallel=True)
-def search(targets, seeds, lo, hi, kind, axis, rot, tra, fp, tol, iters, chunk):  # pragma: no cover - compiled
+def search(targets, seeds, lo, hi, kind, axis, rot, tra, fp, tol, iters, chunk, far):  # pragma: no cover - compiled
     """Per target (N, 3) from seeds (N, K, n): margin (N,) = tol - distance + room (> 0 iff
-    reached within tol) and the best configuration (N, n)."""
+    reached within tol) and the best configuration (N, n). A target still farther than `far` [m]
+    after two seeds (the warm start and the nearest sample's) is left there: far from W."""
     N, K, n = seeds.shape
     margin = np.empty(N)
     best = np.empty((N, n))
@@ -225,7 +228,7 @@ def search(targets, seeds, lo, hi, kind, axis, rot, tra, fp, tol, iters, chunk):
                     dmin = d
                     inner = e
                     best[i] = q
-                if d <= tol:
+                if d <= tol or (s >= 1 and dmin > far):
                     break
             margin[i] = tol - dmin + inner
     return margin, best
