@@ -171,7 +171,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     # singularities
     (["singularities", "nosuchbot"], "unknown robot"),
     (["singularities", str(MODELS / "rssr.urdf")], "scanned over a 2D or 3D grid; this task space is 1-dimensional"),
-    (["usable-workspace", "ur5", "--shape", "cube"], "needs its mechanism's margin"),
+    (["usable-workspace", "ur5", "--shape", "cube"], "needs its mechanism's ik"),
     (["singularities", "delta", "--paper-scan"], "3-[P2(US)]"),
     (["singularities", "ur5", "--max-points", "0"], POSITIVE),
     (["singularities", "ur5", "--modes", "+++"], "working modes"),
@@ -328,7 +328,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["dexterity", "scara", "--plot", "k.foo"], "unknown suffix"),
     (["dexterity", "scara", "--export", "k.png"], "unknown suffix"),
     (["dexterity", "scara", "--export", "nodir/k.html"], "does not exist"),
-    (["dexterity", "ur5"], ("ur5: dexterity over the workspace needs its mechanism's ik", "(it provides: fk, velocity)")),
+    (["dexterity", "ur5"], ("ur5: dexterity over the workspace needs its mechanism's ik", "(it provides: fk, margin, velocity)")),
     # synthesize
     (["synthesize", "p2us"], "give at least one"),
     (["synthesize", "scara", "--param", "b=0.3:0.4"], "3-[P2(US)]"),

@@ -154,7 +154,7 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
 
         raise UnsupportedRobotError(mech.name, f"a workspace area or volume needs a 2- or 3-dimensional task space; "
                                                f"this one is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
-    chosen = mech.check_branches(branches)
+    chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
     lo, hi = mech.bounding_box(limits)
     t0 = time.perf_counter()

@@ -299,7 +299,7 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
         ("method", ("cell refinement" if payload.get("method") != "columns" else
                     "sampled columns (roots to 1e-12 m) + adaptive Gauss quadrature; inside intervals or gaps "
-                    f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar else
+                    f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar or mech.family == "serial" else
                     "exact columns (roots of quadratics) + Gauss rules between located breaks; a feature narrower "
                     f"than the node spacing {fmt(r.step)} m across columns can be missed")),
         *([("not converged", _not_converged(ws))] if not r.converged else []),
