@@ -1,11 +1,14 @@
-"""Guaranteed workspace bounds of serial arms: time, configurations, measure and error estimate.
+"""Serial-arm workspaces through the one volume engine: each row of issue 29's table in one run.
 
-Run: python benchmarks/bench_serial_workspace.py [--robot ur5] [--resolution 400] [--max-points 1e7] [--quick] [--json]
-One warm run per robot (the kernels are compiled first on a small run). Default robots: the
-SCARA (area, exact 0.97292658 m^2), the 3R solid-of-revolution test arm (exact 0.331334 m^3) and
-the UR5 (no exact answer); the true error is printed where it is known. The machine (cores,
-uptime load, `_timing.calibration()`) is recorded beside the figures: the CPU is shared. The JSON
-holds JSON_KEYS: `results`, one row (ROW_KEYS) per robot, and `machine`.
+Run: python benchmarks/bench_serial_workspace.py [--row NAME ...] [--quick] [--json]
+Rows (ROWS): the SCARA as a generic open chain (exact area 0.9729265761857 m^2), the revolved 3R
+test arm (exact volume by Pappus, tests/test_serial_workspace.py), the UR5 at the CLI's default
+rtol 1e-3 and at 1e-4 (its error against the 1e-4 run is reported as `true_error`, the 1e-4 run's
+own estimate beside it), the panda (example-robot-data) and the SCARA's closed-form margin at rtol
+1e-5. Every run is `measure_workspace(..., check=True)` (the half-step run, with twice the search's
+seeds, compared with the first). The kernels are compiled on a small run first. The machine
+(cores, uptime load, `_timing.calibration()`) is recorded beside the figures: the CPU is shared.
+JSON: `results` (one row per robot: ROW_KEYS) and `machine`.
 """
 
 from __future__ import annotations
@@ -14,22 +17,27 @@ import argparse
 import math
 import os
 import subprocess
+import time
 from pathlib import Path
+from typing import Any
 
 from _timing import calibration, dump, machine_line, parse
 
-from kinematics.analyses.serial_workspace import serial_workspace
+from kinematics.analyses.workspace import measure_workspace
+from kinematics.mechanisms import mechanism_of
+from kinematics.mechanisms.serial.mechanism import SerialArm
 from kinematics.model.robot import load_robot
 
 HERE = Path(__file__).resolve().parent
 ARM3R = HERE.parent / "tests" / "models" / "arm3r_revolved.urdf"
 JSON_KEYS = ("results", "machine")
-ROW_KEYS = ("robot", "mode", "measure", "unit", "bounds", "error_estimate", "true_error", "points_evaluated",
-            "seconds", "cell_m")
+ROW_KEYS = ("robot", "volume", "unit", "error_estimate", "true_error", "converged", "rtol", "step_m",
+            "points_evaluated", "seconds")
+SCARA_AREA = 0.9729265761857  # m^2: tests/test_workspace.py::scara_area_closed_form
 
 
-def _arm3r_exact() -> float:
-    # tests/test_serial_workspace.py::revolved_volume_closed_form for the model's numbers.
+def arm3r_exact() -> float:
+    """The revolved 3R arm's volume [m^3] (tests/test_serial_workspace.py::revolved_volume_closed_form)."""
     l2, l3, a1, a2, b1, b2 = 0.4, 0.25, -0.5, 0.8, 0.3, 1.5
 
     def g(a: float) -> float:
@@ -39,55 +47,64 @@ def _arm3r_exact() -> float:
                                     + l3 * (g(a2) - g(a1)))
 
 
-CASES = {
-    "scara": (None, 0.97292658),
-    str(ARM3R): ("tip", None),
-    "ur5": (None, None),
+# name -> (robot, serial path, step [m], rtol, goal on the relative error)
+ROWS: dict[str, tuple[str, bool, float, float, float]] = {
+    "scara-serial": ("scara", True, 0.005, 1e-6, 1e-6),
+    "arm3r": (str(ARM3R), True, 0.005, 1e-5, 1e-5),
+    "ur5": ("ur5", True, 0.01, 1e-3, 1e-3),
+    "ur5-1e-4": ("ur5", True, 0.005, 1e-4, 1e-4),
+    "panda": ("panda", True, 0.02, 1e-3, 1e-3),
+    "scara-closed-form": ("scara", False, 0.01, 1e-5, 1e-5),
 }
+QUICK = {"scara-serial": (0.05, 1e-2), "arm3r": (0.05, 1e-2)}
+
+
+def run_row(name: str, quick: bool) -> dict[str, Any]:
+    robot_name, serial, step, rtol, goal = ROWS[name]
+    if quick:
+        step, rtol = QUICK[name]
+    robot = load_robot(robot_name)
+    mech = SerialArm(robot) if serial else mechanism_of(robot)
+    t0 = time.perf_counter()
+    ws = measure_workspace(mech, step=step, rtol=rtol, check=True)
+    seconds = time.perf_counter() - t0
+    exact = {"scara-serial": SCARA_AREA, "scara-closed-form": SCARA_AREA, "arm3r": arm3r_exact()}.get(name)
+    r = ws.result
+    return {
+        "robot": name, "volume": ws.total, "unit": "m2" if ws.planar else "m3", "error_estimate": ws.error,
+        "true_error": None if exact is None else abs(ws.total - exact),
+        "converged": bool(r.target_converged[-1]) and r.converged, "rtol": rtol, "goal_relative": goal,
+        "step_m": step, "points_evaluated": r.points_evaluated, "seconds": seconds,
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robot", action="append", help="robot(s) to measure (default: scara, the 3R arm, ur5)")
-    ap.add_argument("--resolution", type=int, default=None, help="cells across (default: the library's)")
-    ap.add_argument("--max-points", type=float, default=1e7, help="configuration budget per robot")
+    ap.add_argument("--row", action="append", choices=list(ROWS), help="rows to run (default: all)")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON")
-    args = parse(ap, {"resolution": 16, "max_points": 1e5})
+    args = parse(ap, {})
     machine = calibration()
-
-    names = args.robot or list(CASES)
-    serial_workspace(load_robot("scara"), resolution=16)  # compile the kernels before timing
-    rows = []
-    for name in names:
-        frame, exact = CASES.get(name, (None, None))
-        if name == str(ARM3R):
-            exact = _arm3r_exact()
-        robot = load_robot(name)
-        w = serial_workspace(robot, frame, resolution=args.resolution, max_points=int(args.max_points))
-        d = w.as_dict()
-        row = {
-            "robot": robot.name,
-            "mode": w.mode,
-            "measure": w.measure,
-            "unit": "m2" if w.planar else "m3",
-            "bounds": [w.lower, w.upper],
-            "error_estimate": w.error_estimate,
-            "true_error": abs(w.measure - exact) if exact is not None else None,
-            "points_evaluated": w.points_evaluated,
-            "seconds": w.seconds,
-            "cell_m": d["cell_m"],
-        }
-        rows.append(row)
+    names = args.row or (list(QUICK) if args.quick else list(ROWS))
+    if args.quick:
+        names = [n for n in names if n in QUICK]
+    arm = SerialArm(load_robot(str(ARM3R)))  # compile the search kernels before timing
+    arm.margin()(arm.bounding_box()[0][None])
+    rows = [run_row(n, args.quick) for n in names]
+    by = {r["robot"]: r for r in rows}
+    if "ur5" in by and "ur5-1e-4" in by:  # the default run against the tighter one
+        by["ur5"]["true_error"] = abs(by["ur5"]["volume"] - by["ur5-1e-4"]["volume"])
+        by["ur5"]["true_error_reference"] = "the ur5-1e-4 row (its own error estimate beside it)"
     uptime = subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
     machine.update(load_average_end=list(os.getloadavg()), uptime=uptime)
     if args.json:
         print(dump({"results": rows, "machine": machine}))
         return
     for r in rows:
-        true = "" if r["true_error"] is None else f", true error {r['true_error']:.3g}"
-        print(f"{r['robot']:>16} ({r['mode']}): {r['measure']:.6g} {r['unit']} +/- {r['error_estimate']:.3g}"
-              f" (bounds {r['bounds'][0]:.6g} .. {r['bounds'][1]:.6g}{true}); "
-              f"{r['points_evaluated']} configurations, {r['seconds']:.1f} s, cell {r['cell_m'] * 1e3:.2f} mm")
+        true = "" if r["true_error"] is None else f", true error {r['true_error'] / r['volume']:.2g} relative"
+        print(f"{r['robot']:>18}: {r['volume']:.10g} {r['unit']} +/- {r['error_estimate']:.3g} "
+              f"({r['error_estimate'] / r['volume']:.2g} relative{true}; goal {r['goal_relative']:g}; "
+              f"{'converged' if r['converged'] else 'NOT converged'}); {r['points_evaluated']:,} points, "
+              f"{r['seconds']:.1f} s")
     print(f"  {machine_line(machine)}")
     print(f"  at the end: {uptime}")
 

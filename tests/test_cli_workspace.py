@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import socket
 import subprocess
@@ -69,7 +70,7 @@ def test_workspace_volume_says_what_a_mechanism_lacks(capsys):
     code, _, err = run(capsys, "singularities", rssr)
     assert code == 2 and "3D grid" in err and "1-dimensional" in err
     code, _, err = run(capsys, "usable-workspace", "ur5", "--shape", "cube")
-    assert code == 2 and "needs its mechanism's margin" in err and "it provides: fk, velocity" in err
+    assert code == 2 and "needs its mechanism's ik" in err and "it provides: fk, margin, velocity" in err
 
 
 REVOLVED = str(Path(__file__).parent / "models" / "arm3r_revolved.urdf")
@@ -77,16 +78,18 @@ REVOLVED_M3 = 0.331334  # closed form of its solid of revolution (docs/serial-wo
 
 
 def test_workspace_volume_serial(capsys, tmp_path):
+    """A serial arm goes through the one volume engine: the closed loops' report and keys."""
     csv = tmp_path / "pts.csv"
-    code, d, _ = run_json(capsys, "workspace-volume", REVOLVED, "--resolution", "100", "--points", str(csv))
-    assert code == 0 and {"volume_m3", "error_estimate", "points_evaluated", "seconds", "bounds", "converged",
-                          "singular_points", "proved"} <= set(d)
-    lo, hi = d["bounds"]
-    assert lo <= REVOLVED_M3 <= hi and abs(d["volume_m3"] - REVOLVED_M3) <= d["error_estimate"]
+    code, d, _ = run_json(capsys, "workspace-volume", REVOLVED, "--step", "0.02", "--rtol", "1e-4", "--points", str(csv))
+    assert code == 0 and d["method"] == "columns" and d["family"] == "serial"
+    assert {"volume_m3", "error_estimate", "points_evaluated", "seconds", "columns", "bbox"} <= set(d)
+    assert abs(d["volume_m3"] - REVOLVED_M3) <= max(d["error_estimate"], 1e-6)  # REVOLVED_M3 has 6 digits
     pts = np.loadtxt(csv, delimiter=",", skiprows=1)
     assert csv.read_text().startswith("x,y,z\n") and pts.shape[1] == 3 and len(pts) > 1000
-    code, out, _ = run(capsys, "workspace-volume", REVOLVED, "--resolution", "100")
-    assert code == 0 and "proved bounds [m^3]" in out and "not proved" in out and "volume [m^3]" in out
+    # every listed point lies in the solid: tip within [r(1.5), r(0.3)] of the shoulder (0.3 m up)
+    r = np.linalg.norm(pts - [0, 0, 0.3], axis=1)
+    assert np.all((r >= math.sqrt(0.4**2 + 0.25**2 + 0.2 * math.cos(1.5)) - 1e-9)
+                  & (r <= math.sqrt(0.4**2 + 0.25**2 + 0.2 * math.cos(0.3)) + 1e-9))
 
 
 def test_singularities_serial(capsys):

@@ -31,10 +31,10 @@ def test_the_dispatcher_decides_the_family(name, family, task_dim):
 def test_a_missing_capability_names_what_is_missing_and_what_exists():
     ur5 = mechanism_of(load_robot("ur5"))
     with pytest.raises(MissingCapabilityError) as err:
-        ur5.margin()
-    assert err.value.capability == "margin"
-    assert set(err.value.available) == {"fk", "velocity"}
-    assert "margin" in str(err.value) and "fk, velocity" in str(err.value)
+        ur5.ik(np.zeros((1, 3)))
+    assert err.value.capability == "ik"
+    assert set(err.value.available) == {"fk", "margin", "velocity"}
+    assert "ik" in str(err.value) and "fk, margin, velocity" in str(err.value)
     loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
     with pytest.raises(MissingCapabilityError, match="joint_values"):
         loop.joint_values(np.zeros(1), loop.branches[0])

@@ -211,3 +211,73 @@ def test_radii_kernel_matches_svd(rng, m):
     assert np.all(smin <= s[:, -1] + 1e-14 * s[:, 0])  # never overstated beyond LAPACK's own error
     with pytest.raises(InvalidInputError):
         radii(np.zeros((3, 4, 4)))
+
+
+# -- the reachability margin and the one volume engine (issue 29) ----------------------------------
+def _profile_inside(rho: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """The revolved 3R arm's profile by closed-form 2R inverse kinematics (h: height above the
+    shoulder): e = arccos((rho^2 + h^2 - L2^2 - L3^2) / 2 L2 L3), t from the tip's direction."""
+    c = (rho**2 + h**2 - L2**2 - L3**2) / (2 * L2 * L3)
+    e = np.arccos(np.clip(c, -1.0, 1.0))
+    # pitch about +y turns x towards -z: rho = L2 cos t + L3 cos(t + e), h = -(L2 sin t + L3 sin(t + e))
+    t = np.arctan2(-h, rho) - np.arctan2(L3 * np.sin(e), L2 + L3 * np.cos(e))
+    return (np.abs(c) <= 1) & (e >= 0.3) & (e <= 1.5) & (t >= -0.5) & (t <= 0.8)
+
+
+def test_reach_margin_sign_is_membership(rng):
+    """The search's sign against membership derived in closed form, at random points: the
+    revolved 3R arm (profile and 3-D margins) and the wedge arm (a spherical shell's wedges)."""
+    from kinematics.mechanisms.serial.reach import Reach
+
+    reach = Reach(load_robot(MODELS / "arm3r_revolved.urdf"), "tip")
+    assert reach.setup.mode == "revolved"
+    prof = rng.uniform([0.0, -0.5], [0.7, 0.5], (20000, 2))  # (rho, height above the shoulder)
+    m = reach.profile_margin(prof + [0.0, 0.3 - reach.origin[2]])[:, 0]
+    np.testing.assert_array_equal(m >= 0, _profile_inside(prof[:, 0], prof[:, 1]))
+    p = rng.uniform([-0.7, -0.7, -0.2], [0.7, 0.7, 0.8], (20000, 3))
+    rho, h = np.hypot(p[:, 0], p[:, 1]), p[:, 2] - 0.3
+    np.testing.assert_array_equal(reach.margin(p)[:, 0] >= 0, _profile_inside(rho, h))
+
+    wedge = Reach(load_robot(MODELS / "arm3r_wedge.urdf"), "tip")
+    assert wedge.setup.mode == "spatial"
+
+    def r(e: float) -> float:
+        return math.sqrt(L2**2 + L3**2 + 2 * L2 * L3 * math.cos(e))
+
+    p = rng.uniform(-0.7, 0.7, (20000, 3)) + [0, 0, 0.3]
+    d = np.linalg.norm(p - [0, 0, 0.3], axis=1)
+    az = np.arctan2(p[:, 1], p[:, 0])
+    inside = (d >= r(2.0)) & (d <= r(0.5)) & (np.minimum(np.abs(az), np.pi - np.abs(az)) <= 0.6)
+    np.testing.assert_array_equal(wedge.margin(p)[:, 0] >= 0, inside)
+
+
+@pytest.fixture(scope="module")
+def revolved_ws():
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.serial.mechanism import SerialArm
+
+    return measure_workspace(SerialArm(load_robot(MODELS / "arm3r_revolved.urdf")), step=0.01, rtol=1e-5,
+                             check=True)
+
+
+def test_revolved_volume_through_columns(revolved_ws):
+    """Pappus on the profile (column weight 2 pi rho) against the closed form; the estimate holds."""
+    exact = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)
+    ws = revolved_ws
+    assert ws.result.columns > 0 and not ws.planar
+    assert abs(ws.total - exact) <= ws.error
+    assert abs(ws.total - exact) <= 1e-4 * exact  # 1e-5 needs the 5 mm step (the benchmark's row)
+    lo, hi = np.asarray(ws.as_dict()["bbox"])
+    rmax = math.sqrt(L2**2 + L3**2 + 2 * L2 * L3 * math.cos(0.3))
+    assert hi[0] <= rmax + 1e-9 and hi[0] >= rmax - 0.02  # the world box of the swept profile
+
+
+def test_scara_area_through_the_serial_path(scara):
+    """The SCARA as a generic open chain: its area through the same engine, against the closed form."""
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.serial.mechanism import SerialArm
+
+    exact = scara_area_closed_form(ScaraParams.from_robot(scara))  # 0.9729265761857 m^2
+    ws = measure_workspace(SerialArm(scara), step=0.01, rtol=1e-5, check=True)
+    assert ws.planar and abs(ws.total - exact) <= ws.error
+    assert abs(ws.total - exact) <= 1e-4 * exact

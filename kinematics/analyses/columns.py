@@ -42,10 +42,10 @@ into the outer integral.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -501,6 +501,7 @@ def column_volume(
     progress: bool = False,
     floor: float = 0.0,
     root_tol: float = ROOT_TOL,
+    weight: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> ColumnVolume:
     """Measure {x in [lo, hi] : margin(x)[:, t] >= 0} for every target t by column integration.
 
@@ -520,7 +521,20 @@ def column_volume(
             a workspace: the union's), so a sliver of a branch is not measured to rtol of its own.
         root_tol: sampled columns: width [m] to which every root is bracketed (at least ROOT_TOL;
             the widths are part of the error estimate).
+        weight: (M, d - 1) columns' other coordinates -> (M,) factor on their lengths (sampled
+            columns): the measure becomes the integral of weight x length.
+
+    Two optional attributes of the margin change the run: `profile` (3D margins of a solid of
+    revolution: `margin`, `lo`, `hi`, `axis`, `weight` and `world_box` of its (rho, z) profile,
+    measured instead with the weight 2 pi rho, Pappus) and `for_check()` (the margin the check run
+    uses, e.g. a search with more restarts, so that the check also compares two searches).
     """
+    profile = getattr(margin, "profile", None)
+    if profile is not None and np.asarray(lo).shape == (3,):
+        res = column_volume(profile.margin, profile.lo, profile.hi, step=step, rtol=rtol, order=order,
+                            pieces=pieces, axis=profile.axis, check=check, max_points=max_points, progress=progress,
+                            floor=floor, root_tol=root_tol, weight=profile.weight)
+        return replace(res, box=profile.world_box(res.box))
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     d = lo.shape[0]
@@ -541,10 +555,18 @@ def column_volume(
     if start > max_points:
         raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
                                         "use a larger step")
-    run = _run_exact if _exact_of(margin, d) is not None else functools.partial(_run_sampled, root_tol=root_tol)
+    if _exact_of(margin, d) is not None:
+        if weight is not None:
+            raise InvalidInputError("weight", "exact columns take no weight")
+        run: Callable[..., ColumnVolume] = _run_exact
+    else:
+        run = partial(_run_sampled, weight=weight, root_tol=root_tol)
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check:
         return first
+    for_check = getattr(margin, "for_check", None)
+    if for_check is not None:
+        margin = for_check()
     if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
         second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
                             min_nodes=2 * MIN_NODES, floor=floor)
@@ -648,7 +670,8 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
 
 def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
          order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
-         floor: float = 0.0, root_tol: float = ROOT_TOL) -> ColumnVolume:
+         floor: float = 0.0, root_tol: float = ROOT_TOL,
+         weight: Callable[[np.ndarray], np.ndarray] | None = None) -> ColumnVolume:
     d = lo.shape[0]
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     others = [k for k in range(d) if k != ax]
@@ -664,6 +687,9 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
 
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter, root_tol)
+        if weight is not None:
+            w = np.asarray(weight(base), dtype=float)[:, None]
+            ell, err = ell * w, err * w
         if bar is not None:
             bar.update(len(base))
         return ell, err, ends

@@ -28,6 +28,7 @@ import numpy as np
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
 from kinematics.analyses.columns import ROOT_TOL, ColumnVolume, column_volume
 from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.sizes import MAX_POINTS
 
 
 @dataclass(frozen=True)
@@ -126,10 +127,10 @@ def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
         from kinematics.errors import UnknownChoiceError
 
         raise UnknownChoiceError(engine, ("columns", "cells"))
-    kw = {} if max_points is None else {"max_points": max_points}
     rtol = 1e-2 if rtol is None else rtol
     return column_volume(margin, lo, hi, step=step, rtol=rtol, check=check, progress=progress, floor=BRANCH_FLOOR,
-                         root_tol=root_tolerance(rtol, step), **kw)
+                         root_tol=root_tolerance(rtol, step),
+                         max_points=MAX_POINTS if max_points is None else max_points)
 
 
 def root_tolerance(rtol: float, step: float) -> float:
@@ -155,7 +156,7 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
 
         raise UnsupportedRobotError(mech.name, f"a workspace area or volume needs a 2- or 3-dimensional task space; "
                                                f"this one is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
-    chosen = mech.check_branches(branches)
+    chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
     lo, hi = mech.bounding_box(limits)
     t0 = time.perf_counter()

@@ -40,7 +40,6 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    serial_args(p)
 
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -82,13 +81,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return sweep(args, load(args), emit)
 
 
-SERIAL_PROVED = ("proved: lower <= volume <= upper for the URDF's kinematics (Taylor balls with a global "
-                 "second-derivative bound above, Graves' theorem and boundary-free cell components below; "
-                 "double-precision rounding is far below a cell); not proved: the probe that fixes joints "
-                 "which never move the frame (64 configurations), and the dexterity maps, which are the best "
-                 "over the configurations evaluated in a cell (docs/serial-workspace.md)")
-
-
 def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
     """`serial_workspace` with the CLI's --resolution, --max-points and --rtol (0: 0.02)."""
     from kinematics.analyses.serial_workspace import serial_workspace
@@ -123,50 +115,6 @@ def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
     world = dataclasses.replace(ws, singular_points=ws.singular_points[idx]).world_points("singular", turns=1)
     return [{"position": p.tolist(), "radius_m": float(r), "q": q.tolist()}
             for p, r, q in zip(world, ws.singular_radius[idx], ws.singular_configurations[idx], strict=True)]
-
-
-def _serial_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    ws = serial_scan(args, robot)
-    payload = ws.as_dict()
-    payload.update(max_points=args.max_points, budget_exhausted=ws.points_evaluated >= args.max_points,
-                   singular_points=singular_sample(ws), proved=SERIAL_PROVED)
-    if args.points:
-        pts = ws.world_points("inside")
-        check_points("--points", len(pts), limit=MAX_LISTED_POINTS)
-        _write_points(args.points, pts, "x,y,z")
-    if not ws.converged:
-        import sys
-
-        print(f"warning: the bounds are {2 * ws.error_estimate / ws.measure:.0%} of the estimate apart (rtol "
-              f"{ws.rtol:g} not met); a larger --max-points or --resolution narrows them", file=sys.stderr)
-
-    def human() -> str:
-        unit, key = ("m^2", "area") if ws.planar else ("m^3", "volume")
-        shape = {"planar": f"area in the plane of world axes {list(ws.axes)}",
-                 "revolved": "solid of revolution about the base joint's axis (its profile measured)",
-                 "spatial": "3-D cells"}[ws.mode]
-        rel = ws.error_estimate / ws.measure if ws.measure > 0 else math.inf
-        return "\n".join([
-            f"{robot.name}: reachable {key} of frame {ws.frame} ({shape})",
-            "",
-            key_values([
-                (f"{key} [{unit}]", (f"{fmt(ws.measure, 6)} +/- {fmt(ws.error_estimate, 3)} (midpoint of the "
-                                     f"proved bounds, {fmt(rel, 2)} relative; rtol {fmt(ws.rtol, 2)}: "
-                                     f"{'converged' if ws.converged else 'NOT converged'})")),
-                (f"proved bounds [{unit}]", f"{fmt(ws.lower, 6)} .. {fmt(ws.upper, 6)}"),
-                ("cell [m]", fmt(ws.grid.cell, 3)),
-                ("sampled joints", ", ".join(ws.joints) + (f" (fixed: {', '.join(ws.fixed)})" if ws.fixed else "")),
-                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"
-                 + (" (exhausted: valid but wider bounds)" if payload["budget_exhausted"] else "")),
-                ("possibly singular boxes", f"{len(ws.singular_radius):,}"),
-                ("time [s]", f"{ws.seconds:.2f}"),
-            ], digits=None),
-            "",
-            SERIAL_PROVED,
-        ])
-
-    out(args, payload, human)
-    return 0
 
 
 def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
@@ -234,8 +182,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    if mech.family == "serial":
-        return _serial_volume(args, robot, out)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
     kernels = mech.kernels()

@@ -7,11 +7,11 @@ from itertools import product
 
 import numpy as np
 
-from kinematics.analyses.serial_workspace.joint_box import Setup
 from kinematics.analyses.serial_workspace.kernels import jacobian_stats
 from kinematics.chunks import slices
 from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.batched import BatchedKinematics, configurations
+from kinematics.mechanisms.serial.joint_box import Setup
 from kinematics.model.robot import Robot
 
 LEAF = 0.5

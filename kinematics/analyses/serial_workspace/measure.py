@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinematics.analyses.serial_workspace.boxes import LEAF, evaluate, level_zero, split, split_mask
-from kinematics.analyses.serial_workspace.joint_box import Setup, on_face, room, setup
 from kinematics.analyses.serial_workspace.kernels import (
     aggregate,
     cell_measure,
@@ -23,6 +22,7 @@ from kinematics.analyses.serial_workspace.kernels import (
 from kinematics.analyses.serial_workspace.result import CellGrid, SerialWorkspace
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.batched import BatchedKinematics, configurations
+from kinematics.mechanisms.serial.joint_box import Setup, on_face, room, setup
 from kinematics.model.robot import Robot
 
 

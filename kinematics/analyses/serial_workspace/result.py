@@ -9,8 +9,7 @@ from typing import Any, Literal
 import numpy as np
 
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
-
-Mode = Literal["planar", "revolved", "spatial"]
+from kinematics.mechanisms.serial.joint_box import Mode as Mode
 
 
 @dataclass(frozen=True, eq=False)

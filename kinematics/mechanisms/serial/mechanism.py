@@ -1,9 +1,12 @@
 """Any open chain as a `Mechanism`: forward kinematics and Jacobians of its tool frame's position
 from the compiled batched kinematics (`kinematics.generic.batched`).
 
-A serial arm has no closed-form inverse kinematics here, hence no margin: its workspace is
-measured in joint space (`kinematics.analyses.serial_workspace`, proved bounds), which is what
-the analyses use for this family. Singularity measure: iota_I = sigma_min / sigma_max of the
+Its margin is a reachability search (`kinematics.mechanisms.serial.reach`: bounded
+Levenberg-Marquardt from seeded restarts and warm starts, compiled, on every core), so its
+workspace goes through the one volume engine (`kinematics.analyses.columns`) like every other
+family's; a full-turn base joint makes it a solid of revolution measured by its (rho, z) profile.
+The cell engine (`kinematics.analyses.serial_workspace`, proved bounds) stays for singular sets
+and as an independent check. Singularity measure: iota_I = sigma_min / sigma_max of the
 position Jacobian restricted to the task (the arm's plane for planar arms), 0 where it loses
 rank (the inverse map is undefined: type I in Gosselin-Angeles' terms); iota_II = 1 (a serial arm
 has no passive joints to release the tool).
@@ -11,19 +14,24 @@ has no passive joints to release the tool).
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from kinematics.mechanisms.base import Assemblies, Mechanism, Velocity
+from kinematics.mechanisms.base import Assemblies, MarginFn, Mechanism, Velocity
 from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    from kinematics.mechanisms.serial.reach import Reach
 
 
 class SerialArm(Mechanism):
     """An open chain loaded from a URDF; q are Pinocchio configurations (nq values per row)."""
 
     family = "serial"
-    description = "open chain (compiled batched kinematics; workspace in joint space)"
+    description = "open chain (compiled batched kinematics; reachability by a compiled search)"
     actuator_unit = "rad or m"
     assembly_modes = ("tool",)
 
@@ -41,6 +49,34 @@ class SerialArm(Mechanism):
         r = self.robot
         return {"frame": r.tool_frame, "joints": [d.name for d in r.dofs], "lower": r.lower.tolist(),
                 "upper": r.upper.tolist()}
+
+    @cached_property
+    def reach(self) -> Reach:
+        """The reachability search of the tool frame (built on first use)."""
+        from kinematics.mechanisms.serial.reach import Reach
+
+        return Reach(self.robot)
+
+    def kernels(self) -> tuple[Any, ...]:
+        from kinematics.mechanisms.serial import search
+
+        return (search.search, search.chain_fk_many)
+
+    def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        """The reach ball's box about the first joint (its disc's in the plane for planar arms) [m]."""
+        self.check_limits(limits)
+        return self.reach.box()
+
+    def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
+        """points (N, task_dim) -> (N, 1): the reachability margin [m] of the union (a serial arm has
+        no branches): tol - distance found, + a local room estimate when reached
+        (`kinematics.mechanisms.serial.reach`)."""
+        from kinematics.mechanisms.serial.reach import ReachMargin
+
+        if branches:
+            self.check_branches(branches)
+        self.check_limits(limits)
+        return ReachMargin(self.reach)
 
     def _rows(self) -> list[int]:
         return list(self.plane) if self.plane is not None else [0, 1, 2]

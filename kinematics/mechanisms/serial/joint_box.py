@@ -6,14 +6,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
-from kinematics.analyses.serial_workspace.result import Mode
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.batched import PRISMATIC, BatchedKinematics, configurations
 from kinematics.generic.serial import plane
 from kinematics.model.robot import Robot
+
+Mode = Literal["planar", "revolved", "spatial"]
+"""How a serial workspace is measured: in the arm's plane, as a profile turned about the base axis, or in 3-D."""
 
 _DEAD_TOL = 1e-12
 """A joint whose position-Jacobian column is below this [m/rad] at every probe never moves the point."""
