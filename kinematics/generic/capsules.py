@@ -1,0 +1,229 @@
+"""Compiled closed-form signed distances between capsules, spheres and plates, batched over
+configurations on every core; coal (through `CollisionModel`) for every other pair.
+
+Shapes with closed forms (all convex; "signed distance" as coal's: the gap when apart, minus the
+penetration depth, the shortest translation that separates them, when they overlap):
+
+* **capsule - capsule** (a sphere is a capsule of zero length): the points within r of a segment.
+  The Minkowski difference of two capsules is the set within r1 + r2 of the difference of their
+  segments, a (flat) parallelogram P, so their signed distance is, everywhere,
+
+      d = |s1(u*) - s2(v*)| - r1 - r2,   (u*, v*) = argmin over [0, 1]^2 of |s1(u) - s2(v)|,
+
+  the segments' distance by the clamped closed form (Ericson, Real-Time Collision Detection 5.1.9;
+  parallel segments included);
+* **capsule - plate** (a `coal.Cylinder`: centre c, unit axis a, radius R, half thickness h).
+  With z_k = a.(p_k - c) the capsule's end heights and rho_k their distances from the axis, the
+  slab |a.(x - c)| <= h gives
+
+      d = max(min z_k - r - h, -h - max z_k - r),
+
+  and this is the plate's own signed distance whenever the capsule's footprint stays inside the
+  disk, max rho_k + r <= R - max(0, -d): apart, the slab's nearest points are then on the disk's
+  faces; overlapping, any translation shorter than -d keeps the footprint inside the disk, so only
+  leaving the slab separates them. Elsewhere the pair goes to coal. (The base plates of the
+  built-ins and the rods above them meet this; a rod beside a plate does not.)
+
+Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from the
+compiled forward kinematics (`kinematics.generic.batched`) of each geometry's parent frame.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from kinematics.chunks import slices
+from kinematics.generic.collision import CollisionModel
+
+CAPSULE, PLATE, COAL = 0, 1, 2
+"""Pair kinds: closed form, closed form where the footprint test holds, coal."""
+
+CHUNK = 16384
+"""Configurations per batch: placements and distances of a chunk stay small."""
+
+
+class AnalyticDistances:
+    """Signed distances of a `CollisionModel`'s pairs, closed-form where the shapes allow
+    (module docstring), coal for the rest; `distances(q)` agrees with `CollisionModel.distances`.
+
+    Attributes:
+        model: the collision model (pairs, names, coal for the other pairs).
+        kinds: (P,) CAPSULE, PLATE or COAL per pair.
+    """
+
+    def __init__(self, model: CollisionModel) -> None:
+        import coal
+
+        from kinematics.generic.batched import BatchedKinematics
+
+        self.model = model
+        objs = list(model.geometry.geometryObjects)
+        G = len(objs)
+        self._radius = np.zeros(G)
+        self._half = np.zeros(G)
+        shape = np.full(G, COAL, dtype=np.int64)
+        for k, g in enumerate(objs):
+            geom = g.geometry
+            if isinstance(geom, coal.Capsule):
+                shape[k], self._radius[k], self._half[k] = CAPSULE, geom.radius, geom.halfLength
+            elif isinstance(geom, coal.Sphere):
+                shape[k], self._radius[k] = CAPSULE, geom.radius
+            elif isinstance(geom, coal.Cylinder):
+                shape[k], self._radius[k], self._half[k] = PLATE, geom.radius, geom.halfLength
+        pairs = np.array(model.pairs, dtype=np.int64).reshape(-1, 2)
+        kinds = np.full(len(pairs), COAL, dtype=np.int64)
+        for n, (a, b) in enumerate(pairs):
+            sa, sb = shape[a], shape[b]
+            if sa == CAPSULE and sb == CAPSULE:
+                kinds[n] = CAPSULE
+            elif {sa, sb} == {CAPSULE, PLATE}:
+                kinds[n] = PLATE
+                if sa == PLATE:
+                    pairs[n] = (b, a)  # capsule first
+        self.kinds = kinds
+        self._pairs = pairs
+        used = sorted({int(x) for x in pairs[kinds != COAL].ravel()})
+        self._used = np.array(used, dtype=np.int64)
+        self._local_R = np.array([objs[k].placement.rotation for k in range(G)]).reshape(G, 3, 3)
+        self._local_p = np.array([objs[k].placement.translation for k in range(G)]).reshape(G, 3)
+        # a geometry's placement is in its parent joint's frame: compile each joint's own frame
+        rb = model.robot.model
+        self._frame_of = {k: _joint_frame(rb, int(objs[k].parentJoint)) for k in used}
+        self._fk = {f: BatchedKinematics.from_model(rb, f, model.robot.name) for f in set(self._frame_of.values())}
+
+    def _placements(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, G, 3) centres and (N, G, 3) z axes of the closed-form geometries in the world."""
+        N, G = len(q), len(self._radius)
+        centre = np.zeros((N, G, 3))
+        axis = np.zeros((N, G, 3))
+        poses = {f: fk.fk(q) for f, fk in self._fk.items()}
+        for k in self._used:
+            pose = poses[self._frame_of[int(k)]]
+            centre[:, k] = pose.position + pose.rotation @ self._local_p[k]
+            axis[:, k] = pose.rotation @ self._local_R[k][:, 2]
+        return centre, axis
+
+    def closed_form(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, P) closed-form distances [m] and (N, P) where they hold (False: a COAL pair, or a
+        PLATE pair whose footprint test fails; those entries are NaN)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        out = np.empty((len(q), len(self.kinds)))
+        ok = np.empty((len(q), len(self.kinds)), dtype=np.bool_)
+        for s in slices(len(q), CHUNK):
+            centre, axis = self._placements(q[s])
+            _kernel(centre, axis, self._radius, self._half, self._pairs, self.kinds, out[s], ok[s])
+        return out, ok
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        """(N, P) signed distances [m], pair order as the model's: closed form where it holds,
+        coal (`CollisionModel.distances`) for the configurations where some pair needs it."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.model.robot.model.nq or not np.isfinite(q).all():
+            return self.model.distances(q)  # raises the model's error
+        out, ok = self.closed_form(q)
+        rows = np.flatnonzero(~ok.all(axis=1))
+        if len(rows):
+            d = self.model.distances(q[rows])
+            out[rows] = np.where(ok[rows], out[rows], d)
+        return out
+
+    def margin(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest signed distance [m] over the pairs and its pair index (-1, +inf: no pair)."""
+        d = self.distances(q)
+        if d.shape[1] == 0:
+            return np.full(len(d), np.inf), np.full(len(d), -1)
+        k = np.argmin(d, axis=1)
+        return d[np.arange(len(d)), k], k
+
+
+def _joint_frame(model: Any, joint: int) -> int:
+    """The index of joint `joint`'s own frame (placement identity in the joint)."""
+    import pinocchio as pin
+
+    return next(f for f, fr in enumerate(model.frames)
+                if (fr.parentJoint == joint and fr.type in (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT)
+                and fr.placement.isIdentity()) or (joint == 0 and f == 0))
+
+
+@njit(cache=True, inline="always")
+def _segments(p1, q1, p2, q2):  # pragma: no cover - compiled
+    """Distance [m] between segments p1-q1 and p2-q2 (Ericson 5.1.9, clamped; parallel included)."""
+    d1 = q1 - p1
+    d2 = q2 - p2
+    r = p1 - p2
+    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
+    f = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2]
+    eps = 1e-300
+    s = 0.0
+    t = 0.0
+    if a <= eps and e <= eps:
+        pass
+    elif a <= eps:
+        t = min(max(f / e, 0.0), 1.0)
+    else:
+        c = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
+        if e <= eps:
+            s = min(max(-c / a, 0.0), 1.0)
+        else:
+            b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+            denom = a * e - b * b
+            if denom > 0.0:
+                s = min(max((b * f - c * e) / denom, 0.0), 1.0)
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = min(max(-c / a, 0.0), 1.0)
+            elif t > 1.0:
+                t = 1.0
+                s = min(max((b - c) / a, 0.0), 1.0)
+    x = r + d1 * s - d2 * t
+    return math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+
+
+@njit(cache=True, parallel=True)
+def _kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
+    N = centre.shape[0]
+    P = pairs.shape[0]
+    for n in prange(N):
+        for k in range(P):
+            i = pairs[k, 0]
+            j = pairs[k, 1]
+            kind = kinds[k]
+            if kind == 2:
+                out[n, k] = np.nan
+                ok[n, k] = False
+                continue
+            p1 = centre[n, i] - half[i] * axis[n, i]
+            q1 = centre[n, i] + half[i] * axis[n, i]
+            if kind == 0:
+                p2 = centre[n, j] - half[j] * axis[n, j]
+                q2 = centre[n, j] + half[j] * axis[n, j]
+                out[n, k] = _segments(p1, q1, p2, q2) - radius[i] - radius[j]
+                ok[n, k] = True
+                continue
+            a = axis[n, j]
+            u = p1 - centre[n, j]
+            v = q1 - centre[n, j]
+            zu = a[0] * u[0] + a[1] * u[1] + a[2] * u[2]
+            zv = a[0] * v[0] + a[1] * v[1] + a[2] * v[2]
+            ru = math.sqrt(max((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) - zu * zu, 0.0))
+            rv = math.sqrt(max((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - zv * zv, 0.0))
+            r = radius[i]
+            h = half[j]
+            d = max(min(zu, zv) - r - h, -h - max(zu, zv) - r)
+            if max(ru, rv) + r <= radius[j] - max(0.0, -d):
+                out[n, k] = d
+                ok[n, k] = True
+            else:
+                out[n, k] = np.nan
+                ok[n, k] = False
+
+
+def kernels() -> tuple[Any, ...]:
+    """The compiled kernels (for `kinematics.jit`)."""
+    return (_kernel,)
