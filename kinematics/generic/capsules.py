@@ -103,8 +103,8 @@ class AnalyticDistances:
         poses = {f: fk.fk(q) for f, fk in self._fk.items()}
         for k in self._used:
             pose = poses[self._frame_of[int(k)]]
-            centre[:, k] = pose.position + pose.rotation @ self._local_p[k]
-            axis[:, k] = pose.rotation @ self._local_R[k][:, 2]
+            centre[:, k] = pose.position + np.einsum("nij,j->ni", pose.rotation, self._local_p[k])
+            axis[:, k] = np.einsum("nij,j->ni", pose.rotation, self._local_R[k][:, 2])
         return centre, axis
 
     def closed_form(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,14 +150,13 @@ def _joint_frame(model: Any, joint: int) -> int:
 
 
 @njit(cache=True, inline="always")
-def _segments(p1, q1, p2, q2):  # pragma: no cover - compiled
-    """Distance [m] between segments p1-q1 and p2-q2 (Ericson 5.1.9, clamped; parallel included)."""
-    d1 = q1 - p1
-    d2 = q2 - p2
-    r = p1 - p2
-    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
-    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
-    f = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2]
+def _segments(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):  # pragma: no cover - compiled
+    """Distance [m] between segments p1 + s d1 and p2 + t d2, s, t in [0, 1] (Ericson 5.1.9,
+    clamped; parallel and degenerate segments included)."""
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
     eps = 1e-300
     s = 0.0
     t = 0.0
@@ -166,11 +165,11 @@ def _segments(p1, q1, p2, q2):  # pragma: no cover - compiled
     elif a <= eps:
         t = min(max(f / e, 0.0), 1.0)
     else:
-        c = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
+        c = d1x * rx + d1y * ry + d1z * rz
         if e <= eps:
             s = min(max(-c / a, 0.0), 1.0)
         else:
-            b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+            b = d1x * d2x + d1y * d2y + d1z * d2z
             denom = a * e - b * b
             if denom > 0.0:
                 s = min(max((b * f - c * e) / denom, 0.0), 1.0)
@@ -181,8 +180,10 @@ def _segments(p1, q1, p2, q2):  # pragma: no cover - compiled
             elif t > 1.0:
                 t = 1.0
                 s = min(max((b - c) / a, 0.0), 1.0)
-    x = r + d1 * s - d2 * t
-    return math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    x = rx + d1x * s - d2x * t
+    y = ry + d1y * s - d2y * t
+    z = rz + d1z * s - d2z * t
+    return math.sqrt(x * x + y * y + z * z)
 
 
 @njit(cache=True, parallel=True)
@@ -198,21 +199,31 @@ def _kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no co
                 out[n, k] = np.nan
                 ok[n, k] = False
                 continue
-            p1 = centre[n, i] - half[i] * axis[n, i]
-            q1 = centre[n, i] + half[i] * axis[n, i]
+            hi = half[i]
+            ax, ay, az = axis[n, i, 0], axis[n, i, 1], axis[n, i, 2]
+            p1x = centre[n, i, 0] - hi * ax
+            p1y = centre[n, i, 1] - hi * ay
+            p1z = centre[n, i, 2] - hi * az
             if kind == 0:
-                p2 = centre[n, j] - half[j] * axis[n, j]
-                q2 = centre[n, j] + half[j] * axis[n, j]
-                out[n, k] = _segments(p1, q1, p2, q2) - radius[i] - radius[j]
+                hj = half[j]
+                bx, by, bz = axis[n, j, 0], axis[n, j, 1], axis[n, j, 2]
+                dist = _segments(p1x, p1y, p1z, 2 * hi * ax, 2 * hi * ay, 2 * hi * az,
+                                 centre[n, j, 0] - hj * bx, centre[n, j, 1] - hj * by, centre[n, j, 2] - hj * bz,
+                                 2 * hj * bx, 2 * hj * by, 2 * hj * bz)
+                out[n, k] = dist - radius[i] - radius[j]
                 ok[n, k] = True
                 continue
-            a = axis[n, j]
-            u = p1 - centre[n, j]
-            v = q1 - centre[n, j]
-            zu = a[0] * u[0] + a[1] * u[1] + a[2] * u[2]
-            zv = a[0] * v[0] + a[1] * v[1] + a[2] * v[2]
-            ru = math.sqrt(max((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) - zu * zu, 0.0))
-            rv = math.sqrt(max((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) - zv * zv, 0.0))
+            # capsule i against plate j (axis a, centre c): end heights z and axis distances rho
+            cx, cy, cz = centre[n, j, 0], centre[n, j, 1], centre[n, j, 2]
+            a0, a1, a2 = axis[n, j, 0], axis[n, j, 1], axis[n, j, 2]
+            ux, uy, uz = p1x - cx, p1y - cy, p1z - cz
+            vx, vy, vz = ux + 2 * hi * ax, uy + 2 * hi * ay, uz + 2 * hi * az
+            zu = a0 * ux + a1 * uy + a2 * uz
+            zv = a0 * vx + a1 * vy + a2 * vz
+            wx, wy, wz = ux - zu * a0, uy - zu * a1, uz - zu * a2
+            ru = math.sqrt(wx * wx + wy * wy + wz * wz)
+            wx, wy, wz = vx - zv * a0, vy - zv * a1, vz - zv * a2
+            rv = math.sqrt(wx * wx + wy * wy + wz * wz)
             r = radius[i]
             h = half[j]
             d = max(min(zu, zv) - r - h, -h - max(zu, zv) - r)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Any
 
 import numpy as np
 
@@ -120,6 +121,17 @@ def joint_values_at(params: DeltaParams, p: np.ndarray, mode: str = "---") -> di
     psi, phi = passive_angles(params, theta, n)
     eps = theta[0] + params.elbow_socket + psi[0]  # rod (1, 1)'s angle in limb 1's plane
     return three_limb.tree_values("actuator", theta, "u_psi", psi, phi, float(math.remainder(math.pi / 2 - eps, 2 * math.pi)))
+
+
+def configurations_at(params: DeltaParams, model: Any, points: np.ndarray, mode: str) -> np.ndarray:
+    """Pinocchio configurations (N, nq) of this URDF's `model` with the platform at `points`
+    (N, 3) [m] in working mode `mode` (loops closed; `joint_values_at` at many points, NaN rows
+    where a limb cannot reach)."""
+    theta, n = three_limb.mode_solutions(limb_ik, params, points, mode)
+    psi, phi = passive_angles(params, theta, n)
+    half = 0.5 * math.pi - (theta[:, 0] + params.elbow_socket + psi[:, 0])
+    s_2 = half - 2 * math.pi * np.round(half / (2 * math.pi))  # math.remainder's range, [-pi, pi]
+    return three_limb.tree_arrays(model, three_limb.tree_value_arrays("actuator", theta, "u_psi", psi, phi, s_2))
 
 
 def reference_configuration(params: DeltaParams) -> dict[str, float]:

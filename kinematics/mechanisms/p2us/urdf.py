@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -166,6 +167,16 @@ def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dic
     q, n = three_limb.mode_solution(limb_ik, params, p, mode)
     theta, phi = passive_angles(params, n)
     return three_limb.tree_values("slider", q, "u_theta", theta, phi, theta_centre(params) - float(theta[0]))
+
+
+def configurations_at(params: P2USParams, model: Any, points: np.ndarray, mode: str) -> np.ndarray:
+    """Pinocchio configurations (N, nq) of this URDF's `model` with the platform at `points`
+    (N, 3) [m] in working mode `mode` (loops closed; `joint_values_at` at many points, NaN rows
+    where a limb cannot reach)."""
+    q, n = three_limb.mode_solutions(limb_ik, params, points, mode)
+    theta, phi = passive_angles(params, n)
+    values = three_limb.tree_value_arrays("slider", q, "u_theta", theta, phi, theta_centre(params) - theta[:, 0])
+    return three_limb.tree_arrays(model, values)
 
 
 def reference_configuration(params: P2USParams) -> dict[str, float]:

@@ -191,21 +191,50 @@ def mode_solution(limb_ik: Callable[[Any, np.ndarray], Any], params: Any, p: np.
     return limbs.q[np.arange(3), roots], limbs.n[np.arange(3), roots]
 
 
+def mode_solutions(limb_ik: Callable[[Any, np.ndarray], Any], params: Any, points: np.ndarray,
+                   mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """`mode_solution` at many platform positions (N, 3) [m]: actuator values (N, 3) and unit rod
+    directions (N, 3, 3); NaN where a limb cannot reach."""
+    from kinematics.mechanisms.three_limb.modes import MODE_ROOTS
+
+    limbs = limb_ik(params, np.asarray(points, dtype=float).reshape(-1, 3))
+    roots, idx = MODE_ROOTS[mode_index(mode)], np.arange(3)
+    return limbs.q[:, idx, roots], limbs.n[:, idx, roots]
+
+
+def tree_arrays(model: Any, values: dict[str, np.ndarray]) -> np.ndarray:
+    """Pinocchio configurations (N, nq) of `model` from the arrays `tree_values`' names map to
+    (every joint of the model named, each with one coordinate)."""
+    n = len(next(iter(values.values())))
+    q = np.empty((n, model.nq))
+    for j in range(1, model.njoints):
+        q[:, model.idx_qs[j]] = values[model.names[j]]
+    return q
+
+
 def tree_values(actuator: str, q: np.ndarray, first: str, u_first: np.ndarray, u_phi: np.ndarray,
                 s_2: float) -> dict[str, float]:
     """Joint values of the tree, by name: `{actuator}_i` = q_i, the universal joint's
     `{first}_i_k` and `u_phi_i_k` (both rods of a limb alike), and the platform's spherical
     joint: s_1 undoes rod (1, 1)'s u_phi, s_2 as given (the family's elevation term), s_3 = 0
     (the platform does not turn)."""
-    values: dict[str, float] = {}
+    arrays = tree_value_arrays(actuator, np.asarray(q)[None], first, np.asarray(u_first)[None],
+                               np.asarray(u_phi)[None], np.array([s_2]))
+    return {name: float(v[0]) for name, v in arrays.items()}
+
+
+def tree_value_arrays(actuator: str, q: np.ndarray, first: str, u_first: np.ndarray, u_phi: np.ndarray,
+                      s_2: np.ndarray) -> dict[str, np.ndarray]:
+    """`tree_values` at N poses: q, u_first, u_phi (N, 3), s_2 (N,); arrays (N,) by joint name."""
+    values: dict[str, np.ndarray] = {}
     for i in LIMBS:
-        values[f"{actuator}_{i}"] = float(q[i - 1])
+        values[f"{actuator}_{i}"] = q[:, i - 1]
         for k in RODS:
-            values[f"{first}_{i}_{k}"] = float(u_first[i - 1])
-            values[f"u_phi_{i}_{k}"] = float(u_phi[i - 1])
+            values[f"{first}_{i}_{k}"] = u_first[:, i - 1]
+            values[f"u_phi_{i}_{k}"] = u_phi[:, i - 1]
     values["s_1"] = -values["u_phi_1_1"]
-    values["s_2"] = s_2
-    values["s_3"] = 0.0
+    values["s_2"] = s_2 + 0.0
+    values["s_3"] = np.zeros(len(q))
     return values
 
 
