@@ -68,6 +68,11 @@ def test_closed_forms_agree_with_coal_on_random_configurations(robot, rng):
     exact = ok & ~(sphere_plate & (coal < 0))
     assert np.abs(d - coal)[exact].max() < 1e-9
     assert (np.sign(d[ok]) == np.sign(coal[ok])).all()
+    # beside a plate: where a bound is found it is positive and below coal's distance
+    bound = ~ok & (ad.kinds == PLATE) & np.isfinite(d)
+    assert bound.sum() > 100 and (d[bound] > 0).all() and (d[bound] <= coal[bound] + 1e-9).all()
+    signs = ad.distances(q, signs=True)
+    assert (np.sign(signs) == np.sign(coal)).all()
     full = ad.distances(q)
     # coal again on the configurations that need it: apart, the same to GJK's tolerance; its EPA
     # depths of a rod deep in the plate depend on the warm start (up to 0.1 m apart), signs do not

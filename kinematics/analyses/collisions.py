@@ -6,7 +6,9 @@ Per branch b the margin at a task point x is
 
 k_b the mechanism's kinematic margin (reach and joint limits, > 0 inside), q_b(x) the whole tree's
 configuration there (loops closed) and d_p the signed distance of collision pair p [m]
-(`kinematics.generic.capsules`: closed forms for capsules, spheres and plates, coal for the rest).
+(`kinematics.generic.capsules`: closed forms for capsules, spheres and plates, coal for the rest;
+a capsule beside a plate but clear of its slab keeps the slab's distance, a positive lower bound,
+so every term has the true distance's sign and the min's zero set is the true one).
 Where k_b <= 0 the point is outside whatever the distances, so m_b = k_b there (no configuration
 exists); this keeps the sign of the min everywhere, and every sign change of m_b is one of the
 min's. The union's margin is max_b m_b. Both are continuous where they change sign, so
@@ -83,7 +85,7 @@ class CollisionMargin:
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray) -> np.ndarray:
         """(M, P) pair distances at the points `inside` (a mask) in branch b."""
         q = configurations(self.mech, self.robot, points[inside], self.branches[b])
-        return self.distances.distances(q)
+        return self.distances.distances(q, signs=True)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float)

@@ -21,8 +21,12 @@ penetration depth, the shortest translation that separates them, when they overl
   and this is the plate's own signed distance whenever the capsule's footprint stays inside the
   disk, max rho_k + r <= R - max(0, -d): apart, the slab's nearest points are then on the disk's
   faces; overlapping, any translation shorter than -d keeps the footprint inside the disk, so only
-  leaving the slab separates them. Elsewhere the pair goes to coal. (The base plates of the
-  built-ins and the rods above them meet this; a rod beside a plate does not.)
+  leaving the slab separates them. Elsewhere the pair goes to coal (the base plates of the
+  built-ins and the rods above them meet the test; a rod beside a plate does not), or, where only
+  the sign matters (`distances(signs=True)`, the workspace margins), keeps a positive lower bound
+  when it finds one: the slab's distance, or min(m, rho - R - r) with rho the distance from the
+  axis of the segment's part within |z| <= h + r + m (m = h + r; beyond that band the height
+  alone keeps the capsule m away).
 
 Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from the
 compiled forward kinematics (`kinematics.generic.batched`) of each geometry's parent frame.
@@ -108,8 +112,9 @@ class AnalyticDistances:
         return centre, axis
 
     def closed_form(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, P) closed-form distances [m] and (N, P) where they hold (False: a COAL pair, or a
-        PLATE pair whose footprint test fails; those entries are NaN)."""
+        """(N, P) closed-form distances [m] and (N, P) where they hold (False: a COAL pair, NaN, or
+        a PLATE pair whose footprint test fails, whose entry is then a positive lower bound of its
+        distance when one is found (the slab's distance, or the gap beside the disk), else NaN)."""
         q = np.ascontiguousarray(q, dtype=float)
         out = np.empty((len(q), len(self.kinds)))
         ok = np.empty((len(q), len(self.kinds)), dtype=np.bool_)
@@ -118,22 +123,29 @@ class AnalyticDistances:
             _kernel(centre, axis, self._radius, self._half, self._pairs, self.kinds, out[s], ok[s])
         return out, ok
 
-    def distances(self, q: np.ndarray) -> np.ndarray:
+    def distances(self, q: np.ndarray, signs: bool = False) -> np.ndarray:
         """(N, P) signed distances [m], pair order as the model's: closed form where it holds,
-        coal (`CollisionModel.distances`) for the configurations where some pair needs it."""
+        coal (`CollisionModel.distances`) for the configurations where some pair needs it.
+
+        signs: where a capsule lies beside a plate and clear of it, keep `closed_form`'s positive
+        lower bound instead of asking coal: every entry then has the sign of the true distance
+        (and is exact wherever it is <= 0), which is all a margin's zero set needs."""
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.model.robot.model.nq or not np.isfinite(q).all():
             return self.model.distances(q)  # raises the model's error
         out, ok = self.closed_form(q)
+        if signs:
+            ok |= (self.kinds == PLATE) & (out > 0)
         rows = np.flatnonzero(~ok.all(axis=1))
         if len(rows):
             d = self.model.distances(q[rows])
             out[rows] = np.where(ok[rows], out[rows], d)
         return out
 
-    def margin(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Smallest signed distance [m] over the pairs and its pair index (-1, +inf: no pair)."""
-        d = self.distances(q)
+    def margin(self, q: np.ndarray, signs: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest signed distance [m] over the pairs and its pair index (-1, +inf: no pair);
+        `signs` as in `distances`."""
+        d = self.distances(q, signs)
         if d.shape[1] == 0:
             return np.full(len(d), np.inf), np.full(len(d), -1)
         k = np.argmin(d, axis=1)
@@ -227,12 +239,28 @@ def _kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no co
             r = radius[i]
             h = half[j]
             d = max(min(zu, zv) - r - h, -h - max(zu, zv) - r)
-            if max(ru, rv) + r <= radius[j] - max(0.0, -d):
-                out[n, k] = d
-                ok[n, k] = True
-            else:
-                out[n, k] = np.nan
-                ok[n, k] = False
+            ok[n, k] = max(ru, rv) + r <= radius[j] - max(0.0, -d)
+            if ok[n, k] or d > 0.0:
+                out[n, k] = d  # exact, or a lower bound: the disk is in the slab
+                continue
+            # beside the disk: on the axis part within the band |z| <= h + r + m (m = h + r > 0) the
+            # segment's distance to the axis, less R + r, bounds the gap; beyond the band the
+            # height alone keeps the segment m + r away: min(m, that) when positive, else NaN
+            m = h + r
+            band = h + r + m
+            s0, s1 = 0.0, 1.0
+            if zv != zu:
+                sa = (-band - zu) / (zv - zu)
+                sb = (band - zu) / (zv - zu)
+                s0 = max(0.0, min(sa, sb))
+                s1 = min(1.0, max(sa, sb))
+            gap = m
+            if s0 <= s1:
+                e0x, e0y, e0z = p1x + 2 * hi * ax * s0, p1y + 2 * hi * ay * s0, p1z + 2 * hi * az * s0
+                rho = _segments(e0x, e0y, e0z, 2 * hi * ax * (s1 - s0), 2 * hi * ay * (s1 - s0), 2 * hi * az * (s1 - s0),
+                                cx - band * a0, cy - band * a1, cz - band * a2, 2 * band * a0, 2 * band * a1, 2 * band * a2)
+                gap = min(m, rho - radius[j] - r)
+            out[n, k] = gap if gap > 0.0 else np.nan
 
 
 def kernels() -> tuple[Any, ...]:
