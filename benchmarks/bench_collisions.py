@@ -6,7 +6,7 @@ binding pairs, then the sampled columns with the kinematic union and each bindin
 as extra targets, with the check run), at the same step and rtol; the time ratio (goal <= 5 x),
 the volume the collisions remove and the pairs that bind most.
 
-Run: python benchmarks/bench_collisions.py [--rtol 1e-3] [--step 0.01] [--modes ---] [--quick] [--json]
+Run: python benchmarks/bench_collisions.py [--rtol 1e-3] [--step 0.01] [--modes ---] [--watch 8] [--quick] [--json]
 The JSON holds JSON_KEYS: `rows`, one per robot with ROW_KEYS, and `machine`.
 """
 
@@ -28,16 +28,19 @@ ROW_KEYS = ("robot", "modes", "rtol", "step", "kinematic_volume", "kinematic_err
             "converged", "points_evaluated")
 
 
-def measure(robot_name: str, rtol: float, step: float, modes: list[str] | None) -> dict:
+def measure(robot_name: str, rtol: float, step: float, modes: list[str] | None, watch: int, max_points: int | None
+            ) -> dict:
     robot = load_robot(robot_name)
     mech = mechanism_of(robot)
     branches = mech.check_branches(modes or None)
-    measure_collision_workspace(mech, robot, step=0.1, rtol=0.1, branches=branches[:1], check=False)  # compile
+    measure_collision_workspace(mech, robot, step=0.2, rtol=0.2, branches=branches[:1], check=False, watch=0,
+                                max_points=10_000)  # compile
     t = time.perf_counter()
     kin = measure_workspace(mech, step=step, rtol=rtol, branches=branches, check=True)
     kin_s = time.perf_counter() - t
     t = time.perf_counter()
-    cw = measure_collision_workspace(mech, robot, step=step, rtol=rtol, branches=branches)
+    cw = measure_collision_workspace(mech, robot, step=step, rtol=rtol, branches=branches, watch=watch,
+                                     max_points=max_points)
     col_s = time.perf_counter() - t
     return {"robot": robot_name, "modes": list(branches), "rtol": rtol, "step": step,
             "kinematic_volume": kin.total, "kinematic_error": kin.error, "kinematic_seconds": kin_s,
@@ -53,10 +56,12 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=0.01, help="column step [m] (the CLI default)")
     ap.add_argument("--modes", nargs="+", default=None, help="working modes (default: all)")
     ap.add_argument("--robots", nargs="+", default=["p2us-results", "delta"])
+    ap.add_argument("--watch", type=int, default=8, help="binding pairs measured alone (default 8)")
+    ap.add_argument("--max-points", type=int, default=None, help="evaluation budget of the collision run")
     ap.add_argument("--json", action="store_true")
-    args = parse(ap, {"rtol": 0.05, "step": 0.05, "modes": ["---"]})
+    args = parse(ap, {"rtol": 0.2, "step": 0.1, "modes": ["---"], "watch": 0, "max_points": 200_000})
     machine = calibration()
-    rows = [measure(r, args.rtol, args.step, args.modes) for r in args.robots]
+    rows = [measure(r, args.rtol, args.step, args.modes, args.watch, args.max_points) for r in args.robots]
     out = {"rows": rows, "machine": machine}
     if args.json:
         print(dump(out))

@@ -174,7 +174,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 progress: bool = False, check: bool = True,
                                 collision_model: CollisionModel | None = None,
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
-                                max_points: int | None = None) -> CollisionWorkspace:
+                                max_points: int | None = None, watch: int = MAX_WATCHED) -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
@@ -183,6 +183,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
             URDF's collision shapes less adjacent, touching-at-reference and sidecar-disabled pairs).
         box: (lo, hi) [m] to measure within instead of the mechanism's bounding box (the part of
             the workspace inside it).
+        watch: how many binding pairs get their own target (each costs its roots' refinement).
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
@@ -194,7 +195,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
     found = binding_pairs(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi)
-    watched = [k for k, _ in found[:MAX_WATCHED]]
+    watched = [k for k, _ in found[:watch]]
     margin = CollisionMargin(mech, robot, dist, chosen, limits, watched)
     kw = {} if max_points is None else {"max_points": max_points}
     res = column_volume(margin, lo, hi, step=step, rtol=1e-2 if rtol is None else rtol, check=check,
@@ -205,8 +206,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     kin, kin_err = float(res.estimate[B]), float(res.error[B])
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
                               kin_err + float(res.error[B + 1 + n]), count)
-                  for n, (k, count) in enumerate(found[:MAX_WATCHED]))
+                  for n, (k, count) in enumerate(found[:watch]))
     summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != 2).sum()),
                "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in cm.excluded
                             if e.reason != "adjacent"]}
-    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[MAX_WATCHED:]), summary)
+    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]), summary)
