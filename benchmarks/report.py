@@ -128,7 +128,14 @@ def _models(o: dict[str, Any]) -> list[Row]:
     return [("Gepetto models, every command ([models](models.md))", f"{ok} of {len(o['rows'])} ok, {sec(total)} in all")]
 
 
+def _collisions(o: dict[str, Any]) -> list[Row]:
+    return [(f"{r['robot']} volume with collisions ({len(r['modes'])} modes, rtol {r['rtol']:g})",
+             (f"{num(r['collision_volume'], 5)} m^3 (kinematic {num(r['kinematic_volume'], 5)}) in "
+              f"{sec(r['collision_seconds'])}, {num(r['time_ratio'], 2)} x the kinematic run")) for r in o["rows"]]
+
+
 HEADLINES: dict[str, Callable[[dict[str, Any]], list[Row]]] = {
+    "bench_collisions": _collisions,
     "bench_batched_fk": _batched_fk,
     "bench_scara_manipulability": _scara,
     "bench_p2us_kinematics": _p2us_kinematics,

@@ -6,7 +6,7 @@ import argparse
 import math
 from typing import Any
 
-from kinematics.cli.args import EXIT_OK, Command, number
+from kinematics.cli.args import EXIT_OK, Command, number, positive
 from kinematics.cli.report import emit, key_values
 from kinematics.errors import InvalidInputError
 
@@ -44,6 +44,18 @@ def register(command: Command) -> None:
     p.add_argument("--platform-socket", type=number, metavar="A",
                    help="delta: platform socket axis tilt outward from vertical [rad] (default 20 deg)")
     p.add_argument("--degrees", action="store_true", help="angle flags in degrees")
+    sizes = p.add_argument_group("collision shapes [m] (recorded in the sidecar's collisions block)")
+    for flag, text in SIZE_FLAGS.items():
+        sizes.add_argument(f"--{flag.replace('_', '-')}", type=positive, metavar="M", help=text)
+
+
+SIZE_FLAGS = {
+    "rod_radius": "rods' capsule radius (default 0.006)",
+    "arm_radius": "p2us: rails', delta: upper arms' capsule radius (default p2us 0.01, delta 0.015)",
+    "plate_thickness": "base plate thickness (default 0.02)",
+    "plate_overhang": "base plate radius beyond b (p2us) or R (delta) (default p2us 0.03, delta 0.05)",
+    "platform_overhang": "platform sphere's radius beyond d (p2us) or r (delta) (default 0.02)",
+}
 
 
 URDF_FLAGS: dict[str, dict[str, str]] = {
@@ -83,15 +95,19 @@ def cmd_urdf(args: argparse.Namespace) -> int:
     module: Any = p2us_urdf if args.robot == "p2us" else delta_urdf
     write, read_params = module.write, module.read_params
     params = base.replace(**changes)  # validates every value
-    urdf_path, side = write(params, args.output)
+    sizes = module.SIZES.replace(**{k: float(getattr(args, k)) for k in SIZE_FLAGS if getattr(args, k, None) is not None})
+    urdf_path, side = write(params, args.output, sizes=sizes)
+    from kinematics.mechanisms.three_limb.urdf import read_collision_sizes
+
     back = read_params(urdf_path)
+    same = back == params and read_collision_sizes(side, module.SIZES) == sizes
     payload = {"urdf": str(urdf_path), "sidecar": str(side), "parameters": params.as_dict(),
-               "round_trip": back == params}
+               "collision_sizes": sizes.as_dict(), "round_trip": same}
 
     def human() -> str:
         return "\n".join([f"wrote {urdf_path}", f"wrote {side}", "parameters (SI; read back "
-                          + ("identical" if back == params else "DIFFERENT") + "):",
-                          key_values(params.as_dict().items(), None)])
+                          + ("identical" if same else "DIFFERENT") + "):",
+                          key_values([*params.as_dict().items(), *sizes.as_dict().items()], None)])
 
     emit(args, payload, human)
     return EXIT_OK

@@ -7,7 +7,12 @@ Pairs: every pair of collision geometries on different bodies, less
   loop closure (the two frames of a closure constraint): they touch by design;
 * bodies **touching at the reference configuration** (signed distance <= `TOUCH_TOL`): in contact
   by design, as an SRDF's "Default" disabled pairs;
-* pairs **disabled** by the caller (link names, e.g. from a loop sidecar's `collisions: disabled:`).
+* pairs **disabled** by the caller or by the loop sidecar's `collisions: disabled:` (link names).
+
+Capsules: URDF has no `<capsule>`; a `<collision>` cylinder with a sphere of its radius centred on
+each end face (on the same link) is a capsule written the only way URDF can, and is loaded as one
+`coal.Capsule` (the union of the three is exactly that capsule, so no distance changes sign; its
+penetration depth is the capsule's own, as the kernels of `kinematics.generic.capsules` compute).
 
 Signed distance [m]: positive apart, negative in penetration. Between primitives (box, cylinder,
 sphere) it is coal's GJK/EPA distance, exact. Coal has no penetration depth between triangle
@@ -89,8 +94,9 @@ class CollisionModel:
             robot: a loaded `Robot`; its URDF's `<collision>` elements are read (`GeometryError`
                 if one cannot be: an unknown shape or a missing mesh).
             disabled: link-name pairs never checked (order does not matter).
-            reference: configuration (nq,) at which touching pairs are found (default: the
-                neutral configuration); it should be a valid, closed pose.
+            reference: configuration (nq,) at which touching pairs are found (default: the loop
+                sidecar's reference configuration, else the neutral one); it should be a valid,
+                closed pose.
             exclude_touching: leave out pairs touching at `reference`.
             urdf_text: URDF text to read the geometry from instead of the robot's file.
         """
@@ -98,9 +104,11 @@ class CollisionModel:
 
         from kinematics.model.geometry import geometry_model
 
-        geometry, _ = geometry_model(robot, "collision", urdf_text=urdf_text)
+        geometry = _merge_capsules(geometry_model(robot, "collision", urdf_text=urdf_text)[0])
         meshes = _convexify(geometry)
         model = robot.model
+        loops = getattr(robot, "loops", None)
+        disabled = [*disabled, *getattr(loops, "disabled_collisions", ())]
         links = [model.frames[g.parentFrame].name for g in geometry.geometryObjects]
         known = sorted(set(links))
         off = set()
@@ -127,7 +135,7 @@ class CollisionModel:
                     excluded.append(ExcludedPair(links[i], links[k], reason))
         out = cls(robot, geometry, meshes, excluded)
         if exclude_touching and out.pairs:
-            q0 = pin.neutral(model) if reference is None else np.asarray(reference, dtype=float)
+            q0 = reference_configuration(robot) if reference is None else np.asarray(reference, dtype=float)
             d0 = out.distances(q0[None, :])[0]
             touching = [n for n in range(len(out.pairs)) if d0[n] <= TOUCH_TOL]
             if touching:
@@ -187,6 +195,55 @@ class CollisionModel:
             "pairs": [{"geometries": list(g), "links": list(k)} for g, k in zip(self.pair_names, self.pair_links, strict=True)],
             "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in self.excluded],
         }
+
+
+def reference_configuration(robot: Any) -> np.ndarray:
+    """The loop sidecar's reference configuration (nq,) (the neutral value for joints it does not
+    name), or the neutral configuration when there is no sidecar."""
+    import pinocchio as pin
+
+    model = robot.model
+    q = pin.neutral(model)
+    loops = getattr(robot, "loops", None)
+    for name, value in getattr(loops, "reference", {}).items():
+        j = model.getJointId(name)
+        i, nq = model.idx_qs[j], model.nqs[j]
+        q[i:i + nq] = [value] if nq == 1 else [np.cos(value), np.sin(value)]
+    return q
+
+
+def _merge_capsules(geometry: Any) -> Any:
+    """`geometry` with every cylinder that has a sphere of its radius centred on each end face
+    (same frame) replaced by one `coal.Capsule` (named as the cylinder), the spheres removed."""
+    import coal
+    import pinocchio as pin
+
+    objs = list(geometry.geometryObjects)
+    spheres = [k for k, g in enumerate(objs) if isinstance(g.geometry, coal.Sphere)]
+    used: set[int] = set()
+    capsule_of: dict[int, Any] = {}
+    for k, g in enumerate(objs):
+        if not isinstance(g.geometry, coal.Cylinder):
+            continue
+        r, h = g.geometry.radius, g.geometry.halfLength
+        ends = [g.placement.translation + s * h * g.placement.rotation[:, 2] for s in (-1.0, 1.0)]
+        found = []
+        for end in ends:
+            match = next((n for n in spheres if n not in used and n not in found and objs[n].parentFrame == g.parentFrame
+                          and abs(objs[n].geometry.radius - r) <= 1e-12 * r
+                          and np.linalg.norm(objs[n].placement.translation - end) <= 1e-9), None)
+            found.append(match)
+        if None not in found:
+            used.update(n for n in found if n is not None)
+            capsule_of[k] = coal.Capsule(r, 2.0 * h)
+    if not capsule_of:
+        return geometry
+    out = pin.GeometryModel()
+    for k, g in enumerate(objs):
+        if k not in used:
+            out.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame, g.placement,
+                                                     capsule_of.get(k, g.geometry)))
+    return out
 
 
 def _tight(data: Any) -> Any:

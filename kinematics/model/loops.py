@@ -12,6 +12,9 @@ A sidecar `<robot>.loops.yaml` sits next to `<robot>.urdf` (in the spirit of Gep
       - {name: W, type: 6d, frame1: a, frame2: b}                         # 6 equations (weld)
     reference: {slider_1: 0.24, ...} # optional: an assembled configuration (the solver's start)
     ranges: {slider_1: [0.1, 0.5]}   # optional: joint ranges [rad or m] the URDF does not give
+    collisions:                      # optional: as an SRDF's disabled collisions
+      disabled: [[rod_1_1, rod_1_2]] # link pairs never checked for collision
+      sizes: {rod_radius: 0.006}     # generated files: the collision shapes' sizes [m], a record
 
 `point` closes a spherical joint (positions equal), `6d` a rigid weld (placements equal).
 """
@@ -57,6 +60,7 @@ class LoopSpec:
     mechanism: str | None = None
     reference: dict[str, float] = field(default_factory=dict)
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    disabled_collisions: tuple[tuple[str, str], ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -140,6 +144,7 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
             raise InvalidInputError(f"ranges {name}", f"expected [lower, upper], got {pair!r}") from None
         ranges[str(name)] = (lo, hi)
     return LoopSpec(
+        disabled_collisions=_disabled_pairs(path, raw.get("collisions"), model),
         path=Path(path),
         actuated=actuated,
         closures=tuple(closures),
@@ -148,3 +153,21 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
         reference=reference,
         ranges=ranges,
     )
+
+
+def _disabled_pairs(path: Path, block: Any, model: pin.Model) -> tuple[tuple[str, str], ...]:
+    """The `collisions: disabled:` link pairs of a sidecar, each link checked against `model`."""
+    if block is None:
+        return ()
+    if not isinstance(block, dict):
+        raise ModelFileError(path, f"collisions: expected a mapping (disabled, sizes), got {block!r}")
+    links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    out = []
+    for pair in block.get("disabled") or []:
+        if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, str) for x in pair)):
+            raise ModelFileError(path, f"collisions: disabled: expected [link, link] pairs, got {pair!r}")
+        for name in pair:
+            if name not in links:
+                raise UnknownFrameError(name, links)
+        out.append((pair[0], pair[1]))
+    return tuple(out)

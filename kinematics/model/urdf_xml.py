@@ -53,6 +53,36 @@ def visual(shape: str, material: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
     return v
 
 
+def collision(shape: str, xyz=(0, 0, 0), rpy=(0, 0, 0), **size: float | tuple[float, ...]) -> ET.Element:
+    """A `<collision>` element: geometry `shape` ("box", "cylinder", "sphere") with its size
+    attributes [m], placed at xyz/rpy."""
+    c = ET.Element("collision")
+    ET.SubElement(c, "origin", xyz=vec(*xyz), rpy=vec(*rpy))
+    attrs = {k: vec(*x) if isinstance(x, tuple) else num(x) for k, x in size.items()}
+    ET.SubElement(ET.SubElement(c, "geometry"), shape, attrs)
+    return c
+
+
+def capsule(start: np.ndarray | tuple[float, ...], end: np.ndarray | tuple[float, ...],
+            radius: float) -> tuple[ET.Element, ...]:
+    """A capsule (the points within `radius` [m] of the segment start-end, in the link's frame)
+    as URDF can say it: a `<collision>` cylinder between the two ends and a sphere at each
+    (URDF has no `<capsule>`). `kinematics.generic.collision` merges the three back into one
+    capsule."""
+    a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    u = b - a
+    length = float(np.linalg.norm(u))
+    u = u / length
+    # a rotation taking z to u: yaw about z, then pitch about y
+    rpy = (0.0, math.acos(max(-1.0, min(1.0, float(u[2])))), math.atan2(float(u[1]), float(u[0])))
+    if abs(u[2]) == 1.0:
+        rpy = (0.0, 0.0 if u[2] > 0 else math.pi, 0.0)
+    mid = tuple(float(x) for x in 0.5 * (a + b))
+    return (collision("cylinder", mid, rpy, radius=radius, length=length),
+            collision("sphere", tuple(float(x) for x in a), radius=radius),
+            collision("sphere", tuple(float(x) for x in b), radius=radius))
+
+
 class UrdfBuilder:
     """A URDF document built element by element (`xml.etree.ElementTree`); `text` gives it
     indented, every number written so that it reads back as the same float (`num`)."""
@@ -63,9 +93,9 @@ class UrdfBuilder:
         for material, rgba in materials.items():
             ET.SubElement(ET.SubElement(self.root, "material", name=material), "color", rgba=rgba)
 
-    def link(self, name: str, *visuals: ET.Element) -> None:
-        """Append a `<link>` with optional visuals."""
-        ET.SubElement(self.root, "link", name=name).extend(visuals)
+    def link(self, name: str, *elements: ET.Element) -> None:
+        """Append a `<link>` with optional visuals and collisions."""
+        ET.SubElement(self.root, "link", name=name).extend(elements)
 
     def joint(self, name: str, kind: str, parent: str, child: str, xyz=(0, 0, 0), rpy=(0, 0, 0),
               axis: tuple[float, float, float] | None = None, limit: tuple[float, float] | None = None) -> None:

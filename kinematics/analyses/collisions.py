@@ -1,0 +1,215 @@
+"""Collision-free workspaces: the self-collision margin joins the joint limits.
+
+Per branch b the margin at a task point x is
+
+    m_b(x) = min(k_b(x), min over pairs p of d_p(q_b(x))),
+
+k_b the mechanism's kinematic margin (reach and joint limits, > 0 inside), q_b(x) the whole tree's
+configuration there (loops closed) and d_p the signed distance of collision pair p [m]
+(`kinematics.generic.capsules`: closed forms for capsules, spheres and plates, coal for the rest;
+a capsule beside a plate but clear of its slab keeps the slab's distance, a positive lower bound,
+so every term has the true distance's sign and the min's zero set is the true one).
+Where k_b <= 0 the point is outside whatever the distances, so m_b = k_b there (no configuration
+exists); this keeps the sign of the min everywhere, and every sign change of m_b is one of the
+min's. The union's margin is max_b m_b. Both are continuous where they change sign, so
+`column_volume`'s sampled columns (the exact-columns path knows nothing of collisions) integrate
+them with the error estimate they give any margin (same caveats: a feature thinner than the
+column step can be missed; the check run at half the step looks for it).
+
+Which pairs bind: a pre-scan on a grid finds the pairs with a negative distance somewhere inside
+the kinematic workspace; each of them (at most `MAX_WATCHED`, most often negative first) gets
+its own target, the union with that pair alone, so the volume it removes alone is measured in
+the same run, as is the kinematic union (the volume the collisions remove in all).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from kinematics.analyses.columns import ColumnVolume, column_volume
+from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, root_tolerance
+from kinematics.errors import MissingCapabilityError
+from kinematics.generic.capsules import AnalyticDistances
+from kinematics.generic.collision import CollisionModel
+from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.sizes import MAX_POINTS
+
+MAX_WATCHED = 8
+"""Binding pairs measured one by one (each adds a target to the volume run)."""
+
+PRESCAN_CELLS = 48
+"""Grid points per axis of the binding-pair pre-scan."""
+
+
+def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str) -> np.ndarray:
+    """The tree's configurations (N, nq) with the task point at `points` (N, d) [m] in `branch`:
+    vectorised for the three-limb families, from the branch's IK for an open chain (its actuators
+    are all its joints), else `mech.joint_values` point by point."""
+    if mech.family in ("p2us", "delta"):
+        from kinematics.mechanisms.delta import urdf as delta_urdf
+        from kinematics.mechanisms.p2us import urdf as p2us_urdf
+
+        module: Any = p2us_urdf if mech.family == "p2us" else delta_urdf
+        return module.configurations_at(mech.params, robot.model, points, branch)
+    model = robot.model
+    out = np.empty((len(points), model.nq))
+    if not mech.closed_loop and "ik" in mech.capabilities:
+        q = mech.ik(points).q[:, mech.branches.index(branch)]
+        for n, row in enumerate(q):
+            out[n] = robot.configuration(row)
+        return out
+    mech.require("joint_values", "collision checks at task points")
+    for n, p in enumerate(points):
+        values = mech.joint_values(p, branch)
+        out[n] = robot.configuration([values[name] for name in robot.joint_names])
+    return out
+
+
+class CollisionMargin:
+    """The collision-aware margin (module docstring) of `branches` under `limits`, as a column
+    engine margin: points (N, d) -> (N, B + 2 + W) columns: each branch's m_b, the kinematic
+    union max_b k_b, the union with each watched pair alone, then the union max_b m_b."""
+
+    def __init__(self, mech: Mechanism, robot: Any, distances: AnalyticDistances, branches: Sequence[str],
+                 limits: str, watched: Sequence[int] = ()) -> None:
+        self.mech, self.robot, self.distances = mech, robot, distances
+        self.branches, self.limits = tuple(branches), limits
+        self.watched = np.asarray(watched, dtype=np.int64)
+        self.kinematic = mech.margin(self.branches, limits)
+
+    def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray) -> np.ndarray:
+        """(M, P) pair distances at the points `inside` (a mask) in branch b."""
+        q = configurations(self.mech, self.robot, points[inside], self.branches[b])
+        return self.distances.distances(q, signs=True)
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        pts = np.asarray(points, dtype=float)
+        kin = self.kinematic(pts)
+        B, W = len(self.branches), len(self.watched)
+        each = kin[:, :B].copy()
+        watch = np.repeat(kin[:, :B, None], W, axis=2)
+        for b in range(B):
+            inside = kin[:, b] > 0
+            if not inside.any():
+                continue
+            d = self.branch_distances(pts, b, inside)
+            if d.shape[1]:
+                each[inside, b] = np.minimum(kin[inside, b], d.min(axis=1))
+                watch[inside, b] = np.minimum(kin[inside, b, None], d[:, self.watched])
+        return np.column_stack([each, kin[:, :B].max(axis=1), watch.max(axis=1), each.max(axis=1)])
+
+
+def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
+                  ) -> list[tuple[int, int]]:
+    """(pair index, grid points where it is negative inside the kinematic workspace), most first,
+    over a grid of `cells` points per axis."""
+    axes = [np.linspace(lo[k], hi[k], cells) for k in range(len(lo))]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+    kin = margin.kinematic(pts)
+    counts = np.zeros(len(margin.distances.kinds), dtype=np.int64)
+    for b in range(len(margin.branches)):
+        inside = kin[:, b] > 0
+        if inside.any():
+            counts += (margin.branch_distances(pts, b, inside) < 0).sum(axis=0)
+    order = np.argsort(-counts, kind="stable")
+    return [(int(k), int(counts[k])) for k in order if counts[k] > 0]
+
+
+@dataclass(frozen=True)
+class PairRemoval:
+    """Volume [m^3] (area [m^2]) a binding pair removes from the kinematic union when it alone is
+    checked, with its error estimate (the two measures' estimates added)."""
+
+    links: tuple[str, str]
+    geometries: tuple[str, str]
+    removed: float
+    error: float
+    prescan_points: int
+
+
+@dataclass(frozen=True)
+class CollisionWorkspace:
+    """A collision-aware workspace: `workspace` (per branch and union, collisions excluded), the
+    kinematic union measured in the same run, what each watched pair removes alone, and the
+    binding pairs found but not measured alone (beyond `MAX_WATCHED`)."""
+
+    workspace: Workspace
+    kinematic: float
+    kinematic_error: float
+    pairs: tuple[PairRemoval, ...]
+    unmeasured: tuple[tuple[str, str], ...]
+    collision: dict[str, Any]
+
+    @property
+    def removed(self) -> float:
+        """Volume the collisions remove in all [m^3 or m^2]."""
+        return self.kinematic - self.workspace.total
+
+    def as_dict(self) -> dict[str, Any]:
+        out = self.workspace.as_dict()
+        out["collisions"] = {
+            "kinematic_volume": self.kinematic, "kinematic_error_estimate": self.kinematic_error,
+            "removed": self.removed, "removed_error_estimate": self.kinematic_error + self.workspace.error,
+            "binding_pairs": [{"links": list(p.links), "geometries": list(p.geometries), "removed": p.removed,
+                               "error_estimate": p.error, "prescan_points": p.prescan_points} for p in self.pairs],
+            "binding_not_measured_alone": [list(p) for p in self.unmeasured],
+            **self.collision,
+        }
+        return out
+
+
+def _take(r: ColumnVolume, idx: list[int]) -> ColumnVolume:
+    """The targets `idx` of a column measurement."""
+    return dataclasses.replace(r, estimate=r.estimate[idx], error=r.error[idx], check_difference=r.check_difference[idx],
+                               target_converged=r.target_converged[idx], check_agrees=r.check_agrees[idx])
+
+
+def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.005, rtol: float | None = 1e-3,
+                                branches: Sequence[str] | None = None, limits: str = "all",
+                                progress: bool = False, check: bool = True,
+                                collision_model: CollisionModel | None = None,
+                                box: tuple[np.ndarray, np.ndarray] | None = None,
+                                max_points: int | None = None, watch: int = MAX_WATCHED) -> CollisionWorkspace:
+    """Volume (area) of each branch's collision-free workspace and of their union, with the
+    kinematic union and each binding pair's removal measured in the same column run.
+
+    Args:
+        collision_model: the pairs to check (default: `CollisionModel.from_robot(robot)`: the
+            URDF's collision shapes less adjacent, touching-at-reference and sidecar-disabled pairs).
+        box: (lo, hi) [m] to measure within instead of the mechanism's bounding box (the part of
+            the workspace inside it).
+        watch: how many binding pairs get their own target (each costs its roots' refinement).
+    """
+    mech.require("margin", "a workspace measurement")
+    if mech.task_dim not in (2, 3):
+        raise MissingCapabilityError(mech.name, "margin", "a workspace area or volume", mech.capabilities)
+    chosen = mech.check_branches(branches)
+    mech.check_limits(limits)
+    cm = collision_model if collision_model is not None else CollisionModel.from_robot(robot)
+    dist = AnalyticDistances(cm)
+    lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
+    t0 = time.perf_counter()
+    found = binding_pairs(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi)
+    watched = [k for k, _ in found[:watch]]
+    margin = CollisionMargin(mech, robot, dist, chosen, limits, watched)
+    rtol = 1e-2 if rtol is None else rtol
+    res = column_volume(margin, lo, hi, step=step, rtol=rtol, check=check, progress=progress, floor=BRANCH_FLOOR,
+                        root_tol=root_tolerance(rtol, step),
+                        max_points=MAX_POINTS if max_points is None else max_points)
+    B, W = len(chosen), len(watched)
+    ws = Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, _take(res, [*range(B), B + 1 + W]),
+                   time.perf_counter() - t0, mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
+    kin, kin_err = float(res.estimate[B]), float(res.error[B])
+    pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
+                              kin_err + float(res.error[B + 1 + n]), count)
+                  for n, (k, count) in enumerate(found[:watch]))
+    summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != 2).sum()),
+               "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in cm.excluded
+                            if e.reason != "adjacent"]}
+    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]), summary)
