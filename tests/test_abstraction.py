@@ -20,8 +20,10 @@ ROOT = Path(__file__).resolve().parents[1]
 FAMILY_WORDS = ("p2us", "scara", "delta", "paper")
 FAMILY_PARAMS = ("P2USParams", "ScaraParams", "DeltaParams")
 CLOSED_FORM_FAMILIES = {"p2us", "delta"}
-# the commands the single-pose reports serve: none may decide the family itself
-POSE_COMMANDS = ("ik", "fk", "jacobian", "mobility", "info", "views", "parallel")
+BRANCH_KEYS = CLOSED_FORM_FAMILIES | {"scara"}  # no command compares a family key either
+# the commands that use a family's closed forms (single-pose reports, workspace reports, design
+# tools): none may decide the family itself; they ask the mechanism for capabilities
+POSE_COMMANDS = ("ik", "fk", "jacobian", "mobility", "info", "views", "parallel", "workspace", "design")
 UNASSEMBLED = {"p2us": [2.0, 0.1, 0.1], "delta": [3.0, 0.0, 0.0]}  # actuators no assembly fits
 TABLE_NAMES = {"Family", "FAMILIES", "families", "family_of", "require_family", "params_of"}
 
@@ -75,14 +77,14 @@ def _cli_findings(source: str, where: str, pose_command: bool) -> list[str]:
                 found.append(f"{where}:{node.lineno}: imports {node.module}")
         if isinstance(node, ast.Compare | ast.Dict):
             consts = [c.value for c in ast.walk(node) if isinstance(c, ast.Constant)]
-            found += [f"{where}:{node.lineno}: branches on family {c!r}" for c in consts if c in CLOSED_FORM_FAMILIES]
+            found += [f"{where}:{node.lineno}: branches on family {c!r}" for c in consts if c in BRANCH_KEYS]
     return found
 
 
 def test_the_cli_check_sees_tables_imports_and_branches():
     src = ("from kinematics.mechanisms.p2us.closed_form import ik\nclass Family: pass\nFAMILIES = {}\n"
-           "if mech.family == 'delta': pass\nx = {'p2us': 1}\n")
-    assert len(_cli_findings(src, "s", True)) == 5
+           "if mech.family == 'delta': pass\nx = {'p2us': 1}\nif kind == 'scara': pass\n")
+    assert len(_cli_findings(src, "s", True)) == 6
     assert len(_cli_findings(src, "s", False)) == 2  # tables are refused in every CLI module
 
 

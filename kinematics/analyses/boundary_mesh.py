@@ -100,6 +100,11 @@ def workspace_mesh(mech: Mechanism, branch: str = "---", step: float = 0.01, lim
     """The boundary of a branch's workspace ("union": of every branch) of a 3-D mechanism with a
     margin (`Mechanism.margin`), over its bounding box at grid step `step` [m]."""
     mech.require("margin", "a workspace boundary mesh")
+    if mech.task_dim != 3:
+        from kinematics.errors import UnsupportedRobotError
+
+        raise UnsupportedRobotError(mech.name, "a boundary mesh needs a spatial task space; this mechanism's is "
+                                    f"{mech.task_dim}-dimensional")
     chosen = mech.check_branches(None if branch == UNION else [branch])
     field = mech.margin(chosen, limits)
     lo, hi = mech.bounding_box(limits)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from kinematics.cli.args import Command, integer, load, positive, robot_arg
 from kinematics.cli.report import Out, emit, fmt, key_values
@@ -99,16 +99,6 @@ def cmd_workspace_mesh(args: argparse.Namespace) -> int:
     return workspace_mesh(args, load(args), emit)
 
 
-def _p2us(robot: Robot) -> Any:
-    from kinematics.errors import UnsupportedRobotError
-    from kinematics.mechanisms import mechanism_of
-
-    mech = mechanism_of(robot)
-    if mech.family != "p2us":
-        raise UnsupportedRobotError(robot.name, "usable workspaces and boundary meshes support the 3-[P2(US)]")
-    return mech
-
-
 def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses.usable import default_branch, usable
     from kinematics.mechanisms import mechanism_of
@@ -155,8 +145,11 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses.boundary_mesh import workspace_mesh as mesh_of
 
     check_output(args.o, "-o", "mesh")
-    mech = _p2us(robot)
-    mode = args.mode or "---"
+    from kinematics.analyses.usable import default_branch
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    mode = args.mode or default_branch(mech)
     mesh = mesh_of(mech, mode, args.step, args.limits)
     write_atomic(args.o, lambda tmp: export(mesh, tmp), "-o")
     payload = {"robot": robot.name, "mode": mode, "file": args.o, "faces": len(mesh.mesh.faces),

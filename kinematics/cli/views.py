@@ -58,7 +58,6 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     from kinematics.views import meshcat as viz
 
     mech = mechanism_of(robot)
-    kind = mech.family
     three_limb = mech.capabilities >= POSE_REPORTS  # the closed-form parallel robots (`parallel_view`)
     if three_limb:
         unreachable = _parallel_checks(args, robot, mech)
@@ -85,12 +84,12 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
                           step=0.02 if args.step is None else args.step, scene=scene)
-        elif kind in ("scara", "serial"):
+        elif robot.loops is None:  # an open chain: joint values drive it
             if args.position is not None:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
             q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
                 if args.q is not None else None
-            if kind == "scara":
+            if "joint_singularities" in mech.capabilities:  # a planar arm with closed forms
                 viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
                                singularities=args.singularities, guide=args.guide, scene=scene)
             else:

@@ -19,7 +19,7 @@ from kinematics.cli.args import (
     serial_args,
 )
 from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
-from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.errors import InvalidInputError
 from kinematics.files import write_atomic
 from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
 
@@ -216,15 +216,15 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                              progress=show_progress(args))
         sing_summary = sing.summary()
         singular_points = sing.locus.as_list()
-    elif mech.family == "scara":
-        from kinematics.mechanisms.scara.joint_space import singular_set
-
-        sing = singular_set(mech.params)
-        singular_points = _scara_points(sing)
+    elif "joint_singularities" in mech.capabilities:
+        sing = mech.joint_singularities()
+        singular_points = _joint_singular_points(sing)
         sing_summary = {"theta2_zero": {"locus_points": len(singular_points),
                                         "within_limits": sing["theta2_zero_within_limits"]}}
-    if mech.family == "p2us":
-        paper = paper_comparison(robot, args.limits, ws)
+    if "reference_results" in mech.capabilities:
+        r = ws.result
+        per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
+        paper = mech.reference_results(str(robot.urdf_path), args.limits, per_mode, ws.total)
     if args.points:
         pts = _inside_points(mech, args.limits, args.step, branches)
         _write_points(args.points, pts, ",".join(mech.task_axes))
@@ -232,7 +232,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.views import plots
 
         plots.headless()
-        fig = (plots.scara_workspace(mech.params, sing) if mech.family == "scara"
+        fig = (plots.scara_workspace(mech.params, sing) if "joint_singularities" in mech.capabilities
                else plots.spatial_workspace(mech, args.limits, max(args.step, 0.01),
                                             singular=sing.locus if sing is not None else None))
         plots.save(fig, args.plot)
@@ -363,72 +363,14 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
         ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
     ], digits=None))
     if paper:
-        lines += ["", *paper_comparison_lines(paper)]
+        lines += ["", *mech.reference_lines(paper)]
     return "\n".join(lines)
 
 
-def paper_comparison(robot: Robot, limits: str, ws: Any) -> dict[str, Any]:
-    """The report's paper-B keys: `design` (the built-in name or the URDF path), `binding_limits`
-    (the volume each passive limit removes from the working mode) and, for the built-ins, `paper_b` (paper B's volume beside ours, relative difference, the reproduction
-    page), `paper_volume_m3` and `ratio_to_paper` (working mode over paper)."""
-    from kinematics.mechanisms.p2us.paper_b import volume_comparison
-
-    r = ws.result
-    per_mode = {name: float(r.estimate[k]) for k, name in enumerate(ws.targets[:-1])}
-    c = volume_comparison(robot.name, robot.urdf_path, limits, per_mode, ws.total)
-    from kinematics.mechanisms.p2us.paper_b import binding_limits
-
-    out: dict[str, Any] = {"design": c.pop("design"), "binding_limits": binding_limits(ws_params(ws))}
-    if c:
-        c["note"] = paper_volume_note(out["design"], limits)
-        out.update(paper_b=c, paper_volume_m3=c["paper_volume_m3"], ratio_to_paper=c["ours_m3"] / c["paper_volume_m3"])
-    return out
-
-
-def ws_params(ws: Any) -> Any:
-    """The P2USParams a workspace was measured with (from its parameters record)."""
-    from kinematics.mechanisms.p2us.closed_form import P2USParams
-
-    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in ws.parameters.items()}
-    return P2USParams(**fields)
-
-
-def paper_comparison_lines(paper: dict[str, Any]) -> list[str]:
-    """Human lines of `paper_comparison`."""
-    from kinematics.mechanisms.p2us.paper_b import comparison_lines
-
-    c = paper.get("paper_b", {"design": paper["design"]})
-    lines = comparison_lines({**c, "design": paper["design"]})
-    if "binding_limits" in paper:
-        b = paper["binding_limits"]
-        lines.append(f"passive limits on mode {b['mode']} (Monte Carlo, {b['samples']:,} samples): " + "; ".join(
-            f"{k} ({b[k]['convention']}) removes {b[k]['volume_m3']:.4f} +/- {b[k]['standard_error_m3']:.4f} m^3"
-            for k in ("theta", "phi")))
-    return lines + ([c["note"]] if "note" in c else [])
-
-
-def _scara_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
-    """JSON-ready points of the SCARA's theta2 = 0 locus (from `scara.joint_space.singular_set`)."""
+def _joint_singular_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
+    """JSON-ready points of a joint-space singular set (`Mechanism.joint_singularities`)."""
     return [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
             for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
-
-
-def paper_volume_note(design: str, limits: str) -> str:
-    """Why our volume differs from paper B's 0.13397 m^3, for a built-in design."""
-    if design == "p2us-results":
-        return ("Read as the rod-rail angle, eq. 30's theta range never binds in the working mode and removes "
-                "every other mode; phi and the strokes shape it. The remaining difference is of the size of "
-                "a coarse grid count's scatter (see docs/paper-b-reproduction.md).")
-    common = ("Table 2's dimensions do not give paper B's computed results; the geometry that does is the "
-              "built-in p2us-results (docs/paper-b-reproduction.md). Paper B defines neither the universal "
-              "joints' zero references nor which working modes it counts. ")
-    if limits == "all":
-        return common + ("With our references (theta = 0: rod horizontal, pointing inward; phi = 0: rod in the "
-                         "limb's vertical plane) only working mode '---' respects the theta range, so every mode "
-                         "but '---' is empty and the union is that one mode. See docs/workspace.md.")
-    return common + ("With the actuator strokes alone, every working mode has a workspace and their union is "
-                     "close to the paper's figure; the passive-joint limits are what shrink ours. See "
-                     "docs/workspace.md.")
 
 
 def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
@@ -437,18 +379,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     mech = mechanism_of(robot)
     if mech.family == "serial":
         return _serial_singularities(args, robot, out)
-    if mech.family == "scara":
-        from kinematics.errors import UnknownModeError
-        from kinematics.mechanisms.scara.closed_form import ELBOWS
-        from kinematics.mechanisms.scara.joint_space import singular_set
-
-        for mode in args.modes or ():  # the singular arc is both elbows'; still, a typo is bad input
-            if mode not in ELBOWS:
-                raise UnknownModeError(mode, ELBOWS)
-
-        params = mech.params
-        s = singular_set(params, math.radians(args.angle_step_deg))
-        pts = _scara_points(s)
+    if "joint_singularities" in mech.capabilities:
+        mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
+        s = mech.joint_singularities(math.radians(args.angle_step_deg))
+        pts = _joint_singular_points(s)
         payload = {
             "robot": robot.name,
             "singular_points": pts,
@@ -461,7 +395,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             from kinematics.views import plots
 
             plots.headless()
-            plots.save(plots.scara_workspace(params, s), args.plot)
+            plots.save(plots.scara_workspace(mech.params, s), args.plot)
 
         def human() -> str:
             return "\n".join([
@@ -480,8 +414,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses.singularities import singular_loci
 
     mech.require("singular_fields", "singularities")
-    if args.paper_scan and mech.family != "p2us":
-        raise InvalidInputError("--paper-scan", "paper B's 512-point scan is for the 3-[P2(US)]")
+    if args.paper_scan:
+        mech.require("paper_scan", "--paper-scan (paper B's 512-point scan of the 3-[P2(US)])")
     res = singular_loci(mech, step=args.step, limits=args.limits, branches=args.modes or None,
                         progress=show_progress(args))
     payload = {
@@ -495,9 +429,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         "seconds": res.seconds,
     }
     if args.paper_scan:
-        from kinematics.mechanisms.p2us.paper_scan import paper_scan
-
-        ps = paper_scan(mech.params)
+        ps = mech.paper_scan()
         payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
         payload["paper_scan"]["rows"] = ps["rows"]
     if args.plot:
@@ -536,13 +468,13 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    if mech.family != "p2us":
-        raise UnsupportedRobotError(robot.name, f"design sweeps are for the 3-[P2(US)]; this is a {mech.description}")
+    mech.require("sweep_parameters", "a design sweep (of the 3-[P2(US)]'s dimensions)")
+    params = mech.sweep_parameters()
     if not args.param:
         raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
     axes = [sw.Axis.parse(p) for p in args.param]
     t0 = time.perf_counter()
-    rows = sw.run(axes, mech.params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
+    rows = sw.run(axes, params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
                   workers=args.workers, progress=show_progress(args))
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)
