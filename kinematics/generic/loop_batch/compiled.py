@@ -567,15 +567,15 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
     where another slot of the block was found, `restarts` quasi-random starts for each slot still
     missing. A start's held joints come from the earlier blocks' solutions of its slot's
-    branch choice; its root (if any) goes to the slot of its label, the one nearest the reference
-    kept. A branch dies (`alive`) with the first block slot it needs that is not found.
+    branch choice; its root (if any) goes to the slot of its label (its determinant's sign and its
+    locked joints' half-turn bits), the one nearest the reference kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
     counting, which at this size costs as much as the kinematics.)"""
     N = targets.shape[0]
     B = bslot.shape[0]
     n = gi[0]
     (pinned, ncol, cols, rows_det, label, middles, nmid, flips, nflip, held, nheld, held_owner, held_pos, held_slot,
-     land, ref, act, held_by_others) = T
+     land, ref, act, held_by_others, lock_idx, lock_ref, nlock) = T
     nc = ncol[k]
     # a block whose values later blocks hold is solved past TOL (Newton's last step squares the
     # error): a held value within TOL of its root can leave an over-determined block (a second
@@ -671,7 +671,11 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     for q in range(nmid[k]):
                         if math.cos(x[middles[k, q]]) < 0.0:
                             sg = -sg
-                    s2 = land[k, s, sg + 1]
+                    code = 0
+                    for q in range(nlock[k]):
+                        if math.cos(x[lock_idx[k, q]] - lock_ref[k, q]) < 0.0:
+                            code += 1 << q
+                    s2 = land[k, s, sg + 1, code]
                 if s2 < 0:
                     counts[i, 0] += 1
                     continue
