@@ -15,9 +15,9 @@ universal joint's (a, b) and (a + pi, pi - b), a spherical joint's two Euler tri
 merged (same joint-origin positions) and the one closest to the reference configuration is kept,
 so the labels and the reported joint values use one representation throughout.
 
-**Locked joints (assembly modes in parallel planes).** A revolute joint that no closed motion moves
-at the reference (`locked_joints`: its entry in every null vector of the closure rows vanishes) is
-held by the loops at one angle up to the assembly: Gepetto's `5bar_linkage_iso3d` closes with its
+**Locked joints (assembly modes in parallel planes).** In a planar closed motion of a spatial tree,
+a revolute joint that no closed motion moves at the reference (`locked_joints`: its entry in every
+null vector of the closure rows vanishes) is held by the loops at one angle up to the assembly: Gepetto's `5bar_linkage_iso3d` closes with its
 extra joint `freeortho` at 0 or pi, its tip then in the plane y = -0.2 m or y = -0.15 m. The
 determinant's sign does not tell these apart (both assemblies have both signs), so each locked
 joint adds a label column, sign(cos(x_j - x_j_ref)): +1 at the reference's angle, -1 half a turn
@@ -155,7 +155,15 @@ class LoopStructure(LoopModel):
     def locked_joints(self) -> tuple[int, ...]:
         """Revolute joints, not actuated, in a labelling block, that no closed motion moves at the
         reference configuration (module docstring): their entries in an orthonormal basis of the
-        null space of the closure rows' Jacobian are below 1e-9 (the basis is computed to ~1e-12)."""
+        null space of the closure rows' Jacobian are below 1e-9 (the basis is computed to ~1e-12).
+        Only for a planar closed motion of a spatial tree (`motion_plane(...).closed`): a spatial
+        mechanism's passive joints can stand still at a symmetric reference (the 3-[P2(US)]'s,
+        the Delta's) without being held at two angles."""
+        from kinematics.generic.motion_plane import motion_plane
+
+        plane = motion_plane(self.robot)
+        if plane is None or not plane.closed:
+            return ()
         groups = self._row_groups()
         rows = [i for g in groups[: len(self._g[9])] for i in g]
         _, J, _ = self.evaluate(np.repeat(self._anchor[None], 1, axis=0), self._reference[None])
