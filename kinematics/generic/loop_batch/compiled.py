@@ -616,15 +616,24 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     # cannot close where a neighbour within the continuation radius could not either
                     # (the five-bar's second chain outside its reach) is not restarted: a region
                     # entered from outside is found from the neighbour's least-squares end (at the
-                    # fold) or the atlas start
+                    # fold) or the atlas start. A block that holds no earlier joints (the iso
+                    # five-bars' single block) also restarts where a neighbour found a missing slot
+                    # or a start stalled within near / 10 of closure: next to a fold of the reach
+                    # the neighbour's end and the atlas start can both stall there (0.2 % of the
+                    # iso five-bar's inside points were missed, the column integration refining
+                    # around each), while random starts close in about half the tries
                     some = False
                     for q in range(S):
                         some = some or found[i, k, q]
-                    if not some and nheld[k] > 0:
+                    if not some:
                         for q in range(S):
                             verdict = warm[i, k, q, warm.shape[3] - 1]
-                            if need[q] and verdict != 0.0:  # NaN (not tried there) restarts too
-                                some = True
+                            if not need[q]:
+                                continue
+                            if nheld[k] > 0:
+                                some = some or verdict != 0.0  # NaN (not tried there) restarts too
+                            else:
+                                some = some or verdict == 1.0 or res[i, k, q] < 0.1 * near
                     if not some:
                         break
                 s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts
