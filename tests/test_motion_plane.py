@@ -8,7 +8,7 @@ import pytest
 
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.generic.motion_plane import motion_plane
-from kinematics.generic.serial import plane
+from kinematics.generic.serial import common_axis, plane
 from kinematics.model.robot import load_robot
 
 from .conftest import GEPETTO
@@ -20,7 +20,8 @@ needs_models = pytest.mark.skipif(not GEPETTO.is_dir(), reason=f"Gepetto's model
 @pytest.mark.parametrize("name", ["5bar_linkage_iso3d", "5bar_linkage_iso6d"])
 def test_a_spatial_tree_whose_closed_motion_is_planar(name):
     robot = load_robot(GEPETTO / name)
-    assert plane(robot) is None  # the tree alone: a revolute at right angles to the others
+    assert common_axis(robot.model) is None  # the tree alone: a revolute at right angles to the others
+    assert plane(robot) == (0, 2)  # the one decision: the closed motion's plane
     got = motion_plane(robot)
     assert got is not None and got.closed and got.axes == (0, 2) and got.normal == 1
     # independently of the velocity test: closed poses at random actuator values (Pinocchio's

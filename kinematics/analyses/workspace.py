@@ -36,6 +36,10 @@ class Workspace:
     """A measured workspace.
 
     Attributes:
+        planes: for a planar motion whose assemblies move in different parallel planes
+            (`Mechanism.parallel_planes`), the planes' names: each is a target (the union of its
+            branches) before the last, and the last ("union") is their sum (the planes do not
+            overlap); () otherwise.
         robot: its name. planar: area [m^2] rather than volume [m^3].
         targets: the regions measured, e.g. ("---", "union") or ("up", "down", "union").
         branch_key: the JSON key of the per-branch results: "elbows" for a planar arm's, else "modes".
@@ -53,6 +57,7 @@ class Workspace:
     seconds: float
     parameters: dict[str, Any] = field(default_factory=dict)
     branch_key: str = "modes"
+    planes: tuple[str, ...] = ()
 
     def unconverged(self) -> dict[str, str]:
         """Targets (branches, union) whose own estimate failed, each with the reason (empty for the
@@ -98,6 +103,8 @@ class Workspace:
             "points_evaluated": r.points_evaluated,
             "step_m": r.step,
             "seconds": self.seconds,
+            **({"union_rule": (f"the sum of the parallel planes' areas ({', '.join(self.planes)}; they do not "
+                               "overlap), each plane's area the union of its branches")} if self.planes else {}),
             "parameters": self.parameters,
         }
         if isinstance(r, ColumnVolume):
@@ -159,10 +166,50 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
     lo, hi = mech.bounding_box(limits)
+    planes = mech.parallel_planes(chosen) if engine == "columns" else ()
+    margin = mech.margin(chosen, limits)
+    if planes:
+        margin = _plane_unions(margin, len(chosen), [idx for _, idx in planes])
     t0 = time.perf_counter()
-    res = _measure(mech.margin(chosen, limits), lo, hi, step, rtol, engine, progress, max_points, check)
-    return Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res, time.perf_counter() - t0,
-                     mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
+    res = _measure(margin, lo, hi, step, rtol, engine, progress, max_points, check)
+    names = tuple(name for name, _ in planes)
+    if planes:
+        res = _sum_planes(res, len(chosen), len(planes))  # type: ignore[arg-type]
+    return Workspace(mech.name, mech.task_dim == 2, (*chosen, *names, UNION), limits, res, time.perf_counter() - t0,
+                     mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes", names)
+
+
+def _plane_unions(margin: Callable[[np.ndarray], np.ndarray], B: int, planes: Sequence[Sequence[int]]
+                  ) -> Callable[[np.ndarray], np.ndarray]:
+    """points -> (N, B + G + 1): the B branches' margins, each parallel plane's union (the max over
+    its branches), then the union of all in the task coordinates (the engine's last target: its
+    bounding box and the floor of the branches' tolerances)."""
+
+    def f(points: np.ndarray) -> np.ndarray:
+        m = margin(points)
+        per = [m[:, list(idx)].max(axis=1, keepdims=True) for idx in planes]
+        return np.concatenate([m[:, :B], *per, m[:, B:]], axis=1)
+
+    return f
+
+
+def _sum_planes(res: ColumnVolume, B: int, G: int) -> ColumnVolume:
+    """The last target replaced by the sum of the G plane unions (targets B .. B + G - 1): the
+    planes are parallel and distinct, so their regions do not overlap; the error estimates add."""
+    import dataclasses
+
+    planes = slice(B, B + G)
+
+    def last(a: np.ndarray, value: Any) -> np.ndarray:
+        out = np.array(a, copy=True)
+        out[-1] = value
+        return out
+
+    return dataclasses.replace(
+        res, estimate=last(res.estimate, res.estimate[planes].sum()), error=last(res.error, res.error[planes].sum()),
+        check_difference=last(res.check_difference, res.check_difference[planes].sum()),
+        target_converged=last(res.target_converged, bool(np.all(res.target_converged[planes]))),
+        check_agrees=last(res.check_agrees, bool(np.all(res.check_agrees[planes]))))
 
 
 def volume_monte_carlo(mech: Mechanism, n: int, rng: np.random.Generator,

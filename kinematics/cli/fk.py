@@ -17,7 +17,7 @@ import warnings
 from typing import TYPE_CHECKING, Any
 
 from kinematics.cli.args import CLOSED_POSE, EXIT_OK, Command, is_parallel, load, q_args, robot_arg, values
-from kinematics.cli.report import Out, emit
+from kinematics.cli.report import Out, emit, with_plane
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.files import check_output, write_atomic
 
@@ -44,12 +44,13 @@ def register(command: Command) -> None:
 def cmd_fk(args: argparse.Namespace) -> int:
     """Forward kinematics: tool position (and rotation for spatial robots)."""
     robot = load(args)
+    out = with_plane(robot, emit)
     if args.q_file is not None or args.out is not None:
-        return fk_file(args, robot, emit)
+        return fk_file(args, robot, out)
     if is_parallel(robot):
         from kinematics.cli.parallel import fk as parallel_fk
 
-        return parallel_fk(args, robot, emit)
+        return parallel_fk(args, robot, out)
     from kinematics.cli.report import key_values, matrix
     from kinematics.generic.serial import forward_kinematics, plane
 
@@ -68,7 +69,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
             lines += ["rotation:", matrix(pose.rotation, 9)]
         return "\n".join(lines)
 
-    emit(args, payload, human)
+    out(args, payload, human)
     return EXIT_OK
 
 

@@ -19,8 +19,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     import numpy as np
 
     from kinematics.cli.report import key_values, table
-    from kinematics.generic.serial import plane
-    from kinematics.mechanisms import mechanism_of
+    from kinematics.mechanisms import mechanism_of, plane_of
     from kinematics.model.robot import parser_agreement
 
     robot = load(args)
@@ -28,7 +27,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     mech = mechanism_of(robot)
     params = mech.design_parameters()
     sources = mech.parameter_sources(str(robot.urdf_path)) if params else {}
-    axes = plane(robot)
+    found = plane_of(robot)
+    axes = None if found is None else found.axes
     mob = _loop_mobility(robot) if robot.loops is not None else None
     mobility = robot.nv if mob is None else mob["mobility"]
     payload = {
@@ -46,6 +46,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         "frames": list(robot.frame_names),
         "planar": axes is not None,
         "plane_axes": None if axes is None else ["xyz"[i] for i in axes],
+        "plane": None if found is None else found.as_dict(),
         "parameters": params,
         "parameter_sources": sources,
         "parsers_agree": {
@@ -66,8 +67,7 @@ def cmd_info(args: argparse.Namespace) -> int:
             head = f"{robot.nv} joint coordinates, mobility {mobility}"
         parts = [
             f"{robot.name}  ({robot.urdf_path})",
-            head + f", tool frame {robot.tool_frame!r}, " + ("planar in " + "-".join(payload["plane_axes"]) if axes
-                                                             else "spatial"),
+            head + f", tool frame {robot.tool_frame!r}, " + (_plane_text(found) if found else "spatial"),
             "",
             table(
                 ["joint", "type", "lower", "upper", "unit"],
@@ -103,6 +103,12 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     emit(args, payload, human)
     return EXIT_OK
+
+
+def _plane_text(found: Any) -> str:
+    i, j = ("xyz"[a] for a in found.axes)
+    where = "its closed motion" if found.closed else "its joint axes"
+    return f"planar in {i}-{j} at {'xyz'[found.normal]} = {found.offset:.6g} m (decided on {where})"
 
 
 def _loop_mobility(robot: Any) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from kinematics.cli.args import (
     robot_arg,
     values,
 )
-from kinematics.cli.report import emit
+from kinematics.cli.report import emit, with_plane
 
 
 def register(command: Command) -> None:
@@ -35,10 +35,11 @@ def register(command: Command) -> None:
 def cmd_jacobian(args: argparse.Namespace) -> int:
     """World-aligned task Jacobian."""
     robot = load(args)
+    out = with_plane(robot, emit)
     if is_parallel(robot):
         from kinematics.cli.parallel import jacobian as parallel_jacobian
 
-        return parallel_jacobian(args, robot, emit)
+        return parallel_jacobian(args, robot, out)
     from kinematics.cli.report import matrix
     from kinematics.generic.serial import task_jacobian, task_rows
 
@@ -51,5 +52,5 @@ def cmd_jacobian(args: argparse.Namespace) -> int:
     def human() -> str:
         return f"Jacobian of {payload['frame']!r}, rows {', '.join(names)} (world axes):\n" + matrix(J, 9)
 
-    emit(args, payload, human)
+    out(args, payload, human)
     return EXIT_OK

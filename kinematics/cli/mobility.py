@@ -6,7 +6,7 @@ import argparse
 from typing import TYPE_CHECKING, Any
 
 from kinematics.cli.args import Command, load, number, q_args, robot_arg
-from kinematics.cli.report import emit, fmt, key_values, table
+from kinematics.cli.report import emit, fmt, key_values, table, with_plane
 from kinematics.errors import InvalidInputError
 
 if TYPE_CHECKING:
@@ -26,7 +26,8 @@ def register(command: Command) -> None:
 
 def cmd_mobility(args: argparse.Namespace) -> int:
     """Grübler–Kutzbach, screw-theory and numeric mobility at a configuration."""
-    return run(args, load(args), emit)
+    robot = load(args)
+    return run(args, robot, with_plane(robot, emit))
 
 
 def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, str]:

@@ -12,6 +12,19 @@ Out = Callable[[argparse.Namespace, dict[str, Any], Callable[[], str]], None]
 """The CLI's output callback: (args, JSON payload, human-readable report thunk)."""
 
 
+def with_plane(robot: Any, out: Out) -> Out:
+    """`out` with the JSON key "plane" added: the end effector's plane of motion
+    (`kinematics.mechanisms.plane_of`, the one decision every command reports) or null (spatial)."""
+
+    def wrapped(args: argparse.Namespace, payload: dict[str, Any], human: Callable[[], str]) -> None:
+        from kinematics.mechanisms import plane_of
+
+        found = plane_of(robot)
+        out(args, {**payload, "plane": None if found is None else found.as_dict()}, human)
+
+    return wrapped
+
+
 def jsonable(obj: Any) -> Any:
     """Convert numpy arrays/scalars, tuples and NamedTuples into strict-JSON values.
 

@@ -7,7 +7,7 @@ import time
 from typing import Any
 
 from kinematics.cli.args import Command, load, non_negative, number, positive, robot_arg, serial_args
-from kinematics.cli.report import Out, emit
+from kinematics.cli.report import Out, emit, with_plane
 from kinematics.errors import InvalidInputError
 
 
@@ -44,7 +44,8 @@ def register(command: Command) -> None:
 
 def cmd_show(args: argparse.Namespace) -> int:
     """Meshcat view of a robot with overlays."""
-    return run(args, load(args), emit)
+    robot = load(args)
+    return run(args, robot, with_plane(robot, emit))
 
 
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:

@@ -16,7 +16,8 @@ connected set of closed poses only if its structure keeps it so, as the five-bar
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+import functools
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -47,9 +48,16 @@ class MotionPlane(NamedTuple):
     offset: float
     closed: bool
 
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: {"axes": ["x", "z"], "normal": "y", "offset_m": ..., "decided_on": "closed motion" | "joint axes"}."""
+        return {"axes": ["xyz"[a] for a in self.axes], "normal": "xyz"[self.normal], "offset_m": self.offset,
+                "decided_on": "closed motion" if self.closed else "joint axes"}
 
+
+@functools.lru_cache(maxsize=64)
 def motion_plane(robot: Robot, frame: str | None = None, poses: int = 4, rng: int = 0) -> MotionPlane | None:
-    """The world-axis plane the end effector (or `frame`) moves in, or None if its motion is spatial.
+    """The world-axis plane the end effector (or `frame`) moves in, or None if its motion is spatial
+    (cached per robot and arguments: every command asks the same question).
 
     Trees: `common_axis` of the joint axes. Robots with loops: the tree's answer when its axes are
     planar; else the closed motions at the default closed pose and `poses` others with the

@@ -8,7 +8,6 @@ rotational rows.
 
 from __future__ import annotations
 
-import functools
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -56,26 +55,15 @@ def common_axis(model: pin.Model, q: np.ndarray | None = None) -> np.ndarray | N
     return normal
 
 
-@functools.lru_cache(maxsize=64)
-def _plane_of(robot: Robot) -> tuple[int, int] | None:
-    normal = common_axis(robot.model)
-    if normal is None:
-        return None
-    k = int(np.argmax(np.abs(normal)))
-    if abs(abs(normal[k]) - 1.0) > _PARALLEL_TOL:
-        return None  # planar, but not in a plane spanned by world axes
-    rows = [i for i in range(3) if i != k]
-    return rows[0], rows[1]
-
-
 def plane(robot: Robot) -> tuple[int, int] | None:
-    """World axes (i, j) spanning the motion plane of a planar arm, else None.
+    """World axes (i, j) spanning the plane the tool moves in, else None: the axes of
+    `kinematics.generic.motion_plane.motion_plane` (one decision for every command: a tree is
+    planar when every revolute axis is parallel to one world axis and every prismatic one
+    perpendicular to it; a robot with loops when its closed motion is)."""
+    from kinematics.generic.motion_plane import motion_plane
 
-    A robot is planar when every revolute axis is parallel to one world axis k (and every
-    prismatic axis is perpendicular to it); rotations about parallel axes keep them parallel,
-    so checking the neutral configuration suffices.
-    """
-    return _plane_of(robot)
+    found = motion_plane(robot)
+    return None if found is None else found.axes
 
 
 def task_rows(robot: Robot, task: Task = "auto") -> tuple[int, ...]:

@@ -14,3 +14,4 @@ from .base import Velocity as Velocity
 from .base import classify as classify
 from .dispatch import families as families
 from .dispatch import mechanism_of as mechanism_of
+from .dispatch import plane_of as plane_of

@@ -280,6 +280,13 @@ class Mechanism(ABC):
         """A box [m] containing every reachable task point under `limits`."""
         raise MissingCapabilityError(self.name, "bounding box", "a workspace scan", self.capabilities)
 
+    def parallel_planes(self, branches: Sequence[str]) -> tuple[tuple[str, tuple[int, ...]], ...]:
+        """Groups of `branches` whose end effector moves in different parallel planes (a planar
+        motion with several assemblies, e.g. Gepetto's iso five-bars): (plane name, indices into
+        `branches`) per plane, or () where every branch moves in one plane or space. Their regions
+        do not overlap, so a workspace's union is the sum of the planes' unions."""
+        return ()
+
     # -- optional capabilities ---------------------------------------------------------------
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
         """points (N, d) -> (N, len(branches) + 1): each branch's margin [m], then the union's."""

@@ -8,15 +8,23 @@
 3. an open chain that is a planar 2R arm with joints about z (`ScaraParams.from_robot` accepts
    it) -> `Scara` (closed forms);
 4. any other open chain -> `SerialArm`.
+
+`plane_of(robot)`: planar or spatial, decided once for every command (`info`, `fk`, `jacobian`,
+`show`, `mobility`, `workspace-volume`): the plane the end effector moves in with the loops closed
+(`kinematics.generic.motion_plane.motion_plane`), or None.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from kinematics.errors import UnsupportedRobotError
 from kinematics.mechanisms.base import Mechanism
 from kinematics.model.robot import Robot
+
+if TYPE_CHECKING:
+    from kinematics.generic.motion_plane import MotionPlane
 
 
 def _p2us(robot: Robot) -> Mechanism:
@@ -60,3 +68,11 @@ def mechanism_of(robot: Robot) -> Mechanism:
 
         return SerialArm(robot)
     return Scara(params, robot.name)
+
+
+def plane_of(robot: Robot) -> MotionPlane | None:
+    """The plane the end effector moves in (loops closed), or None where its motion is spatial: the
+    one decision every command reports (module docstring; cached per robot)."""
+    from kinematics.generic.motion_plane import motion_plane
+
+    return motion_plane(robot)

@@ -1,7 +1,8 @@
 """The branches of a closed-loop mechanism (`LoopAtlas`): the *atlas* of branches (every label
 with one configuration) is found once, at the end effector's reference position, from `seeds`
 random starts within the joint limits (converged, deduplicated by the positions of every joint
-origin, labelled); and `BranchSolutions`, the inverse kinematics of a batch of targets in every
+origin, labelled), plus, for locked joints (`LoopStructure.locked_joints`), closed poses with
+them half a turn away wherever the end effector then is (`_other_assemblies`); and `BranchSolutions`, the inverse kinematics of a batch of targets in every
 branch of the atlas.
 """
 
@@ -78,6 +79,8 @@ class LoopAtlas(LoopStructure):
         lab = self.label_of(J, x)
         keep = np.all(lab != 0, axis=1)
         x, lab = x[keep], lab[keep]
+        if self.locked_joints:
+            x, lab = self._other_assemblies(x, lab, seeds, rng)
         dist = self._distance_to_reference(x)
         best: dict[tuple[int, ...], int] = {}
         for i in np.argsort(dist):
@@ -86,3 +89,35 @@ class LoopAtlas(LoopStructure):
         keys = sorted(best, reverse=True)
         self.labels = tuple(keys)
         self.atlas = np.array([x[best[k]] for k in keys])
+
+    def _other_assemblies(self, x: np.ndarray, lab: np.ndarray, seeds: int, rng: np.random.Generator
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """The atlas poses `x` (labels `lab`) found at the reference position, plus closed poses
+        of the locked joints' other angles (half a turn from the reference's) whose labels are
+        missing: an assembly in a parallel plane need not reach the reference position (the iso
+        five-bar's second plane), so these are closed with the closure rows alone, the end
+        effector free, from `seeds` random starts with the locked joints turned by pi; their
+        atlas poses lie elsewhere in the task space (a cold start is one pose per label)."""
+        L = len(self.label_blocks)
+        locked = list(self.locked_joints)
+        have = {tuple(int(v) for v in row[L:]) for row in lab}
+        rows = np.zeros(self._m, dtype=np.bool_)
+        rows[[i for g in self._row_groups()[: len(self._g[9])] for i in g]] = True
+        extra_x, extra_lab = [x], [lab]
+        for code in range(1, 2 ** len(locked)):
+            bits = tuple(-1 if code >> q & 1 else 1 for q in range(len(locked)))
+            if bits in have:
+                continue
+            x0 = self.seed_configurations(seeds, rng)
+            x0[:, locked] = self._reference[locked] + np.pi * np.array([b < 0 for b in bits])
+            t = np.repeat(self._anchor[None], seeds, axis=0)
+            y, res, _ = self.newton(t, x0, iters=100, rows=rows)
+            y = self.canonical(y[res <= TOL])
+            if not len(y):
+                continue
+            _, J, _ = self.evaluate(t[: len(y)], y)
+            got = self.label_of(J, y)
+            keep = np.all(got != 0, axis=1) & np.all(got[:, L:] == np.array(bits), axis=1)
+            extra_x.append(y[keep])
+            extra_lab.append(got[keep])
+        return np.vstack(extra_x), np.vstack(extra_lab)

@@ -70,8 +70,9 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         cmax = max(len(bm.cols) for bm in models)
         keys: list[list[tuple[int, ...]]] = []
         bslot = np.zeros((B, K), dtype=np.int64)
+        locks = [self.lock_columns[bm.label] if bm.label >= 0 else () for bm in models]
         for k, bm in enumerate(models):
-            own = (bm.label,) if bm.label >= 0 else ()
+            own = (bm.label, *locks[k]) if bm.label >= 0 else ()
             key = [tuple(int(v) for v in labels[b, list(bm.depends) + list(own)]) for b in range(B)]
             uniq = sorted(set(key), reverse=True)
             keys.append(uniq)
@@ -82,15 +83,25 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         for k in range(K):
             for s in range(nslot[k]):
                 rep[k, s] = int(np.flatnonzero(bslot[:, k] == s)[0])
-        land = np.full((K, S, 3), -1, dtype=np.int64)
+        # a root's slot: its own sign (-1, 0, 1) and its locked joints' half-turn bits (code, bit q
+        # set where locked joint q of the block is half a turn from its reference angle)
+        lmax = max([len(c) for c in locks] + [0])
+        land = np.full((K, S, 3, 2 ** lmax), -1, dtype=np.int64)
+        lock_idx = np.zeros((K, max(lmax, 1)), dtype=np.int64)
+        lock_ref = np.zeros((K, max(lmax, 1)))
         for k, bm in enumerate(models):
+            nl = len(locks[k])
+            lock_idx[k, :nl] = bm.locks
+            lock_ref[k, :nl] = self._reference[[self.locked_joints[c - len(self.label_blocks)] for c in locks[k]]]
             for s, slot_key in enumerate(keys[k]):
                 if bm.label < 0:
                     land[k, s] = s
                     continue
+                head = slot_key[: len(slot_key) - 1 - nl]
                 for sign in (-1, 0, 1):
-                    other = slot_key[:-1] + (sign,)
-                    land[k, s, sign + 1] = keys[k].index(other) if other in keys[k] else -1
+                    for code in range(2 ** nl):
+                        other = head + (sign, *(-1 if code >> q & 1 else 1 for q in range(nl)))
+                        land[k, s, sign + 1, code] = keys[k].index(other) if other in keys[k] else -1
         hmax = max([len(bm.held) for bm in models] + [1])
         held = np.zeros((K, hmax), dtype=np.int64)
         held_owner = np.zeros((K, hmax), dtype=np.int64)
@@ -144,7 +155,8 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
              dtype=np.int64), cols, rows_det, np.array([bm.label for bm in models], dtype=np.int64), middles,
              np.array([len(bm.middles) for bm in models], dtype=np.int64), flips, nflip, held,
              np.array([len(bm.held) for bm in models], dtype=np.int64), held_owner, held_pos, held_slot, land, ref, act,
-             np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_))
+             np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_),
+             lock_idx, lock_ref, np.array([len(c) for c in locks], dtype=np.int64))
         kernel_models = tuple((*pack(bm.g), bm.m, bm.nzc, bm.nzn, bm.centre, bm.free, bm.weights) for bm in models)
         # solve order: every block after the blocks it holds joints of, the smallest sub-model first
         # among those ready (a target that one limb cannot reach is dropped before the costlier ones)

@@ -567,15 +567,15 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
     where another slot of the block was found, `restarts` quasi-random starts for each slot still
     missing. A start's held joints come from the earlier blocks' solutions of its slot's
-    branch choice; its root (if any) goes to the slot of its label, the one nearest the reference
-    kept. A branch dies (`alive`) with the first block slot it needs that is not found.
+    branch choice; its root (if any) goes to the slot of its label (its determinant's sign and its
+    locked joints' half-turn bits), the one nearest the reference kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
     counting, which at this size costs as much as the kinematics.)"""
     N = targets.shape[0]
     B = bslot.shape[0]
     n = gi[0]
     (pinned, ncol, cols, rows_det, label, middles, nmid, flips, nflip, held, nheld, held_owner, held_pos, held_slot,
-     land, ref, act, held_by_others) = T
+     land, ref, act, held_by_others, lock_idx, lock_ref, nlock) = T
     nc = ncol[k]
     # a block whose values later blocks hold is solved past TOL (Newton's last step squares the
     # error): a held value within TOL of its root can leave an over-determined block (a second
@@ -616,15 +616,24 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     # cannot close where a neighbour within the continuation radius could not either
                     # (the five-bar's second chain outside its reach) is not restarted: a region
                     # entered from outside is found from the neighbour's least-squares end (at the
-                    # fold) or the atlas start
+                    # fold) or the atlas start. A block that holds no earlier joints (the iso
+                    # five-bars' single block) also restarts where a neighbour found a missing slot
+                    # or a start stalled within near / 10 of closure: next to a fold of the reach
+                    # the neighbour's end and the atlas start can both stall there (0.2 % of the
+                    # iso five-bar's inside points were missed, the column integration refining
+                    # around each), while random starts close in about half the tries
                     some = False
                     for q in range(S):
                         some = some or found[i, k, q]
-                    if not some and nheld[k] > 0:
+                    if not some:
                         for q in range(S):
                             verdict = warm[i, k, q, warm.shape[3] - 1]
-                            if need[q] and verdict != 0.0:  # NaN (not tried there) restarts too
-                                some = True
+                            if not need[q]:
+                                continue
+                            if nheld[k] > 0:
+                                some = some or verdict != 0.0  # NaN (not tried there) restarts too
+                            else:
+                                some = some or verdict == 1.0 or res[i, k, q] < 0.1 * near
                     if not some:
                         break
                 s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts
@@ -671,7 +680,11 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     for q in range(nmid[k]):
                         if math.cos(x[middles[k, q]]) < 0.0:
                             sg = -sg
-                    s2 = land[k, s, sg + 1]
+                    code = 0
+                    for q in range(nlock[k]):
+                        if math.cos(x[lock_idx[k, q]] - lock_ref[k, q]) < 0.0:
+                            code += 1 << q
+                    s2 = land[k, s, sg + 1, code]
                 if s2 < 0:
                     counts[i, 0] += 1
                     continue

@@ -161,11 +161,6 @@ class LoopModel:
         kind = self._g[1]
         return np.isfinite(lo) & np.isfinite(hi) & ((kind == PRISMATIC) | (hi - lo < 2 * math.pi - 1e-9))
 
-    @property
-    def branch_names(self) -> tuple[str, ...]:
-        """Readable branch labels: one +/- per labelling block."""
-        return tuple("".join("+" if s > 0 else "-" for s in lab) for lab in self.labels)
-
     def _points(self, points: np.ndarray) -> np.ndarray:
         p = np.asarray(points, dtype=float)
         if p.ndim == 1 and p.shape[0] == self.task_dim:

@@ -200,6 +200,11 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
 
         return margin
 
+    def end_effector_positions(self, x: np.ndarray) -> np.ndarray:
+        """(R, 3) world positions [m] of the end effector at joint values x (R, n), model order."""
+        _, _, pos = self.evaluate(np.zeros((len(x), self.task_dim)), np.asarray(x, dtype=float))
+        return pos[:, self.n + self._g[12]]
+
     def bounding_box(self, samples: int = 20_000, rng: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """A box [m] around the end effector's reachable task coordinates: the end effector's own
         chain sampled within its joint limits (loops ignored: a superset), padded by 5 %. A

@@ -14,6 +14,14 @@ A passive sub-chain can reach one position in several ways that are the same mec
 universal joint's (a, b) and (a + pi, pi - b), a spherical joint's two Euler triples); they are
 merged (same joint-origin positions) and the one closest to the reference configuration is kept,
 so the labels and the reported joint values use one representation throughout.
+
+**Locked joints (assembly modes in parallel planes).** In a planar closed motion of a spatial tree,
+a revolute joint that no closed motion moves at the reference (`locked_joints`: its entry in every
+null vector of the closure rows vanishes) is held by the loops at one angle up to the assembly: Gepetto's `5bar_linkage_iso3d` closes with its
+extra joint `freeortho` at 0 or pi, its tip then in the plane y = -0.2 m or y = -0.15 m. The
+determinant's sign does not tell these apart (both assemblies have both signs), so each locked
+joint adds a label column, sign(cos(x_j - x_j_ref)): +1 at the reference's angle, -1 half a turn
+from it, carried by the labelling block that determines the joint.
 """
 
 from __future__ import annotations
@@ -69,6 +77,8 @@ class BlockModel(NamedTuple):
         label: index among `LoopBatch.label_blocks`, -1 for a block that labels no working mode.
         depends: label-block indices whose branch choice the held values depend on (transitively).
         pinned: the end effector's joint is placed at the target.
+        locks: sub-model indices of the block's locked joints (`LoopStructure.locked_joints`),
+            whose label columns are `LoopStructure.lock_columns[label]`.
     """
 
     block: Block
@@ -88,6 +98,7 @@ class BlockModel(NamedTuple):
     nzn: np.ndarray
     centre: np.ndarray
     weights: np.ndarray
+    locks: np.ndarray
 
 
 class LoopStructure(LoopModel):
@@ -140,14 +151,64 @@ class LoopStructure(LoopModel):
         working mode."""
         return tuple(b for b in self.blocks if b.actuated and b.square and b.cols)
 
+    @functools.cached_property
+    def locked_joints(self) -> tuple[int, ...]:
+        """Revolute joints, not actuated, in a labelling block, that no closed motion moves at the
+        reference configuration (module docstring): their entries in an orthonormal basis of the
+        null space of the closure rows' Jacobian are below 1e-9 (the basis is computed to ~1e-12).
+        Only for a planar closed motion of a spatial tree (`motion_plane(...).closed`): a spatial
+        mechanism's passive joints can stand still at a symmetric reference (the 3-[P2(US)]'s,
+        the Delta's) without being held at two angles."""
+        from kinematics.generic.motion_plane import motion_plane
+
+        plane = motion_plane(self.robot)
+        if plane is None or not plane.closed:
+            return ()
+        groups = self._row_groups()
+        rows = [i for g in groups[: len(self._g[9])] for i in g]
+        _, J, _ = self.evaluate(np.repeat(self._anchor[None], 1, axis=0), self._reference[None])
+        K = J[0, rows]
+        _, s, Vt = np.linalg.svd(K)
+        rank = int(np.sum(s > 1e-9 * s[0])) if s.size and s[0] > 0 else 0
+        N = Vt[rank:]
+        blocked = {c for b in self.label_blocks for c in b.cols}
+        act = set(self.actuated.tolist())
+        return tuple(j for j in range(self.n) if self._g[1][j] == REVOLUTE and j not in act and j in blocked
+                     and float(np.abs(N[:, j]).max(initial=0.0)) <= 1e-9)
+
+    @functools.cached_property
+    def lock_columns(self) -> tuple[tuple[int, ...], ...]:
+        """Per labelling block, the label columns of its locked joints (after the blocks' own
+        columns, in `locked_joints` order)."""
+        L = len(self.label_blocks)
+        out: list[tuple[int, ...]] = []
+        for b in self.label_blocks:
+            out.append(tuple(L + q for q, j in enumerate(self.locked_joints) if j in b.cols))
+        return tuple(out)
+
+    @property
+    def branch_names(self) -> tuple[str, ...]:
+        """Readable branch labels: one +/- per labelling block, then per locked joint
+        "/NAME=ANGLE", its angle [rad] at the branch's atlas pose to 3 decimals (e.g. "+/freeortho=-3.142")."""
+        L = len(self.label_blocks)
+        names = []
+        for b, lab in enumerate(self.labels):
+            text = "".join("+" if s > 0 else "-" for s in lab[:L])
+            for j in self.locked_joints:
+                text += f"/{self.robot.dofs[j].name}={round(float(self.atlas[b][j]), 3) + 0.0:g}"
+            names.append(text)
+        return tuple(names)
+
     def label_of(self, J: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """(R, L) branch labels at solutions x with Jacobians J: per labelling block, the sign of its
-        determinant times sign(cos b) of every concurrent group's middle angle b in the block. A
-        group contributes exactly a factor cos b to the determinant (its joints' columns are a
-        fixed map of their angular-velocity axes, whose determinant is +-cos b), so the product
+        """(R, L + locked) branch labels at solutions x with Jacobians J: per labelling block, the
+        sign of its determinant times sign(cos b) of every concurrent group's middle angle b in the
+        block (a group contributes exactly a factor cos b to the determinant: its joints' columns are
+        a fixed map of their angular-velocity axes, whose determinant is +-cos b, so the product
         does not depend on the group's representation and keeps its sign through the group's own
-        gimbal lock; 0 where the block is singular (type I)."""
-        out = np.empty((len(J), len(self.label_blocks)), dtype=np.int8)
+        gimbal lock), 0 where the block is singular (type I); then per locked joint j,
+        sign(cos(x_j - x_j_ref)) (+1 or -1: which of its two assembly angles)."""
+        L = len(self.label_blocks)
+        out = np.empty((len(J), L + len(self.locked_joints)), dtype=np.int8)
         for k, b in enumerate(self.label_blocks):
             sub = J[:, list(b.rows)][:, :, list(b.cols)]
             sign = np.sign(np.linalg.det(sub))
@@ -155,6 +216,8 @@ class LoopStructure(LoopModel):
                 if grp[1] in b.cols:
                     sign = sign * np.sign(np.cos(x[:, grp[1]]))
             out[:, k] = sign.astype(np.int8)
+        for q, j in enumerate(self.locked_joints):
+            out[:, L + q] = np.where(np.cos(x[:, j] - self._reference[j]) < 0.0, -1, 1)
         return out
 
     @functools.cached_property
@@ -238,13 +301,15 @@ class LoopStructure(LoopModel):
                 depends |= set(models[o].depends)
                 if models[o].label >= 0:
                     depends.add(models[o].label)
+                    depends |= set(self.lock_columns[models[o].label])
             models.append(BlockModel(
                 block=blk, joints=js, free=free, held=held, owner=own,
                 rows=np.array([to_sub[i] for i in blk.rows], dtype=np.int64),
                 cols=np.array([where[c] for c in blk.cols], dtype=np.int64),
                 middles=np.array([where[c] for c in blk.cols if c in middle], dtype=np.int64),
                 label=label_index.get(blk, -1), depends=tuple(sorted(depends)), pinned=pinned, g=g, m=m,
-                nzc=nzc, nzn=nzn, centre=self._centre[js], weights=weights))
+                nzc=nzc, nzn=nzn, centre=self._centre[js], weights=weights,
+                locks=np.array([where[j] for j in self.locked_joints if j in blk.cols], dtype=np.int64)))
             owner[list(blk.cols)] = k
         return tuple(models)
 

@@ -122,6 +122,30 @@ class GenericClosedLoop(Mechanism):
 
         return motion_plane(self.robot)
 
+    def parallel_planes(self, branches: Sequence[str]) -> tuple[tuple[str, tuple[int, ...]], ...]:
+        """`Mechanism.parallel_planes`: a planar motion's branches grouped by the end effector's
+        coordinate along the plane's normal at each branch's atlas pose (equal to 1e-6 of the
+        robot's size); () when they share one plane."""
+        if self.plane is None:
+            return ()
+        b = self.batch
+        names = self.branches
+        idx = [names.index(x) for x in branches]
+        offsets = b.end_effector_positions(b.atlas[idx])[:, self.plane.normal]
+        tol = 1e-6 * float(b.scale)
+        groups: list[tuple[float, list[int]]] = []
+        for k, off in enumerate(offsets):
+            for g in groups:
+                if abs(g[0] - off) <= tol:
+                    g[1].append(k)
+                    break
+            else:
+                groups.append((float(off), [k]))
+        if len(groups) < 2:
+            return ()
+        axis = _AXES[self.plane.normal]
+        return tuple((f"plane {axis}={off + 0.0:.6g}", tuple(g)) for off, g in sorted(groups, reverse=True))
+
     def parameters(self) -> dict[str, Any]:
         loops = self.robot.loops
         out: dict[str, Any] = {"closures": len(loops.closures) if loops else 0,
@@ -130,6 +154,10 @@ class GenericClosedLoop(Mechanism):
             # an area is measured in this plane; another assembly mode can move in a parallel one
             i, j = (_AXES[a] for a in self.plane.axes)
             out["plane"] = f"{i}-{j} at {_AXES[self.plane.normal]} = {self.plane.offset:.6g} m"
+            planes = self.parallel_planes(self.branches) if "batch" in self.__dict__ else ()
+            if planes:
+                out["parallel_planes"] = (", ".join(name for name, _ in planes) + ": assemblies in parallel planes; "
+                                          "the union is the sum of the planes' areas (they do not overlap)")
         return out
 
     def _require_actuator_ranges(self, purpose: str = "a workspace") -> None:
