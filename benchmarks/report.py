@@ -134,7 +134,15 @@ def _collisions(o: dict[str, Any]) -> list[Row]:
               f"{sec(r['collision_seconds'])}, {num(r['time_ratio'], 2)} x the kinematic run")) for r in o["rows"]]
 
 
+def _cli(o: dict[str, Any]) -> list[Row]:
+    return [(f"`{r['command']}` (best of {o['repeats']}, wall / volume)",
+             "failed" if r["wall_s"] is None else
+             f"{sec(r['wall_s'])} / {sec(r['volume_s'])}: {num(r['volume'], 6)} +/- {num(r['error_estimate'], 1)}")
+            for r in o["rows"]]
+
+
 HEADLINES: dict[str, Callable[[dict[str, Any]], list[Row]]] = {
+    "bench_cli": _cli,
     "bench_collisions": _collisions,
     "bench_batched_fk": _batched_fk,
     "bench_scara_manipulability": _scara,
