@@ -37,7 +37,7 @@ from _timing import calibration, dump, machine_line, parse
 from kinematics.analyses.columns import column_volume
 from kinematics.generic.loop_batch import LoopBatch
 from kinematics.mechanisms.p2us import closed_form as par
-from kinematics.mechanisms.p2us.mechanism import P2USMargin
+from kinematics.mechanisms.p2us.mechanism import p2us_margin
 from kinematics.mechanisms.p2us.scan import bounding_box
 from kinematics.mechanisms.p2us.urdf import read_params
 from kinematics.model.robot import load_robot
@@ -73,7 +73,7 @@ def main() -> None:
     # set-up apart from the timed measurements: the atlas search, the branch matching, and a first
     # call of each margin (which compiles its kernels on the first run after a change: 50-100 s)
     t = time.perf_counter()
-    closed_3d = P2USMargin(P, list(range(len(par.MODES))), a.limits).sampled()
+    closed_3d = p2us_margin(P, par.MODES, a.limits).sampled()
     lb = LoopBatch.from_robot(robot, seeds=256)
     pts = np.array([[0.0, 0.0, -0.45], [0.05, 0.03, -0.5]])
     ik = par.ik(P, pts, limits=False)

@@ -45,7 +45,6 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
-from kinematics.mechanisms.base import MarginFn
 from kinematics.mechanisms.delta.closed_form import DeltaParams
 from kinematics.mechanisms.delta.roots import (
     DEG,
@@ -57,8 +56,9 @@ from kinematics.mechanisms.delta.roots import (
     real_roots,
 )
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
+from kinematics.mechanisms.three_limb.margin import ThreeLimbMargin, column_buffers
 
-__all__ = ["ROOT_ERROR", "DeltaMargin", "ExactColumns", "kernels"]
+__all__ = ["ROOT_ERROR", "ExactColumns", "delta_margin", "kernels"]
 
 _DEG = DEG
 _NPOLY = 5  # per limb: reach, actuator low, actuator high, elbow cone, platform cone
@@ -354,40 +354,18 @@ class ExactColumns:
     def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
-        M = base.shape[0]
-        T = len(self.modes) + 1
-        length = np.zeros((M, T))
-        error = np.zeros((M, T))
-        ends = np.zeros((M, T), np.int64)
-        sig = np.zeros(M, np.int64)
-        zbox = np.empty((M, 2))
-        zbox[:, 0] = np.inf
-        zbox[:, 1] = -np.inf
+        length, error, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
         _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, error, ends,
                         sig, zbox)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, error, ends, sig, zbox
 
 
-class DeltaMargin:
-    """The Delta margin as `Delta.margin` returns it: points (N, 3) -> (N, len(cols) + 1) margins
-    [m] (each mode's, `scan.scan`, then their union, the maximum), with `exact_columns`
-    (`ExactColumns`), which `column_volume` uses instead of sampling."""
-
-    def __init__(self, params: DeltaParams, cols: list[int], passive: bool) -> None:
-        self.params, self.cols, self.passive = params, cols, passive
-        self.exact_columns = ExactColumns(params, np.array(cols), passive)
-
-    def __call__(self, points: np.ndarray) -> np.ndarray:
-        m = scan(self.params, points, self.passive).margin[:, self.cols]
-        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
-
-    def sampled(self) -> MarginFn:
-        """The same margin without exact columns (the engine then samples every column)."""
-        def margin(points: np.ndarray) -> np.ndarray:
-            return self(points)
-
-        return margin
+def delta_margin(params: DeltaParams, cols: list[int], passive: bool) -> ThreeLimbMargin:
+    """The Delta margin as `Delta.margin` returns it: each mode's slack (`scan.scan`), then their
+    union, with `ExactColumns`."""
+    return ThreeLimbMargin(params, cols, lambda points: scan(params, points, passive).margin,
+                           ExactColumns(params, np.array(cols), passive))
 
 
 def kernels() -> tuple[Any, ...]:

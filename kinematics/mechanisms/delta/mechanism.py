@@ -101,11 +101,11 @@ class Delta(ThreeLimbMechanism):
         return lo, hi
 
     def margin(self, branches: Sequence[str] | None = None, limits: str = "all") -> MarginFn:
-        from kinematics.mechanisms.delta.exact import DeltaMargin
+        from kinematics.mechanisms.delta.exact import delta_margin
 
         cols = [cf.MODES.index(b) for b in self.check_branches(branches)]
         self.check_limits(limits)
-        return DeltaMargin(self.params, cols, limits == "all")
+        return delta_margin(self.params, cols, limits == "all")
 
     def singular_fields(self, points: np.ndarray, limits: str = "all") -> SingularFields:
         """Type I of limb i where its IK discriminant rho^2 - K^2 [m^2] changes sign; type II of

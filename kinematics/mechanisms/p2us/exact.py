@@ -35,6 +35,7 @@ from numba import njit, prange
 
 from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.scan import check_limits, kernel_geometry, limb_kernel
+from kinematics.mechanisms.three_limb.margin import column_buffers
 
 ROOT_ERROR = 1e-13
 """Error [m] charged per interval end (the quadratic formula's rounding, with margin)."""
@@ -278,14 +279,7 @@ class ExactColumns:
     def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
-        M = base.shape[0]
-        T = len(self.modes) + 1
-        length = np.zeros((M, T))
-        ends = np.zeros((M, T), np.int64)
-        sig = np.zeros(M, np.int64)
-        zbox = np.empty((M, 2))
-        zbox[:, 0] = np.inf
-        zbox[:, 1] = -np.inf
+        length, _, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
         _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, ends, sig,
                         zbox)
         zbox[~np.isfinite(zbox)] = np.nan

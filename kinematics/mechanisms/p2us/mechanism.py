@@ -12,42 +12,25 @@ import numpy as np
 from kinematics.mechanisms.base import UNION, MarginFn, SingularFields
 from kinematics.mechanisms.p2us import closed_form as cf
 from kinematics.mechanisms.p2us.scan import bounding_box, check_limits, scan
+from kinematics.mechanisms.three_limb.margin import ThreeLimbMargin
 from kinematics.mechanisms.three_limb.mechanism import ThreeLimbMechanism
 
 MODE_LEGEND = ("working mode: one sign per limb (limbs 1, 2, 3); '+' takes the IK root q = A + sqrt(A^2 - G) "
                "(carriage farther down its rail), '-' the root q = A - sqrt(A^2 - G); 'union': any mode")
 
 
-def p2us_margin(params: cf.P2USParams, modes: Sequence[str] = cf.MODES, limits: str = "all") -> P2USMargin:
+def p2us_margin(params: cf.P2USParams, modes: Sequence[str] = cf.MODES, limits: str = "all") -> ThreeLimbMargin:
     """points (N, 3) -> (N, len(modes) + 1) margins [m]: each mode (the scan kernel's smallest
     constraint slack, `kinematics.mechanisms.p2us.scan`), then their union (the maximum); the
-    returned object also carries the exact columns (`P2USMargin`)."""
+    returned object also carries the exact columns, `exact.ExactColumns`)."""
+    from kinematics.mechanisms.p2us.exact import ExactColumns
+
     for m in modes:
         cf.mode_index(m)
     check_limits(limits)
-    return P2USMargin(params, [cf.MODES.index(m) for m in dict.fromkeys(modes)], limits)
-
-
-class P2USMargin:
-    """The 3-[P2(US)] margin as `p2us_margin` returns it: callable on points, and with
-    `exact_columns` (`exact.ExactColumns`), which `column_volume` uses instead of sampling."""
-
-    def __init__(self, params: cf.P2USParams, cols: list[int], limits: str) -> None:
-        from kinematics.mechanisms.p2us.exact import ExactColumns
-
-        self.params, self.cols, self.limits = params, cols, limits
-        self.exact_columns = ExactColumns(params, np.array(cols), limits)
-
-    def __call__(self, points: np.ndarray) -> np.ndarray:
-        m = scan(self.params, points, self.limits).margin[:, self.cols]
-        return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
-
-    def sampled(self) -> MarginFn:
-        """The same margin without exact columns (the engine then samples every column)."""
-        def margin(points: np.ndarray) -> np.ndarray:
-            return self(points)
-
-        return margin
+    cols = [cf.MODES.index(m) for m in dict.fromkeys(modes)]
+    return ThreeLimbMargin(params, cols, lambda points: scan(params, points, limits).margin,
+                           ExactColumns(params, np.array(cols), limits))
 
 
 class P2US(ThreeLimbMechanism):
@@ -123,4 +106,4 @@ class P2US(ThreeLimbMechanism):
         return SingularFields(s.margin, s.disc, s.det)
 
 
-__all__ = ["MODE_LEGEND", "P2US", "UNION", "P2USMargin", "p2us_margin"]
+__all__ = ["MODE_LEGEND", "P2US", "UNION", "p2us_margin"]
