@@ -378,4 +378,4 @@ def test_a_serial_arm_without_ranges_asks_for_them(tmp_path, capsys):
     out = capsys.readouterr().out
     first, second = (json.loads(part) for part in out.replace("}\n{", "}\n\x00{").split("\x00"))
     assert first["joints"] == second["joints"]
-    assert [j for j in first["joints"] if j["name"] == "elbow"][0]["lower"] == 0.5
+    assert next(j for j in first["joints"] if j["name"] == "elbow")["lower"] == 0.5
