@@ -5,6 +5,7 @@ solver and each plane's area measured (the union: their sum)."""
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -70,6 +71,15 @@ def _iso_plane_reference(robot, ortho: float, n: int) -> tuple[float, float]:
     open. For a point E, B1 is on circle(A1, a1) at distance e from E (two choices); the body's
     fixed angle then places P, which chain 2 must reach (|P - A2| within its annulus). Ranges are
     full turns, the passive joints unbounded: reach is the only limit."""
+    reach = _iso_reach(robot, ortho)
+    E, cell = _grid(reach["A1"] - (reach["a1"] + reach["e"]), reach["A1"] + (reach["a1"] + reach["e"]), n)
+    return float((_iso_inside(robot, ortho, E) >= 0).sum() * cell), reach["y"]
+
+
+def _iso_reach(robot, ortho: float) -> dict[str, Any]:
+    """The in-plane geometry `_iso_plane_reference` describes, read at the neutral pose with
+    freeortho = ortho: joint centres A1, A2, link lengths a1, e, b1, a2, b2, the body's fixed angle
+    delta at B1 between E and P, and the plane's y [m]."""
     m = robot.model
     d = m.createData()
     q = pin.neutral(m)
@@ -81,27 +91,14 @@ def _iso_plane_reference(robot, ortho: float, n: int) -> tuple[float, float]:
 
     A1, B1, A2, B2 = (xz(d.oMi[m.getJointId(k)].translation) for k in ("mot1", "free1", "free2", "mot2"))
     P0, Q0, E0 = (xz(d.oMf[robot.frame_id(f)].translation) for f in ("closedloop3D_1A", "closedloop3D_1B", "effector"))
-    a1, e, b1 = (float(np.linalg.norm(v)) for v in (B1 - A1, E0 - B1, P0 - B1))
-    a2, b2 = float(np.linalg.norm(B2 - A2)), float(np.linalg.norm(Q0 - B2))
+    return {"A1": A1, "A2": A2, "a1": float(np.linalg.norm(B1 - A1)), "e": float(np.linalg.norm(E0 - B1)),
+            "b1": float(np.linalg.norm(P0 - B1)), "a2": float(np.linalg.norm(B2 - A2)),
+            "b2": float(np.linalg.norm(Q0 - B2)), "delta": float(_angle(P0 - B1) - _angle(E0 - B1)),
+            "y": float(d.oMf[robot.frame_id("effector")].translation[1])}
 
-    def angle(v: np.ndarray) -> np.ndarray:
-        return np.arctan2(v[..., 1], v[..., 0])
 
-    delta = angle(P0 - B1) - angle(E0 - B1)
-    E, cell = _grid(A1 - (a1 + e), A1 + (a1 + e), n)
-    D = E - A1
-    r = np.linalg.norm(D, axis=1)
-    x = (a1**2 - e**2 + r**2) / (2 * r)
-    h2 = a1**2 - x**2
-    perp = np.stack([-D[:, 1], D[:, 0]], axis=1)
-    inside = np.zeros(len(E), dtype=bool)
-    for side in (1, -1):
-        B = A1 + (x / r)[:, None] * D + side * (np.sqrt(np.maximum(h2, 0)) / r)[:, None] * perp
-        phi = angle(E - B) + delta
-        P = B + b1 * np.stack([np.cos(phi), np.sin(phi)], axis=1)
-        d2 = np.linalg.norm(P - A2, axis=1)
-        inside |= (h2 >= 0) & (d2 >= abs(a2 - b2)) & (d2 <= a2 + b2)
-    return float(inside.sum() * cell), float(d.oMf[robot.frame_id("effector")].translation[1])
+def _angle(v: np.ndarray) -> np.ndarray:
+    return np.arctan2(v[..., 1], v[..., 0])
 
 
 @needs_models
@@ -148,25 +145,9 @@ def test_iso_fivebar_planes_hold_their_geometric_reference(capsys):
 
 def _iso_inside(robot, ortho: float, E: np.ndarray) -> np.ndarray:
     """Chain 2's reach slack [m] at the effector points E (N, 2) in the freeortho = ortho assembly
-    (best of chain 1's two elbows; > 0 inside), from the geometry of `_iso_plane_reference`."""
-    m = robot.model
-    d = m.createData()
-    q = pin.neutral(m)
-    q[m.joints[m.getJointId("freeortho")].idx_q] = ortho
-    pin.framesForwardKinematics(m, d, q)
-
-    def xz(v: np.ndarray) -> np.ndarray:
-        return np.array([v[0], v[2]])
-
-    A1, B1, A2, B2 = (xz(d.oMi[m.getJointId(k)].translation) for k in ("mot1", "free1", "free2", "mot2"))
-    P0, Q0, E0 = (xz(d.oMf[robot.frame_id(f)].translation) for f in ("closedloop3D_1A", "closedloop3D_1B", "effector"))
-    a1, e, b1 = (float(np.linalg.norm(v)) for v in (B1 - A1, E0 - B1, P0 - B1))
-    a2, b2 = float(np.linalg.norm(B2 - A2)), float(np.linalg.norm(Q0 - B2))
-
-    def angle(v: np.ndarray) -> np.ndarray:
-        return np.arctan2(v[..., 1], v[..., 0])
-
-    delta = angle(P0 - B1) - angle(E0 - B1)
+    (best of chain 1's two elbows; >= 0 inside), from `_iso_reach` (see `_iso_plane_reference`)."""
+    g = _iso_reach(robot, ortho)
+    A1, A2, a1, e, b1, a2, b2 = (g[k] for k in ("A1", "A2", "a1", "e", "b1", "a2", "b2"))
     D = E - A1
     r = np.linalg.norm(D, axis=1)
     x = (a1**2 - e**2 + r**2) / (2 * r)
@@ -175,7 +156,7 @@ def _iso_inside(robot, ortho: float, E: np.ndarray) -> np.ndarray:
     slack = np.full(len(E), -np.inf)
     for side in (1, -1):
         B = A1 + (x / r)[:, None] * D + side * (np.sqrt(np.maximum(h2, 0)) / r)[:, None] * perp
-        phi = angle(E - B) + delta
+        phi = _angle(E - B) + g["delta"]
         P = B + b1 * np.stack([np.cos(phi), np.sin(phi)], axis=1)
         d2 = np.linalg.norm(P - A2, axis=1)
         slack = np.maximum(slack, np.where(h2 >= 0, np.minimum(d2 - abs(a2 - b2), a2 + b2 - d2), -np.inf))
