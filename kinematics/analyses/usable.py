@@ -325,7 +325,8 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
 
     tested: list[tuple[float, np.ndarray, tuple[float, ...]]] = []  # (volume, centre, size) of each start
     bound = 0.0
-    for level in range(levels if search else 1):
+    grids = levels if search else 1  # without the search: the coarse grid's best start only
+    for level in range(grids):
         for j in _starts(lv, starts if search else 1):
             base = tuple(float(x) for x in lv.size[tuple(j)])
             if min(base) <= 0:
@@ -334,7 +335,7 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
             tested.append((shape_volume(shape, [t * x for x in base]), lv.point(j), tuple(t * x for x in base)))
         best = max(v for v, _, _ in tested)
         bound = float(lv.bound[lv.region].max())
-        if level + 1 < (levels if search else 1):
+        if level + 1 < grids:
             finer = _finer(field, shape, lv, best)
             if finer is None:  # no cell can beat the best: the best is the bound
                 bound = best
