@@ -116,8 +116,11 @@ def _loop_batch(o: dict[str, Any]) -> list[Row]:
 
 def _serial_workspace(o: dict[str, Any]) -> list[Row]:
     unit = {"m2": "m^2", "m3": "m^3"}
-    return [(f"serial workspace, {r['robot']} ({r['mode']})", (f"{num(r['measure'], 6)} {unit.get(r['unit'], r['unit'])} "
-             f"+/- {num(r['error_estimate'], 1)} in {sec(r['seconds'])}")) for r in o["results"]]
+    return [(f"serial workspace, {r['robot']} (rtol {r['rtol']:g})",
+             (f"{num(r['volume'], 6)} {unit.get(r['unit'], r['unit'])} +/- {num(r['error_estimate'], 1)}"
+              + ("" if r["true_error"] is None else f" (true error {num(r['true_error'], 1)})")
+              + f" in {sec(r['seconds'])}" + ("" if r["converged"] else ", not converged")))
+            for r in o["results"]]
 
 
 def _models(o: dict[str, Any]) -> list[Row]:
