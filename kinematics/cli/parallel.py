@@ -39,10 +39,12 @@ def require_closed_forms(robot: Robot) -> Mechanism:
     return mech
 
 
-def position_arg(args: argparse.Namespace) -> np.ndarray:
-    if args.position is None or len(args.position) != 3:
+def position_arg(args: argparse.Namespace, axes: tuple[str, ...] = ("x", "y", "z")) -> np.ndarray:
+    """--position as a finite vector of one value per task axis [m]."""
+    if args.position is None or len(args.position) != len(axes):
         got = 0 if args.position is None else len(args.position)
-        raise InvalidInputError("--position", f"give X Y Z of the platform [m], got {got} value(s)")
+        names = " ".join(a.upper() for a in axes)
+        raise InvalidInputError("--position", f"give {names} of the end effector [m], got {got} value(s)")
     p = np.array(args.position, dtype=float)
     if not np.all(np.isfinite(p)):
         raise InvalidInputError("--position", f"must be finite, got {p.tolist()}")
@@ -50,14 +52,14 @@ def position_arg(args: argparse.Namespace) -> np.ndarray:
 
 
 def _solutions_report(title: str, key: str, columns: list[str], digits: int,
-                      solutions: list[dict[str, Any]], reason: str | None) -> str:
-    """Title line, a table of the solutions (mode, the 3 values under `key`, within limits), their
-    limit violations, and the reason when there is one."""
+                      solutions: list[dict[str, Any]], reason: str | None, label: str = "mode") -> str:
+    """Title line, a table of the solutions (their `label`, the values under `key`, within
+    limits), their limit violations, and the reason when there is one."""
     parts = [title]
     if solutions:
-        parts.append(table(["mode", *columns, "within limits"],
-                           [(s["mode"], *s[key], s["within_limits"]) for s in solutions], digits))
-        lines = [f"  {s['mode']}: " + "; ".join(s["violations"]) for s in solutions if s["violations"]]
+        parts.append(table([label, *columns, "within limits"],
+                           [(s[label], *s[key], s["within_limits"]) for s in solutions], digits))
+        lines = [f"  {s[label]}: " + "; ".join(s["violations"]) for s in solutions if s["violations"]]
         parts += (["limit violations:"] + lines) if lines else []
     if reason:
         parts.append(f"reason: {reason}")
@@ -65,26 +67,33 @@ def _solutions_report(title: str, key: str, columns: list[str], digits: int,
 
 
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
-    """`kinematics ik p2us|delta --position X Y Z`: all working modes, limits, reasons."""
-    mech = require_closed_forms(robot)
-    p = position_arg(args)
+    """`kinematics ik ROBOT --position ...`: every branch (the SCARA's elbows, the 3-[P2(US)]'s and
+    the Delta's working modes) from the mechanism's closed forms (`Mechanism.pose_ik`), with the
+    limits each breaks and why none reaches."""
+    mech = mechanism_of(robot)
+    if "pose_ik" not in mech.capabilities:
+        raise UnsupportedRobotError(robot.name, "closed-form IK is available for planar 2R arms (scara), 3-[P2(US)] "
+                                                f"(p2us) and Delta robots (delta); this one has none ({mech.description})")
+    p = position_arg(args, mech.task_axes)
     res = mech.pose_ik(p)
-    solutions = [{"q": res.q[m], "mode": mode, "within_limits": not res.violations[m], "violations": list(res.violations[m])}
-                 for m, mode in enumerate(mech.branches) if res.reachable[m]]
-    limbs = res.limbs
+    label = "elbow" if mech.branch_kind == "elbow" else "mode"
+    solutions = [{"q": res.q[m], label: name, "within_limits": not res.violations[m],
+                  "violations": list(res.violations[m])}
+                 for m, name in enumerate(mech.branches) if res.reachable[m]]
     reachable = any(s["within_limits"] for s in solutions)
     if reachable:
         reason = None
     elif not solutions:
         reason = res.reason
     else:
-        reason = f"every working mode breaks a limit ({len(solutions)} modes assemble; see violations)"
-    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": limbs}
+        reason = f"every {mech.branch_kind} breaks a limit ({len(solutions)} assemble; see violations)"
+    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "limbs": res.limbs}
 
     def human() -> str:
-        title = f"platform at {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
+        title = f"position {p.tolist()} m: " + ("reachable" if reachable else "NOT reachable")
         u = mech.actuator_unit
-        return _solutions_report(title, "q", [f"q1 [{u}]", f"q2 [{u}]", f"q3 [{u}]"], 9, solutions, reason)
+        columns = [f"q{i + 1} [{u}]" for i in range(res.q.shape[-1])]
+        return _solutions_report(title, "q", columns, 9, solutions, reason, label)
 
     out(args, payload, human)
     return EXIT_OK if reachable else EXIT_NO

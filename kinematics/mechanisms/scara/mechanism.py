@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, Velocity
+from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, PoseIK, Velocity
 from kinematics.mechanisms.scara import closed_form as cf
 
 ELBOW_LEGEND = "elbow: 'up' takes theta2 < 0, 'down' theta2 > 0; 'union': either"
@@ -112,3 +112,14 @@ class Scara(Mechanism):
         with np.errstate(invalid="ignore", divide="ignore"):
             Ji = np.linalg.inv(np.where(bad[..., None, None], np.eye(2), J))
         return Velocity(J, np.where(bad[..., None, None], np.nan, Ji), iota, np.ones_like(iota))
+
+    def pose_ik(self, point: np.ndarray) -> PoseIK:
+        """Both elbows at `point` (x, y) [m] (`closed_form.solve_ik`), each with the joint limits it
+        breaks; the chain is the one limb, unreachable outside the annulus |l1 - l2| <= r <= l1 + l2."""
+        res = cf.ik(self.params, np.asarray(point, dtype=float))
+        answer = cf.solve_ik(self.params, point)
+        found = {s.elbow: s.violations for s in answer.solutions}
+        reachable = bool(res.reachable)
+        reason = None if reachable else answer.reason
+        return PoseIK(res.q, np.full(len(cf.ELBOWS), reachable), np.asarray(res.within_limits),
+                      tuple(found.get(e, ()) for e in cf.ELBOWS), [{"limb": 1, "reachable": reachable, "reason": reason}])
