@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FAMILY_WORDS = ("p2us", "scara", "delta", "paper")
 FAMILY_PARAMS = ("P2USParams", "ScaraParams", "DeltaParams")
 CLOSED_FORM_FAMILIES = {"p2us", "delta", "scara"}
-BRANCH_KEYS = CLOSED_FORM_FAMILIES  # no command compares a family key either
+BRANCH_KEYS = CLOSED_FORM_FAMILIES | {"serial", "closed-loop"}  # no command compares a family key either
 # the commands that use a family's closed forms (single-pose reports, workspace reports, design
 # tools): none may decide the family itself; they ask the mechanism for capabilities
 POSE_COMMANDS = ("ik", "fk", "jacobian", "mobility", "info", "views", "parallel", "workspace", "design")

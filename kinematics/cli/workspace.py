@@ -377,7 +377,9 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    if mech.family == "serial":
+    if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
+        # an open chain without closed forms: its joint boxes that may hold a rank-deficient
+        # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
         return _serial_singularities(args, robot, out)
     if "joint_singularities" in mech.capabilities:
         mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
