@@ -32,7 +32,7 @@ import numpy as np
 
 from kinematics.analyses.cells import check_step
 from kinematics.mechanisms.base import Mechanism
-from kinematics.mechanisms.translational import MODES
+from kinematics.mechanisms.three_limb.closed_form import MODES
 from kinematics.sizes import check_points, grid_points
 
 

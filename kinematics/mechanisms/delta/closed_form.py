@@ -53,15 +53,15 @@ import numpy as np
 from kinematics.errors import InvalidDesignError
 from kinematics.mechanisms.base import SINGULAR_TOL, SINGULARITY_TYPES, classify
 from kinematics.mechanisms.three_limb import modes
-from kinematics.mechanisms.three_limb.modes import IKResult, Jacobians
-from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
-from kinematics.mechanisms.translational import (
+from kinematics.mechanisms.three_limb.closed_form import (
     ASSEMBLY_MODES,
     MODES,
     FKResult,
     intersect_spheres,
     mode_index,
 )
+from kinematics.mechanisms.three_limb.modes import IKResult, Jacobians
+from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
 
 __all__ = [
     "ASSEMBLY_MODES", "MECHANISM", "MODES", "SINGULARITY_TYPES", "SINGULAR_TOL", "DeltaParams", "IKResult",

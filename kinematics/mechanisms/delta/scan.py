@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit, prange
 
 from kinematics.mechanisms.delta.closed_form import DeltaParams
-from kinematics.mechanisms.translational import BOUNDARY_TOL
+from kinematics.mechanisms.three_limb.closed_form import BOUNDARY_TOL
 
 __all__ = ["DeltaScan", "kernel_geometry", "kernels", "limb_kernel", "scan"]
 

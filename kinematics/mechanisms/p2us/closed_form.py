@@ -53,15 +53,15 @@ from kinematics.mechanisms.base import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.mechanisms.base import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.mechanisms.base import classify as classify
 from kinematics.mechanisms.three_limb import modes
+from kinematics.mechanisms.three_limb.closed_form import ASSEMBLY_MODES as ASSEMBLY_MODES
+from kinematics.mechanisms.three_limb.closed_form import BOUNDARY_TOL as BOUNDARY_TOL
+from kinematics.mechanisms.three_limb.closed_form import MODES as MODES
+from kinematics.mechanisms.three_limb.closed_form import FKResult as FKResult
+from kinematics.mechanisms.three_limb.closed_form import intersect_spheres as intersect_spheres
+from kinematics.mechanisms.three_limb.closed_form import mode_index as mode_index
 from kinematics.mechanisms.three_limb.modes import IKResult as IKResult
 from kinematics.mechanisms.three_limb.modes import Jacobians as Jacobians
 from kinematics.mechanisms.three_limb.params import LimbDesign, check_pair
-from kinematics.mechanisms.translational import ASSEMBLY_MODES as ASSEMBLY_MODES
-from kinematics.mechanisms.translational import BOUNDARY_TOL as BOUNDARY_TOL
-from kinematics.mechanisms.translational import MODES as MODES
-from kinematics.mechanisms.translational import FKResult as FKResult
-from kinematics.mechanisms.translational import intersect_spheres as intersect_spheres
-from kinematics.mechanisms.translational import mode_index as mode_index
 
 THETA_CONVENTIONS: tuple[str, ...] = ("elevation", "rod-rail")
 """Readings of the first universal-joint angle theta (see the module docstring)."""

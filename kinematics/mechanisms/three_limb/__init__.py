@@ -3,5 +3,5 @@ design's limb geometry and checks (`params`), the assembly of per-limb IK roots 
 working modes and the velocity matrices (`modes`), the URDF tree, loop sidecar and their
 writing (`urdf`), reading a design back (`reader`), and the `Mechanism` methods that only
 forward to a family's closed forms (`mechanism`). Forward kinematics as three spheres'
-intersection lives in `kinematics.mechanisms.translational`.
+intersection, with the working-mode labels, is `closed_form`.
 """

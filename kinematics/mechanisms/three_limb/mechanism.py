@@ -21,8 +21,8 @@ from kinematics.mechanisms.base import (
     Velocity,
     parallel_forward,
 )
+from kinematics.mechanisms.three_limb.closed_form import ASSEMBLY_MODES, MODES
 from kinematics.mechanisms.three_limb.modes import LIMITS, check_limits
-from kinematics.mechanisms.translational import ASSEMBLY_MODES, MODES
 
 
 class ThreeLimbMechanism(Mechanism):

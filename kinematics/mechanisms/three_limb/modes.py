@@ -12,7 +12,7 @@ import numpy as np
 
 from kinematics.errors import InvalidInputError, UnknownChoiceError
 from kinematics.mechanisms.base import SINGULAR_TOL
-from kinematics.mechanisms.translational import BOUNDARY_TOL, MODES, mode_index
+from kinematics.mechanisms.three_limb.closed_form import BOUNDARY_TOL, MODES, mode_index
 
 LIMITS = ("all", "actuators")
 """Which limits apply: every limit (actuators and passive joints), or the actuators only."""

@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from kinematics.errors import InvalidInputError, ModelFileError
+from kinematics.mechanisms.three_limb.closed_form import mode_index
 from kinematics.mechanisms.three_limb.modes import mode_roots
-from kinematics.mechanisms.translational import mode_index
 from kinematics.model.loops import FORMAT, sidecar_for
 from kinematics.model.urdf_xml import UrdfBuilder, capsule, collision, rpy_of, visual
 
