@@ -206,14 +206,17 @@ def test_sweep_on_a_real_cluster_equals_in_process(capsys, tmp_path, dask_cluste
 def test_workspace_volume_names_the_branches_that_did_not_converge(capsys, monkeypatch):
     """When the half-step check disagrees on some branches only (the Delta's slivers with `--limits
     actuators` do, in ~90 s), the warning and the report name them and the JSON marks them. The
-    measurement is substituted by a real one of the same shape: a slab the 2 cm columns step over
+    measurement is substituted by a real one of the same shape: a slab the 2 cm columns step over, the check allowed one halving
     (tests/test_volume_engine.py) as branch '+++', a ball as the union."""
     import kinematics.analyses.workspace as wsmod
+    from kinematics.analyses import columns
     from kinematics.analyses.columns import column_volume
 
     def margin(p):
         ball = 0.5 - np.linalg.norm(p, axis=1)
         return np.stack([np.minimum(0.005 - np.abs(p[:, 2] - 0.02), ball), ball], axis=1)
+
+    monkeypatch.setattr(columns, "CHECK_HALVINGS", 1)  # one halving: the 1 cm run sees it, 2 cm not
 
     r = column_volume(margin, -np.full(3, 0.55), np.full(3, 0.55), step=0.02, rtol=1e-3, axis=2, check=True)
     monkeypatch.setattr(wsmod, "measure_workspace",

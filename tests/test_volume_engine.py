@@ -275,12 +275,16 @@ def test_coarse_starts_are_right_or_not_converged(p2us_params, step):
     assert (not ws.result.converged) or abs(ws.total - ref) <= ws.error + ref_err, (step, ws.total, ws.error)
 
 
-def test_the_target_the_check_disagrees_on_is_named():
+def test_the_target_the_check_disagrees_on_is_named(monkeypatch):
     """Per-target verdicts. A slab 1 cm thick, z in [0.015, 0.025], normal to the columns: sampled
     every 2 cm along them (nodes at z = 0.01 and 0.03) no sample lands in it, at 1 cm (z = 0.02)
     every column finds it. The two runs disagree on the slab by its whole volume, far beyond their
-    estimates, and agree on the ball (the last target): only the slab is reported."""
+    estimates, and agree on the ball (the last target): only the slab is reported (the check
+    allowed one halving here; with more it finds the slab, next test)."""
+    from kinematics.analyses import columns
     from kinematics.analyses.workspace import Workspace
+
+    monkeypatch.setattr(columns, "CHECK_HALVINGS", 1)
 
     def margin(p: np.ndarray) -> np.ndarray:
         ball = 0.5 - np.linalg.norm(p, axis=1)
@@ -302,6 +306,22 @@ def test_the_target_the_check_disagrees_on_is_named():
     # without the check the first run cannot know: the slab is a confident 0 (the stated blind spot)
     one = column_volume(margin, lo, hi, step=0.02, rtol=1e-3, axis=2)
     assert one.estimate[0] == 0.0 and one.target_converged.all()
+
+
+def test_the_check_halves_the_step_until_two_runs_agree():
+    """The slab above: the runs at 2 cm and 1 cm disagree by its volume, so the check halves again;
+    1 cm and 5 mm both see it and agree. The answer is the 5 mm run's, and both targets hold their
+    exact volumes within the estimates (the slab's: pi (0.25 z - z^3 / 3) over [0.015, 0.025])."""
+    def margin(p: np.ndarray) -> np.ndarray:
+        ball = 0.5 - np.linalg.norm(p, axis=1)
+        return np.stack([np.minimum(0.005 - np.abs(p[:, 2] - 0.02), ball), ball], axis=1)
+
+    lo, hi = -np.full(3, 0.55), np.full(3, 0.55)
+    r = column_volume(margin, lo, hi, step=0.02, rtol=1e-3, axis=2, check=True)
+    slab = math.pi * (0.25 * 0.01 - (0.025**3 - 0.015**3) / 3)
+    assert r.converged and r.step == 0.005
+    for got, err, want in zip(r.estimate, r.error, (slab, 4 / 3 * math.pi * 0.125), strict=True):
+        assert abs(got - want) <= err, (got, err, want)
 
 
 def test_column_volume_validates():

@@ -226,3 +226,20 @@ def test_scara_area_meets_requested_rtol(scara):
     true_error = abs(ws.total - scara_area_closed_form(sp))
     # the requested tolerance is met, and the reported error is not smaller than the true one
     assert ws.result.converged and true_error <= 1e-4 * ws.total and true_error <= ws.error
+
+
+def test_scara_converges_at_1e5_against_its_exact_areas():
+    """Issue 29's row: `workspace-volume scara --rtol 1e-5` (1 cm columns, the check on). The 1 cm
+    and 5 mm runs disagree (slivers where a joint-1 limit arc is tangent to the outer circle), so
+    the check halves the step until two runs agree. Each elbow's area is exactly
+    W l1 l2 (1 - cos T) (its map is one-to-one), the union's `scara_area_closed_form`; each
+    estimate holds its exact value."""
+    from kinematics.model.robot import load_robot
+
+    sp = ScaraParams.from_robot(load_robot("scara"))
+    elbow = (sp.upper[0] - sp.lower[0]) * sp.l1 * sp.l2 * (1 - math.cos(sp.upper[1]))
+    ws = measure_workspace(Scara(sp), step=0.01, rtol=1e-5, check=True)
+    r = ws.result
+    assert r.converged and r.step < 0.005
+    for got, err, want in zip(r.estimate, r.error, (elbow, elbow, scara_area_closed_form(sp)), strict=True):
+        assert abs(got - want) <= err <= 1e-5 * want, (got, err, want)

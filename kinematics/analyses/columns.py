@@ -36,8 +36,12 @@ into the outer integral.
   ahead safely: its stroke and joint-angle terms go through sqrt(discriminant)). Near a surface
   grazing the columns this biases the volume low: 1.6e-4 relative on the 3-[P2(US)] at 5 mm;
 * across columns, a feature between the nodes of every interval at every level is not seen.
-  `check` reruns the whole computation at half the step (twice the nodes) and reports not
-  converged if the two disagree beyond their error estimates.
+  `check` reruns the whole computation at half the step (twice the nodes); where the two disagree
+  beyond their error estimates it halves the step again, up to CHECK_HALVINGS times in all, and
+  compares the last two runs (a sliver thinner than the step shrinks with it: between two
+  boundaries tangent to each other, the part a column can miss has an area of order step^1.5).
+  The result is the finest run's, its error at least the last two runs' difference; it reports
+  not converged if even those disagree.
 """
 
 from __future__ import annotations
@@ -58,6 +62,9 @@ ROOT_TOL = 1e-12
 MIN_NODES = 16
 """Exact columns: fewest starting nodes per quadrature direction (32 in the check run), whatever the
 step: a step wider than the box would otherwise start both runs from the same few nodes."""
+
+CHECK_HALVINGS = 3
+"""`check`: the most times the step is halved (s/2, s/4, s/8) while successive runs disagree."""
 
 RTOL_FLOOR = 1e-9
 """Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
@@ -515,7 +522,8 @@ def column_volume(
         rtol: relative tolerance on the error estimate of every target, at least RTOL_FLOOR.
         order: Gauss-Legendre nodes per interval.
         axis: the column axis (default: the box's shortest side).
-        check: also run with half the step and compare (about 2x the cost).
+        check: also run with half the step and compare, halving again while they disagree
+            (CHECK_HALVINGS; about 2x the cost when the first two agree).
         max_points: budget of margin evaluations; when it runs out, converged is False.
         floor: every target's tolerance is at least rtol x floor x the last target's measure (for
             a workspace: the union's), so a sliver of a branch is not measured to rtol of its own.
@@ -567,18 +575,29 @@ def column_volume(
     for_check = getattr(margin, "for_check", None)
     if for_check is not None:
         margin = for_check()
-    if run is _run_exact:  # twice the nodes even where the step exceeds the box (at least 2 nodes)
-        second = _run_exact(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress,
-                            min_nodes=2 * MIN_NODES, floor=floor)
-    else:
-        second = run(margin, lo, hi, step / 2, rtol, order, pieces, ax, max_points, progress, floor=floor)
-    diff = np.abs(first.estimate - second.estimate)
-    agrees = diff <= first.error + second.error
+    def finer(level: int) -> ColumnVolume:
+        """The run at step / 2^level (exact columns: at least 2^level x MIN_NODES nodes, so the
+        runs differ even where the step exceeds the box)."""
+        if run is _run_exact:
+            return _run_exact(margin, lo, hi, step / 2**level, rtol, order, pieces, ax, max_points, progress,
+                              min_nodes=2**level * MIN_NODES, floor=floor)
+        return run(margin, lo, hi, step / 2**level, rtol, order, pieces, ax, max_points, progress, floor=floor)
+
+    columns, points = first.columns, first.points_evaluated
+    for level in range(1, CHECK_HALVINGS + 1):
+        second = finer(level)
+        columns, points = columns + second.columns, points + second.points_evaluated
+        diff = np.abs(first.estimate - second.estimate)
+        agrees = diff <= first.error + second.error
+        # a finer run costs about twice the last (sampled columns: twice the samples per column)
+        if agrees.all() or level == CHECK_HALVINGS or points + 2 * second.points_evaluated > max_points:
+            break
+        first = second
     error = np.maximum(second.error, diff)
     return ColumnVolume(
         estimate=second.estimate, error=error,
         converged=first.converged and second.converged and bool(agrees.all()), rtol=rtol, step=second.step,
-        cell=second.cell, columns=first.columns + second.columns, points_evaluated=first.points_evaluated + second.points_evaluated,
+        cell=second.cell, columns=columns, points_evaluated=points,
         check_difference=diff,
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
         target_converged=agrees & _within(first.estimate, first.error, rtol, floor)
