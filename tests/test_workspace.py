@@ -96,7 +96,7 @@ def test_adaptive_volume_of_spheres():
 
 
 def test_adaptive_volume_is_chunk_independent(monkeypatch):
-    args = (_sphere, -np.full(3, 1.1), np.full(3, 1.1), 0.2, 1e-3)
+    args = (_sphere, -np.full(3, 1.1), np.full(3, 1.1), 0.2, 1e-2)  # ~10^5 points: chunks of 37 and the default
     a = adaptive_volume(*args, progress=False)
     monkeypatch.setattr(volume, "CELL_CHUNK", 37)
     b = adaptive_volume(*args, progress=False)
@@ -159,9 +159,10 @@ def test_scara_area_two_ways(scara):
 
 @pytest.mark.parametrize("limits", ["all", "actuators"])
 def test_p2us_volume_against_monte_carlo(p2us_params, limits):
-    ws = measure_workspace(P2US(p2us_params), step=0.02, rtol=2e-3, limits=limits, progress=False, engine="cells")
+    rtol = 5e-3
+    ws = measure_workspace(P2US(p2us_params), step=0.02, rtol=rtol, limits=limits, progress=False, engine="cells")
     mc, se = volume_monte_carlo(P2US(p2us_params), 1_000_000, np.random.default_rng(5), limits)
-    assert abs(ws.total - mc) < 4 * se + 2e-3 * mc  # 4 standard errors + the requested rtol
+    assert abs(ws.total - mc) < 4 * se + rtol * mc  # 4 standard errors + the requested rtol
     r = ws.result
     assert r.lower[-1] - 4 * se <= mc <= r.upper[-1] + 4 * se  # the bounds, checked independently
     assert ws.total >= max(r.estimate[:-1]) - 1e-12  # the union contains every mode
