@@ -317,7 +317,7 @@ def test_the_check_halves_the_step_until_two_runs_agree():
         return np.stack([np.minimum(0.005 - np.abs(p[:, 2] - 0.02), ball), ball], axis=1)
 
     lo, hi = -np.full(3, 0.55), np.full(3, 0.55)
-    r = column_volume(margin, lo, hi, step=0.02, rtol=1e-3, axis=2, check=True)
+    r = column_volume(margin, lo, hi, step=0.02, rtol=1e-2, axis=2, check=True)
     slab = math.pi * (0.25 * 0.01 - (0.025**3 - 0.015**3) / 3)
     assert r.converged and r.step == 0.005
     for got, err, want in zip(r.estimate, r.error, (slab, 4 / 3 * math.pi * 0.125), strict=True):
