@@ -56,6 +56,7 @@ from kinematics.mechanisms.delta.roots import (
     real_roots,
 )
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
+from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column
 from kinematics.mechanisms.three_limb.margin import ThreeLimbMargin, column_buffers
 
 __all__ = ["ROOT_ERROR", "ExactColumns", "delta_margin", "kernels"]
@@ -183,8 +184,7 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
 def _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, zbox, c, polys, cand, err, ids,
                 work, crit, prev_in, pm, pt, a, b, d, tbuf):  # pragma: no cover - compiled
     """Inside length per target of the column p0 + s e_ax, s in [z0, z1]; returns its signature."""
-    T = modes.shape[0] + 1
-    h = np.uint64(1469598103934665603)
+    h = SIGNATURE_SEED
     empty = np.int64(h >> np.uint64(1))
     for i in range(3):
         _limb_polys(p0, ax, g, i, passive, polys[i], tbuf)
@@ -258,30 +258,9 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, z
         dirty = 0
         for m in range(8):
             pm[m] = min(a[(m >> 2) & 1], b[(m >> 1) & 1], d[m & 1])
-        best = -np.inf
-        for t in range(T):
-            if t < T - 1:
-                mt = pm[modes[t]]
-                best = max(best, mt)
-            else:
-                mt = best
-            inside = mt >= 0.0
-            if inside:
-                out_len[c, t] += zb - za
-            if inside != prev_in[t]:  # an end at za, made by the constraint ids[k]
-                out_ends[c, t] += 1
-                out_err[c, t] += err[k]
-                h = (h ^ np.uint64((t + 1) * 64 + ids[k] + 3)) * np.uint64(1099511628211)
-                prev_in[t] = inside
-            if inside and t == T - 1:
-                zbox[c, 0] = min(zbox[c, 0], za)
-                zbox[c, 1] = max(zbox[c, 1], zb)
-    for t in range(T):
-        if prev_in[t]:
-            out_ends[c, t] += 1
-            out_err[c, t] += err[n - 1]
-            h = (h ^ np.uint64((t + 1) * 64 + ids[n - 1] + 3)) * np.uint64(1099511628211)
-    return np.int64(h >> np.uint64(1))
+        # an end at za is made by the constraint ids[k]
+        h = add_gap(c, pm, modes, za, zb, ids[k], err[k], prev_in, out_len, out_err, out_ends, zbox, h)
+    return close_column(c, prev_in, ids[n - 1], err[n - 1], out_err, out_ends, h)
 
 
 @njit(cache=True)

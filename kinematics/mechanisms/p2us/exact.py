@@ -35,6 +35,7 @@ from numba import njit, prange
 
 from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.scan import check_limits, kernel_geometry, limb_kernel
+from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column
 from kinematics.mechanisms.three_limb.margin import column_buffers
 
 ROOT_ERROR = 1e-13
@@ -107,13 +108,12 @@ def _limb_constraints(g, i, passive, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_ends, zbox, c,
+def _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err, out_ends, zbox, c,
                 cand, ids, Dc, prev_in, pm, pt):  # pragma: no cover - compiled
     """Inside length per target of the column p0 + z e_ax, z in [z0, z1]; returns its signature.
     cand, ids (64,), Dc (3, 3), prev_in (T,), pm (8,), pt (3,): work buffers."""
-    T = modes.shape[0] + 1
     L, off = g[15], g[16]
-    h = np.uint64(1469598103934665603)
+    h = SIGNATURE_SEED
     empty = np.int64(h >> np.uint64(1))
     lo, hi = z0, z1
     lo_id, hi_id = -1, -2
@@ -184,17 +184,13 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_end
             j -= 1
         cand[j + 1] = zk
         ids[j + 1] = ik
-    zs = cand
-    zid = ids
     prev_in[:] = False
-    prev_id = -3
     for k in range(n - 1):
-        za, zb = zs[k], zs[k + 1]
+        za, zb = cand[k], cand[k + 1]
         if zb <= za:
             continue
-        zm = 0.5 * (za + zb)
         pt[0], pt[1], pt[2] = p0[0], p0[1], p0[2]
-        pt[ax] = zm
+        pt[ax] = 0.5 * (za + zb)
         p_0, m_0, _ = limb_kernel(pt[0], pt[1], pt[2], g, 0, passive)
         p_1, m_1, _ = limb_kernel(pt[0], pt[1], pt[2], g, 1, passive)
         p_2, m_2, _ = limb_kernel(pt[0], pt[1], pt[2], g, 2, passive)
@@ -203,36 +199,13 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_end
             s1 = m_1[0] if (m >> 1) & 1 else p_1[0]
             s2 = m_2[0] if m & 1 else p_2[0]
             pm[m] = min(s0, s1, s2)
-        best = -np.inf
-        # the end between the previous gap and this one is zs[k] (id zid[k]); duplicates: the first
-        cid = zid[k]
-        for t in range(T):
-            if t < T - 1:
-                mt = pm[modes[t]]
-                best = max(best, mt)
-            else:
-                mt = best
-            inside = mt >= 0.0
-            if inside:
-                out_len[c, t] += zb - za
-            if inside != prev_in[t]:
-                out_ends[c, t] += 1
-                h = (h ^ np.uint64((t + 1) * 64 + cid + 3)) * np.uint64(1099511628211)
-                prev_in[t] = inside
-            if inside and t == T - 1:
-                zbox[c, 0] = min(zbox[c, 0], za)
-                zbox[c, 1] = max(zbox[c, 1], zb)
-        prev_id = cid
-    for t in range(T):
-        if prev_in[t]:
-            out_ends[c, t] += 1
-            h = (h ^ np.uint64((t + 1) * 64 + 1)) * np.uint64(1099511628211)
-    _ = prev_id
-    return np.int64(h >> np.uint64(1))
+        # the end between the previous gap and this one is cand[k] (constraint ids[k])
+        h = add_gap(c, pm, modes, za, zb, ids[k], ROOT_ERROR, prev_in, out_len, out_err, out_ends, zbox, h)
+    return close_column(c, prev_in, -2, ROOT_ERROR, out_err, out_ends, h)
 
 
 @njit(cache=True, parallel=True)
-def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_ends, out_sig, zbox):  # pragma: no cover
+def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig, zbox):  # pragma: no cover
     M = base.shape[0]
     cons = np.zeros((3, 6, 5))
     ncons = 2
@@ -259,8 +232,8 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_ends, out_
             p0[others[0]] = base[c, 0]
             p0[others[1]] = base[c, 1]
             p0[ax] = 0.0
-            out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_ends, zbox, c,
-                                     cand, ids, Dc, prev_in, pm, pt)
+            out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err, out_ends,
+                                     zbox, c, cand, ids, Dc, prev_in, pm, pt)
 
 
 class ExactColumns:
@@ -279,11 +252,11 @@ class ExactColumns:
     def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
-        length, _, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
-        _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, ends, sig,
-                        zbox)
+        length, err, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
+        _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, err, ends,
+                        sig, zbox)
         zbox[~np.isfinite(zbox)] = np.nan
-        return length, ends * ROOT_ERROR, ends, sig, zbox
+        return length, err, ends, sig, zbox
 
 
 def kernels() -> tuple[Any, ...]:
