@@ -56,7 +56,7 @@ from kinematics.mechanisms.delta.roots import (
     real_roots,
 )
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
-from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column
+from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column, other_axes
 from kinematics.mechanisms.three_limb.margin import ThreeLimbMargin, column_buffers
 
 __all__ = ["ROOT_ERROR", "ExactColumns", "delta_margin", "kernels"]
@@ -279,12 +279,7 @@ def _sort(cand, err, ids, n):  # pragma: no cover - compiled
 def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig,
                     zbox):  # pragma: no cover - compiled
     M = base.shape[0]
-    others = np.empty(2, np.int64)
-    j = 0
-    for k in range(3):
-        if k != ax:
-            others[j] = k
-            j += 1
+    o0, o1 = other_axes(ax)
     T = modes.shape[0] + 1
     chunks = min(M, 64)
     for ch in prange(chunks):
@@ -303,8 +298,8 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_e
         d = np.empty(8)
         tbuf = np.zeros((4, _DEG + 1))
         for c in range(ch * M // chunks, (ch + 1) * M // chunks):
-            p0[others[0]] = base[c, 0]
-            p0[others[1]] = base[c, 1]
+            p0[o0] = base[c, 0]
+            p0[o1] = base[c, 1]
             p0[ax] = 0.0
             out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, zbox, c, polys,
                                      cand, err, ids, work, crit, prev_in, pm, pt, a, b, d, tbuf)

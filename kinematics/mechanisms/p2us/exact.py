@@ -35,7 +35,7 @@ from numba import njit, prange
 
 from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.scan import check_limits, kernel_geometry, limb_kernel
-from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column
+from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column, other_axes
 from kinematics.mechanisms.three_limb.margin import column_buffers
 
 ROOT_ERROR = 1e-13
@@ -212,12 +212,7 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_e
     for i in range(3):
         ci, ncons = _limb_constraints(g, i, passive, 0)
         cons[i] = ci
-    others = np.empty(2, np.int64)
-    j = 0
-    for k in range(3):
-        if k != ax:
-            others[j] = k
-            j += 1
+    o0, o1 = other_axes(ax)
     T = modes.shape[0] + 1
     chunks = min(M, 64)
     for ch in prange(chunks):
@@ -229,8 +224,8 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_e
         pm = np.empty(8)
         pt = np.zeros(3)
         for c in range(ch * M // chunks, (ch + 1) * M // chunks):
-            p0[others[0]] = base[c, 0]
-            p0[others[1]] = base[c, 1]
+            p0[o0] = base[c, 0]
+            p0[o1] = base[c, 1]
             p0[ax] = 0.0
             out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err, out_ends,
                                      zbox, c, cand, ids, Dc, prev_in, pm, pt)

@@ -17,6 +17,12 @@ _PRIME = np.uint64(1099511628211)
 
 
 @njit(cache=True)
+def other_axes(ax):  # pragma: no cover - compiled
+    """The two coordinates (in order) that fix a column along axis ax (0, 1 or 2)."""
+    return (1, 2) if ax == 0 else ((0, 2) if ax == 1 else (0, 1))
+
+
+@njit(cache=True)
 def add_gap(c, pm, modes, za, zb, end_id, end_err, prev_in, out_len, out_err, out_ends, zbox,
             h):  # pragma: no cover - compiled
     """The gap (za, zb) [m] of column c, whose working modes' margins at its midpoint are pm (8,):
@@ -58,4 +64,4 @@ def close_column(c, prev_in, end_id, end_err, out_err, out_ends, h):  # pragma: 
     return np.int64(h >> np.uint64(1))
 
 
-__all__ = ["SIGNATURE_SEED", "add_gap", "close_column"]
+__all__ = ["SIGNATURE_SEED", "add_gap", "close_column", "other_axes"]
