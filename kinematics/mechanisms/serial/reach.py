@@ -217,17 +217,21 @@ class Reach:
         return np.ascontiguousarray(seeds)
 
     def configurations(self, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every seed of world targets (N, 3) descended to its end: chain values (N, K, n) and
-        whether each reached its target within REACH_TOL (N, K) (none beyond the reach ball)."""
+        """The configurations reaching world targets (N, 3): chain values (N, K + 1, n) and whether
+        each reaches its target within REACH_TOL (N, K + 1). Column 0 is the margin's own search
+        (`distance`: a target is inside exactly where the volume's margin is >= 0); at the inside
+        targets, columns 1 .. K are each of the K seeds descended to its end (`kernels.reach_all`)."""
         targets = np.ascontiguousarray(targets, dtype=float)
         K, n = min(self.restarts, self.samples), len(self.lo)
-        Q = np.full((len(targets), K, n), np.nan)
-        ok = np.zeros((len(targets), K), bool)
-        near = np.linalg.norm(targets - self.reach_centre, axis=1) <= self.setup.reach
-        if near.any():
-            Q[near], ok[near] = kernels.reach_all(targets[near], self._seeds(targets[near]), self.lo, self.hi,
-                                                  *self.args, self.vec, self.dirs, self.scale, 1.0, REACH_TOL,
-                                                  ITERATIONS)
+        Q = np.full((len(targets), K + 1, n), np.nan)
+        ok = np.zeros((len(targets), K + 1), bool)
+        m, Q[:, 0] = self.distance(targets)
+        ok[:, 0] = m >= 0
+        inside = np.flatnonzero(ok[:, 0])
+        if len(inside):
+            Q[inside, 1:], ok[inside, 1:] = kernels.reach_all(
+                targets[inside], self._seeds(targets[inside]), self.lo, self.hi, *self.args, self.vec, self.dirs,
+                self.scale, 1.0, REACH_TOL, ITERATIONS)
         return Q, ok
 
     def jacobians(self, Q: np.ndarray) -> np.ndarray:
