@@ -167,6 +167,7 @@ class Dexterity:
             "robot": self.robot, "limits": self.limits, "target": name, **entry(last),
             "modes": {t: entry(k) for k, t in enumerate(self.targets[:-1])},
             "yoshikawa_unit": self.yoshikawa_unit, "mixed_units": self.mixed_units,
+            "smallest_radius_unit": radius_unit(self.yoshikawa_unit),
             "configurations": self.configurations,
             "confidence": 0.95, "samples": self.samples, "replicates": self.replicates, "seed": self.seed,
             "seconds": self.seconds, "parameters": self.parameters,
@@ -176,6 +177,13 @@ class Dexterity:
             out["cells"] = {"step_m": g.step, "origin": g.origin.tolist(), "shape": list(g.shape),
                             "rows": self.cells.rows(self.planar)}
         return out
+
+
+def radius_unit(yoshikawa: str) -> str:
+    """The unit of sigma_d(J) (a column's) from the Yoshikawa index's (`yoshikawa_unit`)."""
+    if yoshikawa.startswith("1 "):
+        return "1 (m/m)"
+    return "m/rad" if "/rad^" in yoshikawa else "m/(actuator unit) (m or rad per column)"
 
 
 def yoshikawa_unit(mech: Mechanism) -> str:
