@@ -121,3 +121,14 @@ class SerialArm(Mechanism):
         with np.errstate(invalid="ignore", divide="ignore"):
             iota = np.where(sv[:, 0] > 0, sv[:, -1] / sv[:, 0], 0.0)
         return Velocity(J, np.linalg.pinv(J), iota, np.ones_like(iota))
+
+
+def with_fixed_orientation(robot: Robot, orientation: ToolOrientation) -> SerialArm:
+    """`robot` as an open chain whose margin asks for its tool at `orientation` as well (any open
+    chain, the SCARA's too: the closed forms know positions only)."""
+    from kinematics.errors import UnsupportedRobotError
+
+    if robot.loops is not None:
+        raise UnsupportedRobotError(robot.name, "a fixed tool orientation is measured for open chains only; this "
+                                                "robot has loop closures")
+    return SerialArm(robot, orientation)
