@@ -112,7 +112,7 @@ def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
     from tests.test_cli import run, run_json
 
     code, d, _ = run_json(capsys, "workspace-volume", str(MODELS / "planar3r.urdf"), "--tool-axis",
-                          str(math.cos(0.7)), str(math.sin(0.7)), "0", "--rtol", "1e-4")
+                          str(math.cos(0.7)), str(math.sin(0.7)), "0", "--rtol", "1e-3")
     assert code == 0
     assert d["orientation"]["kind"] == "axis" and d["parameters"]["orientation"]["kind"] == "axis"
     assert abs(d["area_m2"] - planar_fixed_orientation_area()) <= d["error_estimate"]
