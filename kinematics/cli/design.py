@@ -26,9 +26,9 @@ def register(command: Command) -> None:
                    help="all limits (default), or the actuators' only")
     p.add_argument("--step", type=positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
 
-    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa) and mean Yoshikawa index "
-                "with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their union; conditioning "
-                "maps")
+    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa), mean Yoshikawa index and "
+                "mean smallest radius with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their "
+                "union (serial arms: the best configuration their search finds); per-cell tables; conditioning maps")
     robot_arg(p)
     p.add_argument("--mode", help="one working mode / elbow such as --- or up (default: every one, and the union)")
     p.add_argument("--limits", default="all", choices=["all", "actuators"],
@@ -44,7 +44,8 @@ def register(command: Command) -> None:
     p.add_argument("--export", metavar="FILE.html", help="write a Meshcat scene: points coloured by 1/kappa")
     p.add_argument("--cells", type=integer, metavar="N",
                    help="also a per-cell table of the union: a grid of N cells along the bounding box's longest "
-                        "side, each cell's measure, mean 1/kappa, Yoshikawa index and smallest radius with error bars")
+                        "side, each cell's measure, mean 1/kappa, Yoshikawa index and smallest radius with error bars "
+                        "(--json key cells: step_m, origin, shape, rows)")
     p.add_argument("--cells-out", metavar="FILE.csv", help="write the per-cell table as CSV (needs --cells)")
 
     p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
@@ -231,8 +232,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                    "area [m^2]" if res.planar else "volume [m^3]"], rows),
             *(["", *notes] if notes else []),
             f"{UNION}: {payload['configurations']}",
-            *([f"per-cell table: {len(payload['cells']['rows'])} cells of {fmt(payload['cells']['step_m'], 4)} m "
-               f"(--json key cells{'; written to ' + args.cells_out if args.cells_out else ''})"]
+            *([(f"per-cell table: {len(payload['cells']['rows'])} cells of {fmt(payload['cells']['step_m'], 4)} m "
+               f"(--json key cells{'; written to ' + args.cells_out if args.cells_out else ''})")]
               if "cells" in payload else []),
         ])
 

@@ -12,8 +12,8 @@ from kinematics.cli.args import (
     Command,
     integer,
     load,
-    number,
     non_negative,
+    number,
     positive,
     robot_arg,
     scan_args,
@@ -48,7 +48,8 @@ def register(command: Command) -> None:
     orient = p.add_mutually_exclusive_group()
     orient.add_argument("--orientation", metavar="'rpy R P Y'",
                         help="open chains: the volume of tool positions reachable with the tool frame at this fixed "
-                             "rotation (roll, pitch, yaw [rad], URDF convention), within the joint limits")
+                             "rotation (roll, pitch, yaw [rad], URDF convention), within the joint limits (--json "
+                             "key orientation: kind, text, tool_z, rotation)")
     orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
                         help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
                              "e.g. 0 0 -1 for a tool pointing down")
