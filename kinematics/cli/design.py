@@ -184,6 +184,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.errors import InvalidInputError
 
         raise InvalidInputError("--cells-out", "needs --cells N (the grid of the table)")
+    if args.cells_out:
+        check_output(args.cells_out, "--cells-out", "csv")
     res = measure(mech, branches, limits=args.limits, samples=args.samples, replicates=args.replicates,
                   seed=args.seed, cells=args.cells)
     payload = res.as_dict()
