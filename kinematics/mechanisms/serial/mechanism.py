@@ -37,7 +37,7 @@ class SerialArm(Mechanism):
     assembly_modes = ("tool",)
 
     def __init__(self, robot: Robot, orientation: ToolOrientation | None = None) -> None:
-        """orientation: a fixed tool orientation (`fixed_orientation`); None: the position alone."""
+        """orientation: a fixed tool orientation (`with_fixed_orientation`); None: the position alone."""
         from kinematics.generic.batched import PRISMATIC, compile_frame
         from kinematics.generic.serial import plane
 
@@ -59,11 +59,6 @@ class SerialArm(Mechanism):
         if self.orientation is not None:
             out["orientation"] = self.orientation.as_dict()
         return out
-
-    def fixed_orientation(self, orientation: ToolOrientation) -> SerialArm:
-        """The same arm whose margin asks for the tool at `orientation` too (the reachable set of
-        positions with that orientation within the joint limits)."""
-        return SerialArm(self.robot, orientation)
 
     @cached_property
     def reach(self) -> Reach:

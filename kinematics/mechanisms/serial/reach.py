@@ -13,6 +13,13 @@
   revolved, the base joint then set to bring the sample's azimuth onto the target's). A target's
   seeds are its `restarts` nearest samples, after the previous target's solution (warm start).
 
+* **a fixed tool orientation** (`orientation`, `kinematics.mechanisms.serial.orientation`): the
+  search matches the tool's direction(s) too (`kernels._residual`), every chain joint is searched
+  (one that never moves the point still turns the tool), the samples are first descended onto the
+  orientation alone (so the k-d tree holds points of the fixed-orientation set), and the set stays
+  a solid of revolution only when the constraint is unchanged by the base's turn (a tool axis
+  along the base axis); otherwise it is measured in space.
+
 The margin of a target is tol - d + s, d the smallest distance found from it to f(joint box) and s
 (>= 0, zero unless d <= tol) sigma_min(J) x the smallest joint slack at the solution, a local
 estimate of the room around a reached point: positive exactly where some seed reached the target
