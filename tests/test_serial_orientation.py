@@ -30,17 +30,17 @@ def planar_fixed_orientation_area() -> float:
     return 2 * math.pi * A1 * A2 * (math.cos(0.3) - math.cos(2.5))
 
 
-@pytest.mark.parametrize("orientation", [ToolOrientation.rpy(0.0, math.pi / 2, 0.7),
-                                         ToolOrientation.axis([math.cos(0.7), math.sin(0.7), 0.0])],
+@pytest.mark.parametrize(("orientation", "rtol"), [(ToolOrientation.rpy(0.0, math.pi / 2, 0.7), 1e-5),
+                                                   (ToolOrientation.axis([math.cos(0.7), math.sin(0.7), 0.0]), 1e-4)],
                          ids=["rpy", "axis"])
-def test_planar_3r_fixed_orientation_area(orientation):
+def test_planar_3r_fixed_orientation_area(orientation, rtol):
     """The tool frame's z axis runs along the last link (rpy 0 pi/2 0 in the URDF), so both forms
     fix phi = 0.7: the same annulus."""
     exact = planar_fixed_orientation_area()  # 0.662177 m^2
     arm = with_fixed_orientation(load_robot(MODELS / "planar3r.urdf"), orientation)
-    ws = measure_workspace(arm, step=0.01, rtol=1e-5, check=True)
+    ws = measure_workspace(arm, step=0.01, rtol=rtol, check=True)
     assert ws.planar and ws.result.converged
-    assert abs(ws.total - exact) <= ws.error <= 2e-5 * exact
+    assert abs(ws.total - exact) <= ws.error <= 2 * rtol * exact
 
 
 def test_planar_3r_margin_sign_is_membership():
