@@ -26,9 +26,9 @@ def register(command: Command) -> None:
                    help="all limits (default), or the actuators' only")
     p.add_argument("--step", type=positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
 
-    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa) and mean Yoshikawa index "
-                "with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their union; conditioning "
-                "maps")
+    p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa), mean Yoshikawa index and "
+                "mean smallest radius with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their "
+                "union (serial arms: the best configuration their search finds); per-cell tables; conditioning maps")
     robot_arg(p)
     p.add_argument("--mode", help="one working mode / elbow such as --- or up (default: every one, and the union)")
     p.add_argument("--limits", default="all", choices=["all", "actuators"],
@@ -42,6 +42,11 @@ def register(command: Command) -> None:
                    help="grid step of the maps (--plot, --export) [m] (default: the bounding box's longest side / 50)")
     p.add_argument("--plot", metavar="FILE.png", help="write a conditioning map (slices of 1/kappa)")
     p.add_argument("--export", metavar="FILE.html", help="write a Meshcat scene: points coloured by 1/kappa")
+    p.add_argument("--cells", type=integer, metavar="N",
+                   help="also a per-cell table of the union: a grid of N cells along the bounding box's longest "
+                        "side, each cell's measure, mean 1/kappa, Yoshikawa index and smallest radius with error bars "
+                        "(--json key cells: step_m, origin, shape, rows)")
+    p.add_argument("--cells-out", metavar="FILE.csv", help="write the per-cell table as CSV (needs --cells)")
 
     p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
                 "Dask: maximise the usable cube and the GCI, minimise the footprint; the Pareto front")
@@ -175,9 +180,17 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     mech = mechanism_of(robot)
     branches = None if args.mode in (None, UNION) else [args.mode]
+    if args.cells_out and args.cells is None:
+        from kinematics.errors import InvalidInputError
+
+        raise InvalidInputError("--cells-out", "needs --cells N (the grid of the table)")
+    if args.cells_out:
+        check_output(args.cells_out, "--cells-out", "csv")
     res = measure(mech, branches, limits=args.limits, samples=args.samples, replicates=args.replicates,
-                  seed=args.seed)
+                  seed=args.seed, cells=args.cells)
     payload = res.as_dict()
+    if args.cells_out:
+        write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
     target = payload["target"]
     if args.plot:
         from kinematics.views import plots
@@ -200,12 +213,13 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                 return "empty"
             return f"{fmt(v, 4)} +/- {fmt(e, 2)}" if e is not None else f"{fmt(v, 4)} (error unbounded)"
 
-        rows = [(t, pm(e["gci"], e["gci_error"]), pm(e["yoshikawa_mean"], e["yoshikawa_error"]),
-                 pm(e[key], e[f"{key}_error"])) for t, e in payload["modes"].items()]
-        if len(rows) > 1:
-            rows.append((UNION, pm(payload["gci"], payload["gci_error"]),
-                         pm(payload["yoshikawa_mean"], payload["yoshikawa_error"]),
-                         pm(payload[key], payload[f"{key}_error"])))
+        def row(t: str, e: dict) -> tuple[str, ...]:
+            return (t, pm(e["gci"], e["gci_error"]), pm(e["yoshikawa_mean"], e["yoshikawa_error"]),
+                    pm(e["smallest_radius_mean"], e["smallest_radius_error"]), pm(e[key], e[f"{key}_error"]))
+
+        rows = [row(t, e) for t, e in payload["modes"].items()]
+        if len(rows) != 1:
+            rows.append(row(UNION, payload))
         notes = []
         if any(res.yoshikawa_diverges) or any(res.yoshikawa_heavy_tail):
             notes.append("Yoshikawa error unbounded: a type II singularity crosses or bounds the region (the "
@@ -216,14 +230,31 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             (f"{robot.name}: dexterity ({args.limits} limits), {res.replicates} scrambled Sobol' sets of "
              f"{res.samples} points, seed {res.seed}, {res.seconds:.2f} s; errors are 95 % half-widths"),
             "",
-            table([mech.branch_kind, "GCI (mean 1/kappa)", f"mean Yoshikawa [{unit}]",
+            table([mech.branch_kind, "GCI (mean 1/kappa)", f"mean Yoshikawa [{unit}]", f"mean smallest radius [{payload['smallest_radius_unit']}]",
                    "area [m^2]" if res.planar else "volume [m^3]"], rows),
             *(["", *notes] if notes else []),
-            "union: the best branch at each point",
+            f"{UNION}: {payload['configurations']}",
+            *([(f"per-cell table: {len(payload['cells']['rows'])} cells of {fmt(payload['cells']['step_m'], 4)} m "
+               f"(--json key cells{'; written to ' + args.cells_out if args.cells_out else ''})")]
+              if "cells" in payload else []),
         ])
 
     out(args, payload, human)
     return 0
+
+
+def _cells_csv(rows: list[dict]) -> str:
+    """The per-cell table as CSV: one line per cell, vectors split per axis, empty for None."""
+    if not rows:
+        return ""
+    d = len(rows[0]["index"])
+    head = [f"{k}_{a}" for k in ("index", "lower", "upper") for a in range(d)]
+    rest = [k for k in rows[0] if k not in ("index", "lower", "upper")]
+    lines = [",".join(head + rest)]
+    for r in rows:
+        vals = [*r["index"], *r["lower"], *r["upper"], *(r[k] for k in rest)]
+        lines.append(",".join("" if v is None else repr(v) for v in vals))
+    return "\n".join(lines) + "\n"
 
 
 def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:

@@ -13,6 +13,7 @@ from kinematics.cli.args import (
     integer,
     load,
     non_negative,
+    number,
     positive,
     robot_arg,
     scan_args,
@@ -44,6 +45,14 @@ def register(command: Command) -> None:
                    help="exclude configurations where two bodies collide (the URDF's collision shapes, less "
                         "adjacent, touching-at-reference and sidecar-disabled pairs); reports the binding pairs "
                         "and the volume each removes (p2us, delta, scara, closed loops)")
+    orient = p.add_mutually_exclusive_group()
+    orient.add_argument("--orientation", metavar="'rpy R P Y'",
+                        help="open chains: the volume of tool positions reachable with the tool frame at this fixed "
+                             "rotation (roll, pitch, yaw [rad], URDF convention), within the joint limits (--json "
+                             "key orientation: kind, text, tool_z, rotation)")
+    orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
+                        help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
+                             "e.g. 0 0 -1 for a tool pointing down")
 
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -186,6 +195,13 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    orientation = _orientation(args)
+    if orientation is not None:
+        from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
+
+        if getattr(args, "collisions", False):
+            raise InvalidInputError("--collisions", "not available with a fixed tool orientation yet")
+        mech = with_fixed_orientation(robot, orientation)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
     kernels = mech.kernels()
@@ -238,6 +254,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         plots.save(fig, args.plot)
     payload = ws.as_dict()
     payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
+                   orientation=None if orientation is None else orientation.as_dict(),
                    seconds=time.perf_counter() - t0, volume_seconds=ws.seconds, **paper)
     if kernels:
         from kinematics import jit
@@ -255,6 +272,17 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     out(args, payload, human)
     return 0
+
+
+def _orientation(args: argparse.Namespace) -> Any:
+    """The fixed tool orientation of --orientation / --tool-axis (a `ToolOrientation`), or None."""
+    from kinematics.mechanisms.serial.orientation import ToolOrientation
+
+    if getattr(args, "orientation", None):
+        return ToolOrientation.parse(args.orientation)
+    if getattr(args, "tool_axis", None):
+        return ToolOrientation.axis(args.tool_axis)
+    return None
 
 
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],
@@ -339,8 +367,11 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
     lines = []
     if payload.get("compiled_kernels"):
         lines += ["(compiled the Numba kernels: first run only)"]
-    lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits)", ""]
-    lines.append(key_values(_parameter_rows(ws.parameters), digits=None))
+    held = payload.get("orientation")
+    lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits"
+              + (f"; tool held at {held['text']})" if held else ")"), ""]
+    lines.append(key_values(_parameter_rows({k: v for k, v in ws.parameters.items() if k != "orientation"}),
+                            digits=None))
     lines += ["", table([mech.branch_kind, f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
               mech.branch_legend, ""]
     lo, hi = payload["bbox"]

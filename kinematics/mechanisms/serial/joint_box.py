@@ -55,7 +55,7 @@ def setup(robot: Robot, kin: BatchedKinematics) -> Setup:
     revolved when the first joint is a full-turn revolution, spatial otherwise."""
     nv = robot.nv
     chain_v = [int(v) for v in kin.idx_v]
-    dof_idx = [_dof_of(robot, v) for v in chain_v]
+    dof_idx = [dof_of(robot, v) for v in chain_v]
     # Joints that never move the point: a zero position column at every probe configuration.
     rng = np.random.default_rng(0)
     lo_all = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
@@ -109,7 +109,7 @@ def _distal_lengths(kin: BatchedKinematics, robot: Robot) -> np.ndarray:
     travel = np.zeros(n)
     for k in range(n):
         if kin.kind[k] == PRISMATIC:
-            d = robot.dofs[_dof_of(robot, int(kin.idx_v[k]))]
+            d = robot.dofs[dof_of(robot, int(kin.idx_v[k]))]
             travel[k] = max(abs(d.lower), abs(d.upper))
     tail = float(np.linalg.norm(kin.frame_translation))
     R = np.empty(n)
@@ -118,7 +118,7 @@ def _distal_lengths(kin: BatchedKinematics, robot: Robot) -> np.ndarray:
     return R
 
 
-def _dof_of(robot: Robot, idx_v: int) -> int:
+def dof_of(robot: Robot, idx_v: int) -> int:
     for i, d in enumerate(robot.dofs):
         if d.idx_v == idx_v:
             return i

@@ -24,6 +24,7 @@ from kinematics.mechanisms.base import Assemblies, MarginFn, Mechanism, Velocity
 from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
+    from kinematics.mechanisms.serial.orientation import ToolOrientation
     from kinematics.mechanisms.serial.reach import Reach
 
 
@@ -35,27 +36,47 @@ class SerialArm(Mechanism):
     actuator_unit = "rad or m"
     assembly_modes = ("tool",)
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, orientation: ToolOrientation | None = None) -> None:
+        """orientation: a fixed tool orientation (`with_fixed_orientation`); None: the position alone."""
+        from kinematics.generic.batched import PRISMATIC, compile_frame
         from kinematics.generic.serial import plane
 
         self.robot = robot
         self.name = robot.name
+        self.orientation = orientation
         self.plane = plane(robot)
         if self.plane is not None:
             self.task_dim = 2
             self.task_axes = tuple("xyz"[k] for k in self.plane)
+        prismatic = compile_frame(robot).kind == PRISMATIC
+        # the unit of the Jacobian's columns: one unit when every chain joint shares it
+        self.actuator_unit = "m" if prismatic.all() else "rad" if not prismatic.any() else "rad or m"
 
     def parameters(self) -> dict[str, Any]:
         r = self.robot
-        return {"frame": r.tool_frame, "joints": [d.name for d in r.dofs], "lower": r.lower.tolist(),
-                "upper": r.upper.tolist()}
+        out = {"frame": r.tool_frame, "joints": [d.name for d in r.dofs], "lower": r.lower.tolist(),
+               "upper": r.upper.tolist()}
+        if self.orientation is not None:
+            out["orientation"] = self.orientation.as_dict()
+        return out
 
     @cached_property
     def reach(self) -> Reach:
         """The reachability search of the tool frame (built on first use)."""
         from kinematics.mechanisms.serial.reach import Reach
 
-        return Reach(self.robot)
+        return Reach(self.robot, orientation=self.orientation)
+
+    def reaching_jacobians(self, points: np.ndarray, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
+        """Position Jacobians at every configuration the search reaches task points (N, d) with:
+        (N, K, d, n) [m/rad or m/m] over the chain joints and (N, K) whether seed k reached the
+        point (`Reach.configurations`: each of the K seeds descended to its end, so a
+        non-redundant arm's distinct solutions -- elbow up and down -- appear when seeds lie in
+        their basins, and a redundant arm's K points of its self-motion set)."""
+        self.check_limits(limits)
+        Q, ok = self.reach.configurations(self.reach.world(points))
+        J = self.reach.jacobians(Q)[..., self._rows(), :]
+        return np.where(ok[..., None, None], J, np.nan), ok
 
     def kernels(self) -> tuple[Any, ...]:
         from kinematics.mechanisms.serial import search
@@ -95,3 +116,14 @@ class SerialArm(Mechanism):
         with np.errstate(invalid="ignore", divide="ignore"):
             iota = np.where(sv[:, 0] > 0, sv[:, -1] / sv[:, 0], 0.0)
         return Velocity(J, np.linalg.pinv(J), iota, np.ones_like(iota))
+
+
+def with_fixed_orientation(robot: Robot, orientation: ToolOrientation) -> SerialArm:
+    """`robot` as an open chain whose margin asks for its tool at `orientation` as well (any open
+    chain, the SCARA's too: the closed forms know positions only)."""
+    from kinematics.errors import UnsupportedRobotError
+
+    if robot.loops is not None:
+        raise UnsupportedRobotError(robot.name, "a fixed tool orientation is measured for open chains only; this "
+                                                "robot has loop closures")
+    return SerialArm(robot, orientation)

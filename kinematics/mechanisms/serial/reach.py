@@ -13,6 +13,13 @@
   revolved, the base joint then set to bring the sample's azimuth onto the target's). A target's
   seeds are its `restarts` nearest samples, after the previous target's solution (warm start).
 
+* **a fixed tool orientation** (`orientation`, `kinematics.mechanisms.serial.orientation`): the
+  search matches the tool's direction(s) too (`kernels._residual`), every chain joint is searched
+  (one that never moves the point still turns the tool), the samples are first descended onto the
+  orientation alone (so the k-d tree holds points of the fixed-orientation set), and the set stays
+  a solid of revolution only when the constraint is unchanged by the base's turn (a tool axis
+  along the base axis); otherwise it is measured in space.
+
 The margin of a target is tol - d + s, d the smallest distance found from it to f(joint box) and s
 (>= 0, zero unless d <= tol) sigma_min(J) x the smallest joint slack at the solution, a local
 estimate of the room around a reached point: positive exactly where some seed reached the target
@@ -38,6 +45,7 @@ import numpy as np
 from kinematics.generic.batched import compile_frame
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
+from kinematics.mechanisms.serial.orientation import ToolOrientation
 from kinematics.model.robot import Robot
 
 REACH_TOL = 1e-10
@@ -86,10 +94,12 @@ class Reach:
     """The reachability search of `robot`'s frame (see the module docstring)."""
 
     def __init__(self, robot: Robot, frame: str | None = None, *, samples: int | None = None, restarts: int = 6,
-                 seed: int = 0) -> None:
-        self.robot, self.frame = robot, frame
+                 seed: int = 0, orientation: ToolOrientation | None = None) -> None:
+        self.robot, self.frame, self.orientation = robot, frame, orientation
         self.kin = compile_frame(robot, frame)
         self.setup: Setup = setup(robot, self.kin)
+        if orientation is not None:
+            self.setup = _oriented_setup(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
         self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
         self.restarts, self.seed = restarts, seed
@@ -116,6 +126,11 @@ class Reach:
                 lo[k], hi[k] = rng_lo[int(dof)], rng_hi[int(dof)]
         self.lo, self.hi = lo, hi
         self.args = (kin.kind, kin.axis, kin.rotation, kin.translation, kin.frame_translation)
+        if orientation is None:
+            self.vec, self.dirs, self.scale = np.zeros((0, 3)), np.zeros((0, 3)), 0.0
+        else:
+            self.vec, self.dirs = orientation.vectors(kin.frame_rotation)
+            self.scale = max(s.reach, 1e-3)  # [m per rad]: a direction error of 1 rad weighs like the arm's reach
         if s.mode == "revolved":
             d = s.axis_direction
             assert d is not None and s.axis_origin is not None
@@ -127,7 +142,7 @@ class Reach:
     def with_effort(self, factor: int) -> Reach:
         """The same search with `factor` x the samples and restarts."""
         return Reach(self.robot, self.frame, samples=factor * self.samples, restarts=factor * self.restarts,
-                     seed=self.seed + 1)
+                     seed=self.seed + 1, orientation=self.orientation)
 
     # -- geometry -------------------------------------------------------------------------------
     def chain_fk(self, Q: np.ndarray) -> np.ndarray:
@@ -156,8 +171,14 @@ class Reach:
         lo = np.where(np.isfinite(self.lo), self.lo, -math.pi)
         hi = np.where(np.isfinite(self.hi), self.hi, math.pi)
         Q = lo + (hi - lo) * rng.random((self.samples, len(lo)))
+        if self.orientation is not None:
+            # seeds on the orientation: each sample descended to the tool directions alone (the
+            # position's weight 0); where none gets there the set is empty and any seed will do
+            Qp, ok = kernels.reach_all(np.zeros((len(Q), 3)), Q[:, None, :], self.lo, self.hi, *self.args, self.vec,
+                                       self.dirs, self.scale, 0.0, REACH_TOL, ITERATIONS)
+            Q = Qp[ok[:, 0], 0] if ok.any() else Q
         if self.setup.mode == "revolved":
-            Q[:, 0] = 0.0
+            Q[:, 0] = 0.0  # (an axis along the base's is unchanged by the base's turn)
         P = self.chain_fk(Q)
         az = self._azimuth(P) if self.setup.mode == "revolved" else np.zeros(len(P))
         return cKDTree(self._key(P)), Q, az
@@ -188,6 +209,11 @@ class Reach:
             if (~far).any():
                 m[~far], q[~far] = self.distance(targets[~far])
             return m, q
+        return kernels.search(targets, self._seeds(targets), self.lo, self.hi, *self.args, self.vec, self.dirs,
+                              self.scale, REACH_TOL, ITERATIONS, kernels.CHUNK, FAR)
+
+    def _seeds(self, targets: np.ndarray) -> np.ndarray:
+        """(N, K, n) seeds of world targets (N, 3): the `restarts` nearest samples (module docstring)."""
         tree, Q, az = self._table
         k = min(self.restarts, len(Q))
         _, idx = tree.query(self._key(targets), k=k, workers=-1 if len(targets) > 20_000 else 1)
@@ -195,19 +221,44 @@ class Reach:
         seeds = Q[idx]
         if self.setup.mode == "revolved":
             seeds[:, :, 0] = (self._azimuth(targets)[:, None] - az[idx] + math.pi) % (2 * math.pi) - math.pi
-        return kernels.search(targets, np.ascontiguousarray(seeds), self.lo, self.hi, *self.args, REACH_TOL,
-                              ITERATIONS, kernels.CHUNK, FAR)
+        return np.ascontiguousarray(seeds)
+
+    def configurations(self, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The configurations reaching world targets (N, 3): chain values (N, K + 1, n) and whether
+        each reaches its target within REACH_TOL (N, K + 1). Column 0 is the margin's own search
+        (`distance`: a target is inside exactly where the volume's margin is >= 0); at the inside
+        targets, columns 1 .. K are each of the K seeds descended to its end (`kernels.reach_all`)."""
+        targets = np.ascontiguousarray(targets, dtype=float)
+        K, n = min(self.restarts, self.samples), len(self.lo)
+        Q = np.full((len(targets), K + 1, n), np.nan)
+        ok = np.zeros((len(targets), K + 1), bool)
+        m, Q[:, 0] = self.distance(targets)
+        ok[:, 0] = m >= 0
+        inside = np.flatnonzero(ok[:, 0])
+        if len(inside):
+            Q[inside, 1:], ok[inside, 1:] = kernels.reach_all(
+                targets[inside], self._seeds(targets[inside]), self.lo, self.hi, *self.args, self.vec, self.dirs,
+                self.scale, 1.0, REACH_TOL, ITERATIONS)
+        return Q, ok
+
+    def jacobians(self, Q: np.ndarray) -> np.ndarray:
+        """(..., 3, n) position Jacobians [m/rad or m/m] at chain values Q (..., n)."""
+        Q = np.asarray(Q, dtype=float)
+        flat = np.ascontiguousarray(np.nan_to_num(Q.reshape(-1, Q.shape[-1])))
+        return kernels.chain_jacobian_many(flat, *self.args).reshape(*Q.shape[:-1], 3, Q.shape[-1])
+
+    def world(self, points: np.ndarray) -> np.ndarray:
+        """World targets (N, 3) of task points (N, d) (a planar arm's: in its plane)."""
+        pts = np.asarray(points, dtype=float)
+        if self.setup.mode != "planar":
+            return pts
+        world = np.tile(self.plane_point, (len(pts), 1))
+        world[:, list(self.setup.rows)] = pts
+        return world
 
     def margin(self, points: np.ndarray) -> np.ndarray:
         """(N, 1) margins [m] at task points (N, d)."""
-        pts = np.asarray(points, dtype=float)
-        s = self.setup
-        if s.mode == "planar":
-            world = np.tile(self.plane_point, (len(pts), 1))
-            world[:, list(s.rows)] = pts
-        else:
-            world = pts
-        return self.distance(world)[0][:, None]
+        return self.distance(self.world(points))[0][:, None]
 
     def profile_margin(self, points: np.ndarray) -> np.ndarray:
         """(N, 1) margins [m] at profile points (N, 2) = (rho, z) (revolved mode)."""
@@ -242,3 +293,27 @@ class ReachMargin:
 
     def for_check(self) -> ReachMargin:
         return ReachMargin(self.reach.with_effort(2), self.on_profile)
+
+
+def _oriented_setup(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation) -> Setup:
+    """The setup with every chain joint searched (a joint that never moves the point still turns
+    the tool) and the mode a fixed orientation allows: a solid of revolution only when the
+    constraint is unchanged by the base's turn (a tool axis along the base axis)."""
+    import dataclasses
+
+    from kinematics.mechanisms.serial.joint_box import dof_of
+
+    dofs = [dof_of(robot, int(v)) for v in kin.idx_v]
+    robot.require_ranges([robot.dofs[i].name for i in dofs], "a workspace")
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)[dofs]
+    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)[dofs]
+    kinds = [robot.dofs[i].kind for i in dofs]
+    periodic = np.array([k == "continuous" or (k == "revolute" and h - l >= 2 * math.pi - 1e-9)
+                         for k, l, h in zip(kinds, lo, hi, strict=True)])
+    mode = s.mode
+    if mode == "revolved" and not orientation.invariant_about(np.asarray(s.axis_direction)):
+        mode = "spatial"
+    first = 1 if mode == "revolved" else 0
+    active = np.array(dofs[first:], dtype=int)
+    return dataclasses.replace(s, mode=mode, active=active, lo=lo[first:], hi=hi[first:], periodic=periodic[first:],
+                               fixed=())
