@@ -1,4 +1,4 @@
-"""Collision-free workspaces: the self-collision margin joins the joint limits.
+"""Collision-free workspaces: the self-collision (and obstacle) margin joins the joint limits.
 
 Per branch b the margin at a task point x is
 
@@ -20,6 +20,9 @@ Which pairs bind: a pre-scan on a grid finds the pairs with a negative distance 
 the kinematic workspace; each of them (at most `MAX_WATCHED`, most often negative first) gets
 its own target, the union with that pair alone, so the volume it removes alone is measured in
 the same run, as is the kinematic union (the volume the collisions remove in all).
+
+Obstacles (`kinematics.generic.obstacles`) add pairs (robot body, obstacle) to the same margin;
+with `self_collisions=False` they are the only pairs.
 """
 
 from __future__ import annotations
@@ -34,9 +37,10 @@ import numpy as np
 
 from kinematics.analyses.columns import ColumnVolume, column_volume
 from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, root_tolerance
-from kinematics.errors import MissingCapabilityError
-from kinematics.generic.capsules import AnalyticDistances
+from kinematics.errors import InvalidInputError, MissingCapabilityError
+from kinematics.generic.capsules import COAL, AnalyticDistances
 from kinematics.generic.collision import CollisionModel
+from kinematics.generic.obstacles import Obstacles
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import MAX_POINTS
 
@@ -45,6 +49,19 @@ MAX_WATCHED = 8
 
 PRESCAN_CELLS = 48
 """Grid points per axis of the binding-pair pre-scan."""
+
+
+def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_collisions: bool = True
+                       ) -> CollisionModel:
+    """The pairs to check: the robot's own (`self_collisions`) and each moving body against each
+    obstacle. Raises `InvalidInputError` if obstacles are given and no body can touch them."""
+    if obstacles is None and not self_collisions:
+        raise InvalidInputError("obstacles", "nothing to check: give obstacles or self-collisions")
+    cm = CollisionModel.from_robot(robot, obstacles=obstacles, self_collisions=self_collisions)
+    if obstacles is not None and not any(a in cm.obstacles or b in cm.obstacles for a, b in cm.pairs):
+        raise InvalidInputError("obstacles", f"{robot.name} has no collision shape on a moving body: "
+                                             "nothing can touch the obstacles")
+    return cm
 
 
 def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str) -> np.ndarray:
@@ -57,12 +74,20 @@ def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str)
 
         module: Any = p2us_urdf if mech.family == "p2us" else delta_urdf
         return module.configurations_at(mech.params, robot.model, points, branch)
+    import pinocchio as pin
+
     model = robot.model
-    out = np.empty((len(points), model.nq))
+    out = np.tile(pin.neutral(model), (len(points), 1))
     if not mech.closed_loop and "ik" in mech.capabilities:
         q = mech.ik(points).q[:, mech.branches.index(branch)]
-        for n, row in enumerate(q):
-            out[n] = robot.configuration(row)
+        if q.shape[1] != robot.nv or not np.isfinite(q).all():  # as `robot.configuration` would
+            for row in q:
+                robot.joint_values(row)
+        for k, d in enumerate(robot.dofs):  # `robot.configuration`, a column at a time
+            if d.kind == "continuous":
+                out[:, d.idx_q], out[:, d.idx_q + 1] = np.cos(q[:, k]), np.sin(q[:, k])
+            else:
+                out[:, d.idx_q] = q[:, k]
         return out
     mech.require("joint_values", "collision checks at task points")
     for n, p in enumerate(points):
@@ -175,7 +200,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 progress: bool = False, check: bool = True,
                                 collision_model: CollisionModel | None = None,
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
-                                max_points: int | None = None, watch: int = MAX_WATCHED) -> CollisionWorkspace:
+                                max_points: int | None = None, watch: int = MAX_WATCHED,
+                                obstacles: Obstacles | None = None, self_collisions: bool = True) -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
@@ -185,13 +211,15 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         box: (lo, hi) [m] to measure within instead of the mechanism's bounding box (the part of
             the workspace inside it).
         watch: how many binding pairs get their own target (each costs its roots' refinement).
+        obstacles: fixed bodies the robot must not touch (`load_obstacles`), with the default model.
+        self_collisions: with the default model, check the robot's own pairs (False: obstacles only).
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
         raise MissingCapabilityError(mech.name, "margin", "a workspace area or volume", mech.capabilities)
     chosen = mech.check_branches(branches)
     mech.check_limits(limits)
-    cm = collision_model if collision_model is not None else CollisionModel.from_robot(robot)
+    cm = collision_model if collision_model is not None else collision_model_of(robot, obstacles, self_collisions)
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
@@ -209,7 +237,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
                               kin_err + float(res.error[B + 1 + n]), count)
                   for n, (k, count) in enumerate(found[:watch]))
-    summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != 2).sum()),
+    summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != COAL).sum()),
+               "obstacles": list(dict.fromkeys(cm.obstacles.values())),
                "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in cm.excluded
                             if e.reason != "adjacent"]}
     return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]), summary)

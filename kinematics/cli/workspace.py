@@ -44,6 +44,10 @@ def register(command: Command) -> None:
                    help="exclude configurations where two bodies collide (the URDF's collision shapes, less "
                         "adjacent, touching-at-reference and sidecar-disabled pairs); reports the binding pairs "
                         "and the volume each removes (p2us, delta, scara, closed loops)")
+    p.add_argument("--obstacles", metavar="FILE",
+                   help="fixed bodies the robot must not touch: a URDF whose links' collision shapes are the "
+                        "obstacles (fixed joints, root = the world frame) or a YAML list of shapes with a pose "
+                        "(docs/collisions.md); alone, only robot-obstacle pairs are checked")
 
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -199,7 +203,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     # (a generic closed loop compiles its solver here: its branches come from an atlas search)
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
-    if getattr(args, "collisions", False):
+    if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
@@ -259,15 +263,18 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],
                       rtol: float | None, out: Out) -> int:
-    """`workspace-volume --collisions`: the collision-free volume per branch and union, the
-    kinematic union and what each binding pair removes (`analyses.collisions`)."""
+    """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
+    union, the kinematic union and what each binding pair removes (`analyses.collisions`)."""
     from kinematics.analyses.collisions import measure_collision_workspace
+    from kinematics.generic.obstacles import load_obstacles
 
     for flag in ("points", "plot"):
         if getattr(args, flag, None):
-            raise InvalidInputError(f"--{flag}", "not available with --collisions yet")
+            raise InvalidInputError(f"--{flag}", "not available with --collisions or --obstacles yet")
+    obstacles = load_obstacles(args.obstacles) if args.obstacles else None
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
-                                     progress=show_progress(args))
+                                     progress=show_progress(args), obstacles=obstacles,
+                                     self_collisions=args.collisions)
     ws = cw.workspace
     payload = cw.as_dict()
     payload.update(family=mech.family)
@@ -288,6 +295,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"kinematic {key} [{unit}]", f"{fmt(cw.kinematic, 6)} +/- {fmt(cw.kinematic_error, 2)}"),
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
+                *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if obstacles else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
