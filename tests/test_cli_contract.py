@@ -132,6 +132,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", str(MODELS / "rssr.urdf")], "1-dimensional"),
     (["workspace-volume", "delta", "--modes", "+0+"], unknown_mode("+0+")),
     (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
+    (["workspace-volume", "scara", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     (["singularities", "ur5", "--max-points", "10"], "at least 1000"),
     (["singularities", "ur5", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["singularities", "ur5", "--max-points", "nan"], POSITIVE),

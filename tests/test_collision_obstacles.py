@@ -219,11 +219,11 @@ def test_obstacle_pairs_join_self_pairs_and_are_never_touching(tmp_path):
     ("c.yaml", "obstacles:\n  - {name: x, mesh: nowhere.stl}\n", "not found"),
     ("d.yaml", "obstacles:\n  - {name: x, sphere: 1}\n  - {name: x, sphere: 2}\n", "given twice"),
     ("e.yaml", "walls: []\n", "under 'obstacles:'"),
-    ("f.urdf", '<robot name="s"><link name="w"/><link name="m"><collision><geometry><sphere radius="1"/></geometry>'
+    ("f.urdf", ('<robot name="s"><link name="w"/><link name="m"><collision><geometry><sphere radius="1"/></geometry>'
                '</collision></link><joint name="j" type="revolute"><parent link="w"/><child link="m"/>'
-               '<limit lower="0" upper="1" effort="1" velocity="1"/></joint></robot>', "do not move"),
-    ("g.urdf", '<robot name="s"><link name="w"><collision><geometry><capsule radius="1" length="1"/></geometry>'
-               '</collision></link></robot>', "not read"),
+               '<limit lower="0" upper="1" effort="1" velocity="1"/></joint></robot>'), "do not move"),
+    ("g.urdf", ('<robot name="s"><link name="w"><collision><geometry><capsule radius="1" length="1"/></geometry>'
+               '</collision></link></robot>'), "not read"),
     ("h.txt", "", "must be a .urdf or a .yaml"),
 ])
 def test_bad_obstacle_files_are_refused(tmp_path, name, text, match):
