@@ -252,3 +252,32 @@ def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
     (tmp_path / "bad.yaml").write_text("obstacles: 3\n")
     code, out, err = run(capsys, "workspace-volume", urdf, "--obstacles", str(tmp_path / "bad.yaml"))
     assert code == 2 and "under 'obstacles:'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_usable_cube_above_a_floor_is_the_hand_fields(tmp_path, capsys):
+    """usable-workspace with obstacles: p2us-results (mode ---) above a floor z >= -0.62 m. The
+    lowest body is the platform's sphere (radius d + platform overhang = 0.028 + 0.02 m, the
+    generator's documented sizes), so the collision margin's sign is that of z - (-0.62 + 0.048):
+    the usable cube with the floor is the one of the hand field min(u, z + 0.572) (the search uses
+    only signs: the same cube), and the floor binds (the cube without it reaches lower)."""
+    from kinematics.analyses.usable import largest_shape, usable, usable_field
+
+    from .test_cli import run_json
+
+    robot = load_robot("p2us-results")
+    mech = mechanism_of(robot)
+    _obstacles(tmp_path, "obstacles:\n  - {name: floor, halfspace: [0, 0, 1, -0.62]}\n")
+    code, got, _ = run_json(capsys, "usable-workspace", "p2us-results", "--shape", "cube", "--step", "0.05",
+                            "--obstacles", str(tmp_path / "wall.yaml"))
+    assert code == 0 and got["collisions"]["obstacles"] == ["floor"]
+    assert got["collisions"]["pairs_checked"] == 7  # the platform and six rods move; the rails do not
+    top = -0.62 + mech.params.d + 0.02
+    u = usable_field(mech, "---")
+    lo, hi = mech.bounding_box("all")
+    hand = largest_shape(lambda p: np.minimum(u(p), p[:, 2] - top), lo, hi, "cube", step=0.05)
+    edge = got["size_m"]["edge_m"]
+    assert got["center_m"] == pytest.approx(hand.center.tolist(), abs=1e-12) and edge == pytest.approx(hand.size[0],
+                                                                                                       abs=1e-12)
+    assert got["center_m"][2] - edge / 2 >= top - got["check"]["spacing_m"]  # it stands on the floor's stop
+    free = usable(mech, "cube", step=0.05)
+    assert free.center[2] - free.size[0] / 2 < top - 0.02

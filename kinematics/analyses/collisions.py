@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,6 +128,23 @@ class CollisionMargin:
                 each[inside, b] = np.minimum(kin[inside, b], d.min(axis=1))
                 watch[inside, b] = np.minimum(kin[inside, b, None], d[:, self.watched])
         return np.column_stack([each, kin[:, :B].max(axis=1), watch.max(axis=1), each.max(axis=1)])
+
+
+def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: str = "all"
+                   ) -> Callable[[Sequence[str]], CollisionMargin]:
+    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first), for
+    analyses that take a margin in place of the mechanism's (`usable.usable(margin_of=...)`)."""
+    dist = AnalyticDistances(model)
+    return lambda branches: CollisionMargin(mech, robot, dist, branches, limits)
+
+
+def summary(model: CollisionModel, dist: AnalyticDistances | None = None) -> dict[str, Any]:
+    """JSON-ready: pairs checked, closed-form pairs, obstacles, pairs left out (not adjacent)."""
+    kinds = (dist if dist is not None else AnalyticDistances(model)).kinds
+    return {"pairs_checked": len(model.pairs), "closed_form_pairs": int((kinds != COAL).sum()),
+            "obstacles": list(dict.fromkeys(model.obstacles.values())),
+            "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in model.excluded
+                         if e.reason != "adjacent"]}
 
 
 def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
@@ -237,8 +254,5 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
                               kin_err + float(res.error[B + 1 + n]), count)
                   for n, (k, count) in enumerate(found[:watch]))
-    summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != COAL).sum()),
-               "obstacles": list(dict.fromkeys(cm.obstacles.values())),
-               "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in cm.excluded
-                            if e.reason != "adjacent"]}
-    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]), summary)
+    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]),
+                              summary(cm, dist))

@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 from kinematics.cli.args import (
     Command,
+    collision_args,
+    collision_checks,
     integer,
     load,
     non_negative,
@@ -40,14 +42,7 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    p.add_argument("--collisions", action="store_true",
-                   help="exclude configurations where two bodies collide (the URDF's collision shapes, less "
-                        "adjacent, touching-at-reference and sidecar-disabled pairs); reports the binding pairs "
-                        "and the volume each removes (p2us, delta, scara, closed loops)")
-    p.add_argument("--obstacles", metavar="FILE",
-                   help="fixed bodies the robot must not touch: a URDF whose links' collision shapes are the "
-                        "obstacles (fixed joints, root = the world frame) or a YAML list of shapes with a pose "
-                        "(docs/collisions.md); alone, only robot-obstacle pairs are checked")
+    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops)")
 
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -266,15 +261,12 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
     union, the kinematic union and what each binding pair removes (`analyses.collisions`)."""
     from kinematics.analyses.collisions import measure_collision_workspace
-    from kinematics.generic.obstacles import load_obstacles
 
     for flag in ("points", "plot"):
         if getattr(args, flag, None):
             raise InvalidInputError(f"--{flag}", "not available with --collisions or --obstacles yet")
-    obstacles = load_obstacles(args.obstacles) if args.obstacles else None
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
-                                     progress=show_progress(args), obstacles=obstacles,
-                                     self_collisions=args.collisions)
+                                     progress=show_progress(args), collision_model=collision_checks(args, robot))
     ws = cw.workspace
     payload = cw.as_dict()
     payload.update(family=mech.family)
@@ -295,7 +287,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"kinematic {key} [{unit}]", f"{fmt(cw.kinematic, 6)} +/- {fmt(cw.kinematic_error, 2)}"),
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
-                *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if obstacles else []),
+                *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
