@@ -281,3 +281,34 @@ def test_usable_cube_above_a_floor_is_the_hand_fields(tmp_path, capsys):
     assert got["center_m"][2] - edge / 2 >= top - got["check"]["spacing_m"]  # it stands on the floor's stop
     free = usable(mech, "cube", step=0.05)
     assert free.center[2] - free.size[0] / 2 < top - 0.02
+
+
+FLOOR = "obstacles:\n  - {name: floor, halfspace: [0, 0, 1, -0.62]}\n"
+
+
+def test_singular_points_below_a_floor_are_flagged(tmp_path, capsys):
+    """singularities --obstacles: p2us-results' type II/III points inside its workspace (mode ---)
+    are flagged colliding exactly where the platform's sphere (radius d + 0.02 m) crosses the
+    floor z = -0.62 m, by hand, and where coal finds a pair overlapping at the configuration built
+    point by point from `joint_values` (the path the flags do not take)."""
+    from .test_cli import run_json
+
+    robot = load_robot("p2us-results")
+    mech = mechanism_of(robot)
+    _obstacles(tmp_path, FLOOR)
+    code, d, _ = run_json(capsys, "singularities", "p2us-results", "--step", "0.02", "--obstacles",
+                          str(tmp_path / "wall.yaml"))
+    assert code == 0
+    pts = np.array([p["position"] for p in d["singular_points"]])
+    flags = np.array([p["colliding"] for p in d["singular_points"]])
+    hand = pts[:, 2] - (mech.params.d + 0.02) < -0.62
+    assert 50 < hand.sum() < len(hand) - 50  # both kinds are exercised
+    assert (flags == hand).all()
+    cm = CollisionModel.from_robot(robot, obstacles=load_obstacles(tmp_path / "wall.yaml"), self_collisions=False)
+    modes = [p["mode"] for p in d["singular_points"]]
+    q = np.array([robot.configuration([mech.joint_values(p, m)[n] for n in robot.joint_names])
+                  for p, m in zip(pts, modes, strict=True)])
+    assert ((cm.distances(q).min(axis=1) < 0) == flags).all()
+    c = d["collisions"]
+    assert c["interior_points"] == len(pts) and c["colliding_points"] == hand.sum()
+    assert c["any_inside_collision_free"]

@@ -147,6 +147,25 @@ def summary(model: CollisionModel, dist: AnalyticDistances | None = None) -> dic
                          if e.reason != "adjacent"]}
 
 
+def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.ndarray, branch: np.ndarray,
+                 limits: str = "all") -> np.ndarray:
+    """(K,) True where the configuration with the task point at `points[k]` [m] in branch
+    `mech.branches[branch[k]]` collides (some pair's signed distance < 0); False where it does
+    not, and where the point is outside that branch's kinematic workspace (no configuration)."""
+    dist = AnalyticDistances(model)
+    pts = np.asarray(points, dtype=float).reshape(len(branch), -1)
+    out = np.zeros(len(pts), dtype=bool)
+    if not model.pairs:
+        return out
+    for w in np.unique(branch):
+        sel = np.flatnonzero(branch == w)
+        name = mech.branches[int(w)]
+        sel = sel[mech.margin([name], limits)(pts[sel])[:, 0] > 0]
+        if len(sel):
+            out[sel] = dist.distances(configurations(mech, robot, pts[sel], name), signs=True).min(axis=1) < 0
+    return out
+
+
 def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
                   ) -> list[tuple[int, int]]:
     """(pair index, grid points where it is negative inside the kinematic workspace), most first,

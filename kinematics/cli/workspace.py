@@ -53,6 +53,8 @@ def register(command: Command) -> None:
     p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
                    help="planar arm: joint-grid step in degrees (default 1)")
     serial_args(p)
+    collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
+                      "(p2us, delta, closed loops with singular fields)")
 
     p = command("sweep", cmd_sweep, "design sweep of the 3-[P2(US)] on Dask: volume, singularity-free "
                                      "fraction, conditioning")
@@ -377,6 +379,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    checks = collision_checks(args, robot)
+    if checks is not None and (mech.family == "serial" or "joint_singularities" in mech.capabilities):
+        raise InvalidInputError("--collisions/--obstacles", f"{mech.family} singularities are not collision-aware "
+                                "yet (p2us, delta and closed loops with singular fields are)")
     if mech.family == "serial":
         return _serial_singularities(args, robot, out)
     if "joint_singularities" in mech.capabilities:
@@ -428,6 +434,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         "any_inside_workspace": res.any_inside,
         "seconds": res.seconds,
     }
+    if checks is not None:
+        _flag_colliding(payload, res.locus, mech, robot, checks, args.limits)
     if args.paper_scan:
         ps = mech.paper_scan()
         payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
@@ -450,6 +458,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             " count as inside only with both grid neighbours inside the workspace."),
             f"any singular point in the workspace: {res.any_inside}",
         ]
+        if checks is not None:
+            c = payload["collisions"]
+            lines.append(f"of those, colliding: {c['colliding_points']} of {c['interior_points']}; any in the "
+                         f"collision-free workspace: {c['any_inside_collision_free']}")
         if args.paper_scan:
             ps = payload["paper_scan"]
             lines += ["", (f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
@@ -461,6 +473,21 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     out(args, payload, p2us_human)
     return 0
+
+
+def _flag_colliding(payload: dict[str, Any], locus: Any, mech: Mechanism, robot: Robot, checks: Any,
+                    limits: str) -> None:
+    """Mark each listed (interior type II/III) singular point `colliding` and add the counts."""
+    import numpy as np
+
+    from kinematics.analyses.collisions import colliding_at, summary
+
+    idx = np.flatnonzero(locus.interior)
+    flags = colliding_at(mech, robot, checks, locus.points[idx], locus.which[idx], limits)
+    for item, flag in zip(payload["singular_points"], flags, strict=True):
+        item["colliding"] = bool(flag)
+    payload["collisions"] = {**summary(checks), "interior_points": len(idx), "colliding_points": int(flags.sum()),
+                             "any_inside_collision_free": bool((~flags).any())}
 
 
 def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
