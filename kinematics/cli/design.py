@@ -69,6 +69,7 @@ def register(command: Command) -> None:
                    help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
     p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
+    collision_args(p, " (not available yet: use sweep --collisions)")
 
     p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
                 "watertight triangle mesh (STL, PLY or glTF binary)")
@@ -244,6 +245,11 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.cli.report import show_progress, table
     from kinematics.mechanisms import mechanism_of
 
+    if args.collisions or args.obstacles:
+        from kinematics.errors import InvalidInputError
+
+        raise InvalidInputError("--collisions/--obstacles", "synthesize is not collision-aware yet (sweep, "
+                                "workspace-volume, usable-workspace and singularities are)")
     mech = mechanism_of(robot)
     family = syn.family_of(mech)
     bounds = [syn.Bound.parse(p, family) for p in args.param or []]

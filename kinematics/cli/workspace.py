@@ -69,6 +69,8 @@ def register(command: Command) -> None:
     p.add_argument("--step", type=positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
     p.add_argument("--rtol", type=positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
+    collision_args(p, "; adds each design's collision-free volume (its URDF generated with the robot's "
+                      "collision sizes)")
 
 
 def cmd_workspace_volume(args: argparse.Namespace) -> int:
@@ -500,18 +502,20 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if not args.param:
         raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
     axes = [sw.Axis.parse(p) for p in args.param]
+    collisions = (sw.collision_options(robot, args.collisions, args.obstacles)
+                  if args.collisions or args.obstacles else None)
     t0 = time.perf_counter()
     rows = sw.run(axes, params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
-                  workers=args.workers, progress=show_progress(args))
+                  workers=args.workers, progress=show_progress(args), collisions=collisions)
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)
     if args.out:
         write_atomic(args.out, text, "--out")
-    payload = {"designs": rows, "columns": list(sw.COLUMNS), "seconds": seconds,
+    payload = {"designs": rows, "columns": list(sw.columns_of(rows)), "seconds": seconds,
                "scheduler": args.scheduler or "local"}
 
     def human() -> str:
-        shown = [c for c in sw.COLUMNS if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
+        shown = [c for c in sw.columns_of(rows) if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
         return "\n".join([
             f"{len(rows)} designs on {payload['scheduler']} in {seconds:.1f} s"
             + (f"; table written to {args.out}" if args.out else ""),
