@@ -166,6 +166,31 @@ def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.
     return out
 
 
+def collision_map(mech: Mechanism, robot: Any, model: CollisionModel, points: np.ndarray, limits: str = "all"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """At each task point (N, d) [m]: the union's collision-aware margin max_b m_b (module
+    docstring) and the pair that binds in the best branch among those where the point is inside
+    the kinematic workspace (index into `model.pairs`; -1 where the kinematic margin binds or no
+    branch reaches the point). A point inside the kinematic workspace collides in every branch iff
+    the margin is <= 0 and the pair is >= 0."""
+    dist = AnalyticDistances(model)
+    margin = CollisionMargin(mech, robot, dist, mech.branches, limits)
+    pts = np.asarray(points, dtype=float)
+    kin = margin.kinematic(pts)[:, :len(mech.branches)]
+    each, pair = kin.copy(), np.full(kin.shape, -1)
+    for b in range(len(mech.branches)):
+        inside = kin[:, b] > 0
+        if inside.any() and model.pairs:
+            d = margin.branch_distances(pts, b, inside)
+            k = np.argmin(d, axis=1)
+            dmin = d[np.arange(len(d)), k]
+            each[inside, b] = np.minimum(kin[inside, b], dmin)
+            pair[inside, b] = np.where(dmin < kin[inside, b], k, -1)
+    # the pair of the best branch among those with a configuration there (kinematic margin > 0)
+    best = np.argmax(np.where(kin > 0, each, -np.inf), axis=1)
+    return each.max(axis=1), pair[np.arange(len(pts)), best]
+
+
 def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
                   ) -> list[tuple[int, int]]:
     """(pair index, grid points where it is negative inside the kinematic workspace), most first,
