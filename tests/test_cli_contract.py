@@ -204,7 +204,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["sweep", "p2us", "--param", "b=0.3:0.4:100000000"], "over the 200,000,000 limit"),
     (["sweep", "p2us", "--param", "b=0.3:0.4:1000", "--param", "d=0.02:0.03:1000"], "over the 200,000,000 limit"),
     (["sweep", "p2us", "--param", "L=-1"], "L: must be a positive length [m], got -1.0"),
-    (["synthesize", "p2us", "--collisions"], "synthesize is not collision-aware yet"),
+    (["synthesize", "p2us", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     ([*SWEEP, "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     ([*SWEEP, "--workers", "-1"], "at least 1"),
     ([*SWEEP, "--workers", "0"], "at least 1"),

@@ -73,3 +73,29 @@ def test_sweep_reports_each_designs_collision_free_volume(client, tmp_path, rng)
         assert abs(free - mc) <= 4 * se + 3 * row["collision_free_error_m3"]
     assert rows[0]["collision_free_volume_m3"] != rows[1]["collision_free_volume_m3"]
     assert "collision_free_volume_m3" in sw.to_csv(rows).splitlines()[0]
+
+
+def test_synthesis_cube_objective_is_collision_free(tmp_path):
+    """synthesize's usable-cube objective with obstacles: p2us-results' design above the floor
+    z >= -0.62 m gives the cube of the hand field min(u, z - (-0.62 + d + platform overhang)) (the
+    platform's sphere is the lowest body; the search reads only signs), smaller than without it."""
+    from kinematics.analyses import synthesis as syn
+    from kinematics.analyses.collisions import design_options
+    from kinematics.analyses.usable import largest_shape, usable_field
+    from kinematics.mechanisms import mechanism_of
+
+    (tmp_path / "floor.yaml").write_text("obstacles:\n  - {name: floor, halfspace: [0, 0, 1, -0.62]}\n")
+    robot = load_robot("p2us-results")
+    mech = mechanism_of(robot)
+    opts = design_options(robot, False, str(tmp_path / "floor.yaml"))
+    settings = syn.Settings(cube_cells=16, gci_samples=256, gci_replicates=2, collisions=opts)
+    got = syn.evaluate("p2us", mech.params, {}, settings)
+    free = syn.evaluate("p2us", mech.params, {}, syn.Settings(cube_cells=16, gci_samples=256, gci_replicates=2))
+    lo, hi = mech.bounding_box("all")
+    step = float(np.max(hi - lo)) / 16
+    top = -0.62 + mech.params.d + opts["sizes"]["platform_overhang"]
+    u = usable_field(mech, "---")
+    hand = largest_shape(lambda p: np.minimum(u(p), p[:, 2] - top), lo, hi, "cube", step=step, search=False)
+    assert got["cube_edge_m"] == pytest.approx(hand.size[0], abs=1e-12)
+    assert got["cube_edge_m"] < free["cube_edge_m"] - step / 4
+    assert got["gci"] == free["gci"]  # the GCI stays kinematic

@@ -31,6 +31,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -62,6 +63,61 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
         raise InvalidInputError("obstacles", f"{robot.name} has no collision shape on a moving body: "
                                              "nothing can touch the obstacles")
     return cm
+
+
+def design_options(robot: Any, self_collisions: bool, obstacles: str | None) -> dict[str, Any]:
+    """Collision options for designs derived from `robot` (a p2us or delta; plain data, for Dask
+    tasks): the collision sizes its sidecar records (the generator's defaults where absent), the
+    self-collision switch and the obstacle file's absolute path (read once here, so a bad file
+    fails before any design)."""
+    import dataclasses
+
+    from kinematics.generic.obstacles import load_obstacles
+    from kinematics.mechanisms.three_limb.urdf import read_collision_sizes
+    from kinematics.model.loops import sidecar_for
+
+    if obstacles:
+        load_obstacles(obstacles)
+    sizes = read_collision_sizes(sidecar_for(Path(robot.urdf_path)), _generator(_family(robot)).SIZES)
+    return {"sizes": dataclasses.asdict(sizes), "self": self_collisions,
+            "obstacles": str(Path(obstacles).resolve()) if obstacles else None}
+
+
+def design_checks(family: str, params: Any, options: dict[str, Any]) -> tuple[Any, CollisionModel]:
+    """A design's robot, generated (in a temporary folder) from `params` with the collision sizes
+    of `options` (`design_options`), and its collision model."""
+    import tempfile
+
+    from kinematics.generic.obstacles import load_obstacles
+    from kinematics.mechanisms.three_limb.urdf import CollisionSizes
+    from kinematics.model.robot import load_robot
+
+    obstacles = load_obstacles(options["obstacles"]) if options.get("obstacles") else None
+    with tempfile.TemporaryDirectory() as tmp:
+        urdf, _ = _generator(family).write(params, Path(tmp) / "design.urdf", sizes=CollisionSizes(**options["sizes"]))
+        robot = load_robot(urdf)
+        return robot, collision_model_of(robot, obstacles, self_collisions=bool(options.get("self", True)))
+
+
+def _family(robot: Any) -> str:
+    from kinematics.mechanisms import mechanism_of
+
+    return mechanism_of(robot).family
+
+
+def _generator(family: str) -> Any:
+    """The URDF generator module of a three-limb family."""
+    if family == "p2us":
+        from kinematics.mechanisms.p2us import urdf as p2us_urdf
+
+        return p2us_urdf
+    if family == "delta":
+        from kinematics.mechanisms.delta import urdf as delta_urdf
+
+        return delta_urdf
+    from kinematics.errors import UnsupportedRobotError
+
+    raise UnsupportedRobotError(family, "collision checks of generated designs support p2us and delta")
 
 
 def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str) -> np.ndarray:

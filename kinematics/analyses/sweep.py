@@ -151,47 +151,16 @@ def one_kernel_thread() -> int:
     return int(numba.get_num_threads())
 
 
-def collision_options(robot: Any, self_collisions: bool, obstacles: str | None) -> dict[str, Any]:
-    """`run`'s `collisions` for a sweep about `robot`: the collision sizes its sidecar records
-    (the generator's defaults where absent), the obstacle file's absolute path (read once here,
-    so a bad file fails before any design)."""
-    import dataclasses
-    from pathlib import Path
-
-    from kinematics.generic.obstacles import load_obstacles
-    from kinematics.mechanisms.p2us import urdf as p2us_urdf
-    from kinematics.mechanisms.three_limb.urdf import read_collision_sizes
-    from kinematics.model.loops import sidecar_for
-
-    if obstacles:
-        load_obstacles(obstacles)
-    sizes = read_collision_sizes(sidecar_for(Path(robot.urdf_path)), p2us_urdf.SIZES)
-    return {"sizes": dataclasses.asdict(sizes), "self": self_collisions,
-            "obstacles": str(Path(obstacles).resolve()) if obstacles else None}
-
-
 def collision_free(params: P2USParams, step: float, rtol: float | None, collisions: dict[str, Any]
                    ) -> dict[str, float]:
-    """The union's collision-free volume [m^3] of a design and its error estimate: the design's
-    URDF written with `collisions["sizes"]` (`CollisionSizes` fields), its self-collisions if
-    `collisions["self"]`, and the obstacles of the file `collisions["obstacles"]` (or None)."""
-    import tempfile
-    from pathlib import Path
-
-    from kinematics.analyses.collisions import collision_model_of, measure_collision_workspace
-    from kinematics.generic.obstacles import load_obstacles
-    from kinematics.mechanisms.p2us import urdf as p2us_urdf
+    """The union's collision-free volume [m^3] of a design and its error estimate
+    (`analyses.collisions.design_checks`: the design's URDF with `collisions`' sizes)."""
+    from kinematics.analyses.collisions import design_checks, measure_collision_workspace
     from kinematics.mechanisms.p2us.mechanism import P2US
-    from kinematics.mechanisms.three_limb.urdf import CollisionSizes
-    from kinematics.model.robot import load_robot
 
-    obstacles = load_obstacles(collisions["obstacles"]) if collisions.get("obstacles") else None
-    with tempfile.TemporaryDirectory() as tmp:
-        urdf, _ = p2us_urdf.write(params, Path(tmp) / "design.urdf", sizes=CollisionSizes(**collisions["sizes"]))
-        robot = load_robot(urdf)
-        model = collision_model_of(robot, obstacles, self_collisions=bool(collisions.get("self", True)))
-        cw = measure_collision_workspace(P2US(params), robot, step=step, rtol=rtol, check=False, watch=0,
-                                         collision_model=model)
+    robot, model = design_checks("p2us", params, collisions)
+    cw = measure_collision_workspace(P2US(params), robot, step=step, rtol=rtol, check=False, watch=0,
+                                     collision_model=model)
     return {"collision_free_volume_m3": cw.workspace.total, "collision_free_error_m3": cw.workspace.error}
 
 

@@ -69,7 +69,8 @@ def register(command: Command) -> None:
                    help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
     p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
-    collision_args(p, " (not available yet: use sweep --collisions)")
+    collision_args(p, "; the usable cube is then collision-free (each design's URDF generated with the robot's "
+                      "collision sizes; the GCI stays kinematic)")
 
     p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
                 "watertight triangle mesh (STL, PLY or glTF binary)")
@@ -245,16 +246,17 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.cli.report import show_progress, table
     from kinematics.mechanisms import mechanism_of
 
-    if args.collisions or args.obstacles:
-        from kinematics.errors import InvalidInputError
-
-        raise InvalidInputError("--collisions/--obstacles", "synthesize is not collision-aware yet (sweep, "
-                                "workspace-volume, usable-workspace and singularities are)")
     mech = mechanism_of(robot)
     family = syn.family_of(mech)
     bounds = [syn.Bound.parse(p, family) for p in args.param or []]
+    collisions = None
+    if args.collisions or args.obstacles:
+        from kinematics.analyses.collisions import design_options
+
+        collisions = design_options(robot, args.collisions, args.obstacles)
     settings = syn.Settings(branch=args.mode or "---", kappa_max=args.kappa_max, limits=args.limits,
-                            cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed)
+                            cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed,
+                            collisions=collisions)
     res = syn.synthesize(mech, bounds, population=args.population, generations=args.generations, seed=args.seed,
                          settings=settings, scheduler=args.scheduler, workers=args.workers,
                          progress=show_progress(args))

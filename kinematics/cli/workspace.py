@@ -502,8 +502,11 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if not args.param:
         raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
     axes = [sw.Axis.parse(p) for p in args.param]
-    collisions = (sw.collision_options(robot, args.collisions, args.obstacles)
-                  if args.collisions or args.obstacles else None)
+    collisions = None
+    if args.collisions or args.obstacles:
+        from kinematics.analyses.collisions import design_options
+
+        collisions = design_options(robot, args.collisions, args.obstacles)
     t0 = time.perf_counter()
     rows = sw.run(axes, params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
                   workers=args.workers, progress=show_progress(args), collisions=collisions)
