@@ -312,3 +312,31 @@ def test_singular_points_below_a_floor_are_flagged(tmp_path, capsys):
     c = d["collisions"]
     assert c["interior_points"] == len(pts) and c["colliding_points"] == hand.sum()
     assert c["any_inside_collision_free"]
+
+
+def test_cli_points_are_the_collision_free_ones(arm, tmp_path, capsys):
+    """`workspace-volume --obstacles --points`: the listed grid points are those where the arm
+    clears the wall in some elbow (by hand: the tool and that elbow at x < WALL - R), up to the
+    points within 1e-9 m of a boundary."""
+    from .test_cli import run_json
+
+    _obstacles(tmp_path, HALF)
+    out = tmp_path / "pts.npy"
+    code, _, _ = run_json(capsys, "workspace-volume", str(tmp_path / "arm2r.urdf"), "--obstacles",
+                          str(tmp_path / "wall.yaml"), "--step", "0.02", "--rtol", "1e-2", "--points", str(out))
+    assert code == 0
+    listed = np.load(out)
+    c = WALL - R
+    lo, hi = -0.7, 0.7
+    axis = np.arange(lo + 0.01, hi, 0.02)
+    grid = np.stack(np.meshgrid(axis, axis, indexing="ij"), axis=-1).reshape(-1, 2)
+    rho = np.linalg.norm(grid, axis=1)
+    phi = np.arctan2(grid[:, 1], grid[:, 0])
+    gamma = np.arccos(np.clip((L1 ** 2 + rho ** 2 - L2 ** 2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
+    elbow = np.minimum(L1 * np.cos(phi + gamma), L1 * np.cos(phi - gamma))
+    free = (rho >= L1 - L2) & (rho <= L1 + L2) & (grid[:, 0] < c) & (elbow < c)
+    near = (np.abs(rho - (L1 - L2)) < 1e-9) | (np.abs(rho - (L1 + L2)) < 1e-9)
+    got = {tuple(np.round(p, 9)) for p in listed}
+    want = {tuple(np.round(p, 9)) for p in grid[free & ~near]}
+    assert want <= got and got <= {tuple(np.round(p, 9)) for p in grid[free]}
+    assert 100 < len(got) < len(grid)

@@ -171,12 +171,14 @@ def _write_points(path: str, points: np.ndarray, header: str) -> None:
                                                   fmt="%.17g"), "--points")
 
 
-def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...]) -> np.ndarray:
-    """Grid points (cell centres at `step`) inside the union, for --points."""
+def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...], margin: Any = None
+                   ) -> np.ndarray:
+    """Grid points (cell centres at `step`) inside the union (of `margin`'s last column, default
+    the mechanism's margin), for --points."""
     import numpy as np
 
     lo, hi = mech.bounding_box(limits)
-    margin = mech.margin(branches, limits)
+    margin = mech.margin(branches, limits) if margin is None else margin
     check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
                  hint=f"{step:g} m is too fine a step to list the points")
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
@@ -264,13 +266,16 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                       rtol: float | None, out: Out) -> int:
     """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
     union, the kinematic union and what each binding pair removes (`analyses.collisions`)."""
-    from kinematics.analyses.collisions import measure_collision_workspace
+    from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
-    for flag in ("points", "plot"):
-        if getattr(args, flag, None):
-            raise InvalidInputError(f"--{flag}", "not available with --collisions or --obstacles yet")
+    if args.plot:
+        raise InvalidInputError("--plot", "not available with --collisions or --obstacles yet")
+    checks = collision_checks(args, robot)
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
-                                     progress=show_progress(args), collision_model=collision_checks(args, robot))
+                                     progress=show_progress(args), collision_model=checks)
+    if args.points:  # the collision-aware union: CollisionMargin's last column
+        pts = _inside_points(mech, args.limits, args.step, branches, margin_builder(mech, robot, checks, args.limits)(branches))
+        _write_points(args.points, pts, ",".join(mech.task_axes))
     ws = cw.workspace
     payload = cw.as_dict()
     payload.update(family=mech.family)
