@@ -1,4 +1,4 @@
-"""Collision-free workspaces: the self-collision margin joins the joint limits.
+"""Collision-free workspaces: the self-collision (and obstacle) margin joins the joint limits.
 
 Per branch b the margin at a task point x is
 
@@ -20,23 +20,28 @@ Which pairs bind: a pre-scan on a grid finds the pairs with a negative distance 
 the kinematic workspace; each of them (at most `MAX_WATCHED`, most often negative first) gets
 its own target, the union with that pair alone, so the volume it removes alone is measured in
 the same run, as is the kinematic union (the volume the collisions remove in all).
+
+Obstacles (`kinematics.generic.obstacles`) add pairs (robot body, obstacle) to the same margin;
+with `self_collisions=False` they are the only pairs.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from kinematics.analyses.columns import ColumnVolume, column_volume
 from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, root_tolerance
-from kinematics.errors import MissingCapabilityError
-from kinematics.generic.capsules import AnalyticDistances
+from kinematics.errors import InvalidInputError, MissingCapabilityError
+from kinematics.generic.capsules import COAL, AnalyticDistances
 from kinematics.generic.collision import CollisionModel
+from kinematics.generic.obstacles import Obstacles
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import MAX_POINTS
 
@@ -45,6 +50,74 @@ MAX_WATCHED = 8
 
 PRESCAN_CELLS = 48
 """Grid points per axis of the binding-pair pre-scan."""
+
+
+def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_collisions: bool = True
+                       ) -> CollisionModel:
+    """The pairs to check: the robot's own (`self_collisions`) and each moving body against each
+    obstacle. Raises `InvalidInputError` if obstacles are given and no body can touch them."""
+    if obstacles is None and not self_collisions:
+        raise InvalidInputError("obstacles", "nothing to check: give obstacles or self-collisions")
+    cm = CollisionModel.from_robot(robot, obstacles=obstacles, self_collisions=self_collisions)
+    if obstacles is not None and not any(a in cm.obstacles or b in cm.obstacles for a, b in cm.pairs):
+        raise InvalidInputError("obstacles", f"{robot.name} has no collision shape on a moving body: "
+                                             "nothing can touch the obstacles")
+    return cm
+
+
+def design_options(robot: Any, self_collisions: bool, obstacles: str | None) -> dict[str, Any]:
+    """Collision options for designs derived from `robot` (a p2us or delta; plain data, for Dask
+    tasks): the collision sizes its sidecar records (the generator's defaults where absent), the
+    self-collision switch and the obstacle file's absolute path (read once here, so a bad file
+    fails before any design)."""
+    import dataclasses
+
+    from kinematics.generic.obstacles import load_obstacles
+    from kinematics.mechanisms.three_limb.urdf import read_collision_sizes
+    from kinematics.model.loops import sidecar_for
+
+    if obstacles:
+        load_obstacles(obstacles)
+    sizes = read_collision_sizes(sidecar_for(Path(robot.urdf_path)), _generator(_family(robot)).SIZES)
+    return {"sizes": dataclasses.asdict(sizes), "self": self_collisions,
+            "obstacles": str(Path(obstacles).resolve()) if obstacles else None}
+
+
+def design_checks(family: str, params: Any, options: dict[str, Any]) -> tuple[Any, CollisionModel]:
+    """A design's robot, generated (in a temporary folder) from `params` with the collision sizes
+    of `options` (`design_options`), and its collision model."""
+    import tempfile
+
+    from kinematics.generic.obstacles import load_obstacles
+    from kinematics.mechanisms.three_limb.urdf import CollisionSizes
+    from kinematics.model.robot import load_robot
+
+    obstacles = load_obstacles(options["obstacles"]) if options.get("obstacles") else None
+    with tempfile.TemporaryDirectory() as tmp:
+        urdf, _ = _generator(family).write(params, Path(tmp) / "design.urdf", sizes=CollisionSizes(**options["sizes"]))
+        robot = load_robot(urdf)
+        return robot, collision_model_of(robot, obstacles, self_collisions=bool(options.get("self", True)))
+
+
+def _family(robot: Any) -> str:
+    from kinematics.mechanisms import mechanism_of
+
+    return mechanism_of(robot).family
+
+
+def _generator(family: str) -> Any:
+    """The URDF generator module of a three-limb family."""
+    if family == "p2us":
+        from kinematics.mechanisms.p2us import urdf as p2us_urdf
+
+        return p2us_urdf
+    if family == "delta":
+        from kinematics.mechanisms.delta import urdf as delta_urdf
+
+        return delta_urdf
+    from kinematics.errors import UnsupportedRobotError
+
+    raise UnsupportedRobotError(family, "collision checks of generated designs support p2us and delta")
 
 
 def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str) -> np.ndarray:
@@ -57,12 +130,20 @@ def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str)
 
         module: Any = p2us_urdf if mech.family == "p2us" else delta_urdf
         return module.configurations_at(mech.params, robot.model, points, branch)
+    import pinocchio as pin
+
     model = robot.model
-    out = np.empty((len(points), model.nq))
+    out = np.tile(pin.neutral(model), (len(points), 1))
     if not mech.closed_loop and "ik" in mech.capabilities:
         q = mech.ik(points).q[:, mech.branches.index(branch)]
-        for n, row in enumerate(q):
-            out[n] = robot.configuration(row)
+        if q.shape[1] != robot.nv or not np.isfinite(q).all():  # as `robot.configuration` would
+            for row in q:
+                robot.joint_values(row)
+        for k, d in enumerate(robot.dofs):  # `robot.configuration`, a column at a time
+            if d.kind == "continuous":
+                out[:, d.idx_q], out[:, d.idx_q + 1] = np.cos(q[:, k]), np.sin(q[:, k])
+            else:
+                out[:, d.idx_q] = q[:, k]
         return out
     mech.require("joint_values", "collision checks at task points")
     for n, p in enumerate(points):
@@ -103,6 +184,67 @@ class CollisionMargin:
                 each[inside, b] = np.minimum(kin[inside, b], d.min(axis=1))
                 watch[inside, b] = np.minimum(kin[inside, b, None], d[:, self.watched])
         return np.column_stack([each, kin[:, :B].max(axis=1), watch.max(axis=1), each.max(axis=1)])
+
+
+def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: str = "all"
+                   ) -> Callable[[Sequence[str]], CollisionMargin]:
+    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first), for
+    analyses that take a margin in place of the mechanism's (`usable.usable(margin_of=...)`)."""
+    dist = AnalyticDistances(model)
+    return lambda branches: CollisionMargin(mech, robot, dist, branches, limits)
+
+
+def summary(model: CollisionModel, dist: AnalyticDistances | None = None) -> dict[str, Any]:
+    """JSON-ready: pairs checked, closed-form pairs, obstacles, pairs left out (not adjacent)."""
+    kinds = (dist if dist is not None else AnalyticDistances(model)).kinds
+    return {"pairs_checked": len(model.pairs), "closed_form_pairs": int((kinds != COAL).sum()),
+            "obstacles": list(dict.fromkeys(model.obstacles.values())),
+            "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in model.excluded
+                         if e.reason != "adjacent"]}
+
+
+def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.ndarray, branch: np.ndarray,
+                 limits: str = "all") -> np.ndarray:
+    """(K,) True where the configuration with the task point at `points[k]` [m] in branch
+    `mech.branches[branch[k]]` collides (some pair's signed distance < 0); False where it does
+    not, and where the point is outside that branch's kinematic workspace (no configuration)."""
+    dist = AnalyticDistances(model)
+    pts = np.asarray(points, dtype=float).reshape(len(branch), -1)
+    out = np.zeros(len(pts), dtype=bool)
+    if not model.pairs:
+        return out
+    for w in np.unique(branch):
+        sel = np.flatnonzero(branch == w)
+        name = mech.branches[int(w)]
+        sel = sel[mech.margin([name], limits)(pts[sel])[:, 0] > 0]
+        if len(sel):
+            out[sel] = dist.distances(configurations(mech, robot, pts[sel], name), signs=True).min(axis=1) < 0
+    return out
+
+
+def collision_map(mech: Mechanism, robot: Any, model: CollisionModel, points: np.ndarray, limits: str = "all"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """At each task point (N, d) [m]: the union's collision-aware margin max_b m_b (module
+    docstring) and the pair that binds in the best branch among those where the point is inside
+    the kinematic workspace (index into `model.pairs`; -1 where the kinematic margin binds or no
+    branch reaches the point). A point inside the kinematic workspace collides in every branch iff
+    the margin is <= 0 and the pair is >= 0."""
+    dist = AnalyticDistances(model)
+    margin = CollisionMargin(mech, robot, dist, mech.branches, limits)
+    pts = np.asarray(points, dtype=float)
+    kin = margin.kinematic(pts)[:, :len(mech.branches)]
+    each, pair = kin.copy(), np.full(kin.shape, -1)
+    for b in range(len(mech.branches)):
+        inside = kin[:, b] > 0
+        if inside.any() and model.pairs:
+            d = margin.branch_distances(pts, b, inside)
+            k = np.argmin(d, axis=1)
+            dmin = d[np.arange(len(d)), k]
+            each[inside, b] = np.minimum(kin[inside, b], dmin)
+            pair[inside, b] = np.where(dmin < kin[inside, b], k, -1)
+    # the pair of the best branch among those with a configuration there (kinematic margin > 0)
+    best = np.argmax(np.where(kin > 0, each, -np.inf), axis=1)
+    return each.max(axis=1), pair[np.arange(len(pts)), best]
 
 
 def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
@@ -175,7 +317,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 progress: bool = False, check: bool = True,
                                 collision_model: CollisionModel | None = None,
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
-                                max_points: int | None = None, watch: int = MAX_WATCHED) -> CollisionWorkspace:
+                                max_points: int | None = None, watch: int = MAX_WATCHED,
+                                obstacles: Obstacles | None = None, self_collisions: bool = True) -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
@@ -185,13 +328,15 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         box: (lo, hi) [m] to measure within instead of the mechanism's bounding box (the part of
             the workspace inside it).
         watch: how many binding pairs get their own target (each costs its roots' refinement).
+        obstacles: fixed bodies the robot must not touch (`load_obstacles`), with the default model.
+        self_collisions: with the default model, check the robot's own pairs (False: obstacles only).
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
         raise MissingCapabilityError(mech.name, "margin", "a workspace area or volume", mech.capabilities)
     chosen = mech.check_branches(branches)
     mech.check_limits(limits)
-    cm = collision_model if collision_model is not None else CollisionModel.from_robot(robot)
+    cm = collision_model if collision_model is not None else collision_model_of(robot, obstacles, self_collisions)
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
@@ -209,7 +354,5 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
                               kin_err + float(res.error[B + 1 + n]), count)
                   for n, (k, count) in enumerate(found[:watch]))
-    summary = {"pairs_checked": len(cm.pairs), "closed_form_pairs": int((dist.kinds != 2).sum()),
-               "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in cm.excluded
-                            if e.reason != "adjacent"]}
-    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]), summary)
+    return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]),
+                              summary(cm, dist))

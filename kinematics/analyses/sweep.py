@@ -14,6 +14,10 @@ Per design, on the union of the working modes' workspaces (every limit applied):
 * conditioning_index: the mean over those grid points of 1/kappa(J) (J = J_q^-1 J_x, kappa its
   2-norm condition number) in the best-conditioned valid mode: Gosselin & Angeles' global
   conditioning index, in [0, 1].
+
+With collisions (`run(collisions=...)`), each design's URDF is generated with the given collision
+sizes and the union's collision-free volume is measured too (`analyses.collisions`, sampled
+columns): collision_free_volume_m3 and its error estimate.
 """
 
 from __future__ import annotations
@@ -40,6 +44,8 @@ SWEEPABLE = ("b", "d", "L", "beta", "theta_zero", "rod_spacing", "stroke_min", "
 
 COLUMNS = ("design", *SWEEPABLE, "volume_m3", "volume_lower_m3", "volume_upper_m3",
            "singularity_free_fraction", "conditioning_index", "grid_points_inside")
+COLLISION_COLUMNS = ("collision_free_volume_m3", "collision_free_error_m3")
+"""Added to every row by a sweep with collisions."""
 
 
 def split_param(text: str, names: Sequence[str], form: str) -> tuple[str, list[str]]:
@@ -145,8 +151,23 @@ def one_kernel_thread() -> int:
     return int(numba.get_num_threads())
 
 
-def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
-    """Volume, singularity-free fraction and conditioning index of one design (a Dask task)."""
+def collision_free(params: P2USParams, step: float, rtol: float | None, collisions: dict[str, Any]
+                   ) -> dict[str, float]:
+    """The union's collision-free volume [m^3] of a design and its error estimate
+    (`analyses.collisions.design_checks`: the design's URDF with `collisions`' sizes)."""
+    from kinematics.analyses.collisions import design_checks, measure_collision_workspace
+    from kinematics.mechanisms.p2us.mechanism import P2US
+
+    robot, model = design_checks("p2us", params, collisions)
+    cw = measure_collision_workspace(P2US(params), robot, step=step, rtol=rtol, check=False, watch=0,
+                                     collision_model=model)
+    return {"collision_free_volume_m3": cw.workspace.total, "collision_free_error_m3": cw.workspace.error}
+
+
+def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float,
+                    collisions: dict[str, Any] | None = None) -> dict[str, float]:
+    """Volume, singularity-free fraction and conditioning index of one design (a Dask task), and
+    with `collisions` (`collision_free`) its collision-free volume."""
     from kinematics.mechanisms.p2us.scan import bounding_box, scan
 
     one_kernel_thread()
@@ -182,7 +203,9 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
             best_free[idx] |= is_free
         free = int(best_free.sum())
         gci = float(best.mean())
+    extra = {} if collisions is None else collision_free(params, step, rtol, collisions)
     return {
+        **extra,
         "volume_m3": ws.total,
         "volume_lower_m3": float(cells.lower[-1]),
         "volume_upper_m3": float(cells.upper[-1]),
@@ -194,7 +217,8 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
 
 def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0.02, rtol: float | None = 1e-2,
         sing_tol: float = 0.05, scheduler: str | None = None, workers: int | None = None,
-        client: Any = None, progress: bool = False) -> list[dict[str, Any]]:
+        client: Any = None, progress: bool = False, collisions: dict[str, Any] | None = None
+        ) -> list[dict[str, Any]]:
     """Evaluate every design on Dask; rows in design order.
 
     Args:
@@ -202,11 +226,12 @@ def run(axes: Sequence[Axis], base: P2USParams | None = None, *, step: float = 0
             embedded LocalCluster (one single-threaded worker process per core).
         client: an existing distributed.Client (overrides scheduler).
         workers: worker processes of the embedded cluster (default: the cores).
+        collisions: also each design's collision-free volume (`collision_free`'s dict).
     """
     todo = designs(base or P2USParams(), axes, step)
     futures: list[Any] = []
     with connect(scheduler, workers, client) as client:
-        futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, pure=True)
+        futures = client.map(_task, todo, step=step, rtol=rtol, sing_tol=sing_tol, collisions=collisions, pure=True)
         wait_for(futures, progress)
         try:
             results = client.gather(futures)
@@ -348,11 +373,12 @@ def wait_for(futures: list[Any], progress: bool, desc: str = "sweep", unit: str 
             bar.close()
 
 
-def _task(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float) -> dict[str, float]:
+def _task(design: dict[str, Any], step: float, rtol: float | None, sing_tol: float,
+          collisions: dict[str, Any] | None = None) -> dict[str, float]:
     """`evaluate_design` as a task: its KinematicsErrors come back as a SweepError with the same
     message (the subclasses' constructors take data, so they do not survive pickling)."""
     try:
-        return evaluate_design(design, step, rtol, sing_tol)
+        return evaluate_design(design, step, rtol, sing_tol, collisions)
     except KinematicsError as exc:
         raise SweepError(str(exc)) from None
 
@@ -365,7 +391,13 @@ def to_csv(rows: Sequence[dict[str, Any]]) -> str:
     """The sweep table as CSV; floats written with repr (shortest exact round trip)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(COLUMNS)
+    columns = columns_of(rows)
+    w.writerow(columns)
     for r in rows:
-        w.writerow([repr(float(r[c])) if isinstance(r[c], float) else r[c] for c in COLUMNS])
+        w.writerow([repr(float(r[c])) if isinstance(r[c], float) else r[c] for c in columns])
     return buf.getvalue()
+
+
+def columns_of(rows: Sequence[dict[str, Any]]) -> tuple[str, ...]:
+    """The table's columns: `COLUMNS`, and `COLLISION_COLUMNS` when the rows have them."""
+    return (*COLUMNS, *COLLISION_COLUMNS) if rows and COLLISION_COLUMNS[0] in rows[0] else COLUMNS

@@ -3,7 +3,9 @@ and the Delta) with pymoo's NSGA-II, every design evaluated as a task on Dask.
 
 Objectives of a design (built with `params.replace(**changes)` and its family's `Mechanism`):
 
-* usable-cube edge [m], maximised: `usable.usable(mech, "cube", search=False)` in the chosen
+* usable-cube edge [m], maximised (collision-free with `Settings.collisions`: the design's URDF is
+  generated with the collision sizes and the collision-aware margin joins the limits):
+  `usable.usable(mech, "cube", search=False)` in the chosen
   branch (default "---") with kappa <= kappa_max and no singularity: the distance-transform optimum
   on a coarse grid (step = the design's bounding box's longest side / `cube_cells`), its size
   bisected at that centre and checked by the dense membership test. Without the pattern search
@@ -90,6 +92,9 @@ class Settings:
     gci_samples: int = 4096
     gci_replicates: int = 4
     seed: int = 0
+    collisions: dict[str, Any] | None = None
+    """Collision options (`analyses.collisions.design_options`): the usable cube is then
+    collision-free (each design's URDF generated with these sizes); the GCI stays kinematic."""
 
     def __post_init__(self) -> None:
         if not (self.kappa_max >= 1 and math.isfinite(self.kappa_max)):
@@ -198,9 +203,15 @@ def evaluate(family: str, base: Any, values: dict[str, float], settings: Setting
                 "footprint_m": 0.0}
     lo, hi = mech.bounding_box(settings.limits)
     step = float(np.max(hi - lo)) / settings.cube_cells
+    margin_of = None
+    if settings.collisions is not None:
+        from kinematics.analyses.collisions import design_checks, margin_builder
+
+        robot, model = design_checks(family, getattr(mech, "params", None), settings.collisions)
+        margin_of = margin_builder(mech, robot, model, settings.limits)
     try:
         edge = usable(mech, "cube", branch=settings.branch, kappa_max=settings.kappa_max, limits=settings.limits,
-                      step=step, search=False).size[0]
+                      step=step, search=False, margin_of=margin_of).size[0]
     except InvalidInputError as exc:
         if exc.problem != EMPTY:
             raise

@@ -45,6 +45,8 @@ if TYPE_CHECKING:
     from kinematics.mechanisms.base import Mechanism
 
 Field = Callable[[np.ndarray], np.ndarray]
+MarginOf = Callable[[Sequence[str]], Field]
+"""Branches -> their margin (points -> a column per branch, then any others)."""
 Shape = Literal["cube", "cylinder", "sphere"]
 SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
 EMPTY = "no grid point is usable: the usable region is empty at this step"
@@ -415,20 +417,24 @@ def _check_kappa(kappa_max: float) -> float:
     return float(kappa_max)
 
 
-def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, limits: str = "all") -> Field:
+def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, limits: str = "all",
+                 margin_of: MarginOf | None = None) -> Field:
     """u(p) of a mechanism in one branch (working mode, elbow), or "union" (the best branch at each
     point): min(margin, 1/kappa - 1/kappa_max) with kappa the 2-norm condition number of the forward
     Jacobian J (`Mechanism.branch_velocity`); singular poses get u < 0 (module docstring).
 
     kappa of J and of J^-1 agree for a square J; it is scale-free as long as J's columns share a
     unit (every actuator prismatic, or every one revolute), true of the built-in families.
+
+    margin_of: builds the margin of the branches (points -> a column per branch first) instead of
+    `mech.margin(branches, limits)`, e.g. the collision-aware one (`analyses.collisions`).
     """
     from kinematics.mechanisms.base import UNION
 
     _check_kappa(kappa_max)
     mech.check_limits(limits)
     branches = mech.branches if branch == UNION else mech.check_branches([branch])
-    margin = mech.margin(branches, limits)
+    margin = mech.margin(branches, limits) if margin_of is None else margin_of(branches)
 
     def field(points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=float)
@@ -444,7 +450,7 @@ def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, lim
 
 def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max: float = KAPPA_MAX,
            limits: str = "all", step: float = 0.01, spacing: float | None = None,
-           search: bool = True, levels: int = 3) -> UsableShape:
+           search: bool = True, levels: int = 3, margin_of: MarginOf | None = None) -> UsableShape:
     """The largest `shape` in the usable workspace of a spatial mechanism (module docstring).
 
     Args:
@@ -453,6 +459,7 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
         search: False skips the pattern search of the centre (the coarse optimum's centre, the
             size still bisected and checked): faster, a lower bound on the optimum.
         levels: grids of the global search (step, step/2, ...; `largest_shape`).
+        margin_of: the branches' margin instead of the mechanism's (`usable_field`).
     """
     from kinematics.errors import UnsupportedRobotError
 
@@ -462,7 +469,7 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
     if mech.task_dim != 3:
         raise UnsupportedRobotError(mech.name, "usable shapes (cube, cylinder, sphere) need a spatial task "
                                     f"space; this mechanism's is {mech.task_dim}-dimensional")
-    field = usable_field(mech, default_branch(mech) if branch is None else branch, kappa_max, limits)
+    field = usable_field(mech, default_branch(mech) if branch is None else branch, kappa_max, limits, margin_of)
     lo, hi = mech.bounding_box(limits)
     return largest_shape(field, lo, hi, shape, step=step, spacing=spacing, search=search, levels=levels)
 

@@ -159,6 +159,16 @@ def serial_args(p: argparse.ArgumentParser) -> None:
                         "of revolution's profile, 128 in space)")
 
 
+def collision_args(p: argparse.ArgumentParser, what: str = "") -> None:
+    p.add_argument("--collisions", action="store_true",
+                   help="exclude configurations where two bodies collide (the URDF's collision shapes, less "
+                        f"adjacent, touching-at-reference and sidecar-disabled pairs){what}")
+    p.add_argument("--obstacles", metavar="FILE",
+                   help="fixed bodies the robot must not touch: a URDF whose links' collision shapes are the "
+                        "obstacles (fixed joints, root = the world frame) or a YAML list of shapes with a pose "
+                        "(docs/collisions.md); alone, only robot-obstacle pairs are checked")
+
+
 # -- what handlers read from the arguments -------------------------------------------------------
 def load(args: argparse.Namespace) -> Any:
     """The robot of ROBOT and --range."""
@@ -181,3 +191,14 @@ def values(args: argparse.Namespace, robot: Any) -> Any:
 
         raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom ({robot.nv})")
     return robot.joint_values(args.q, degrees=args.degrees)
+
+
+def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
+    """The `CollisionModel` of --collisions and --obstacles, or None when neither is given."""
+    if not (getattr(args, "collisions", False) or getattr(args, "obstacles", None)):
+        return None
+    from kinematics.analyses.collisions import collision_model_of
+    from kinematics.generic.obstacles import load_obstacles
+
+    obstacles = load_obstacles(args.obstacles) if args.obstacles else None
+    return collision_model_of(robot, obstacles, self_collisions=args.collisions)

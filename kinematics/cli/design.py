@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from kinematics.cli.args import Command, integer, load, positive, robot_arg
+from kinematics.cli.args import Command, collision_args, collision_checks, integer, load, positive, robot_arg
 from kinematics.cli.report import Out, emit, fmt, key_values
 from kinematics.files import check_output, write_atomic
 
@@ -25,6 +25,7 @@ def register(command: Command) -> None:
     p.add_argument("--limits", default="all", choices=["all", "actuators"],
                    help="all limits (default), or the actuators' only")
     p.add_argument("--step", type=positive, default=0.02, metavar="M", help="coarse grid step [m] (default 0.02)")
+    collision_args(p)
 
     p = command("dexterity", cmd_dexterity, "global conditioning index (mean 1/kappa), mean Yoshikawa index and "
                 "mean smallest radius with 95 %% error bars (randomised quasi-Monte Carlo), per mode and for their "
@@ -73,6 +74,8 @@ def register(command: Command) -> None:
                    help="worker processes of the local cluster, 1 to 4 per core (default: cores)")
     p.add_argument("--out", metavar="FILE.csv", help="write the Pareto front as CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write the Pareto front's figure")
+    collision_args(p, "; the usable cube is then collision-free (each design's URDF generated with the robot's "
+                      "collision sizes; the GCI stays kinematic)")
 
     p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
                 "watertight triangle mesh (STL, PLY or glTF binary)")
@@ -110,7 +113,14 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     mech = mechanism_of(robot)
     mode = args.mode or default_branch(mech)
-    res = usable(mech, args.shape, branch=mode, kappa_max=args.kappa_max, limits=args.limits, step=args.step)
+    checks = collision_checks(args, robot)
+    margin_of = None
+    if checks is not None:
+        from kinematics.analyses.collisions import margin_builder
+
+        margin_of = margin_builder(mech, robot, checks, args.limits)
+    res = usable(mech, args.shape, branch=mode, kappa_max=args.kappa_max, limits=args.limits, step=args.step,
+                 margin_of=margin_of)
     size_keys = {"cube": ("edge_m",), "cylinder": ("radius_m", "height_m"), "sphere": ("radius_m",)}[res.shape]
     payload = {
         "robot": robot.name,
@@ -126,10 +136,15 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                   "inside": res.min_field >= 0, "larger_1pct_fails": res.larger_fails,
                   "volume_bound_m3": res.volume_bound, "optimality_gap": res.optimality_gap},
     }
+    if checks is not None:
+        from kinematics.analyses.collisions import summary
+
+        payload["collisions"] = summary(checks)
 
     def human() -> str:
         return key_values([
-            ("robot", f"{robot.name}, mode {mode}, kappa <= {fmt(args.kappa_max)}, no singularity"),
+            ("robot", f"{robot.name}, mode {mode}, kappa <= {fmt(args.kappa_max)}, no singularity"
+                      + ("" if checks is None else f", no collision ({len(checks.pairs)} pairs)")),
             ("shape", res.shape), ("centre", f"{[round(c, 6) for c in res.center.tolist()]} m"),
             *((k.removesuffix("_m"), f"{fmt(v)} m") for k, v in payload["size_m"].items()),
             ("volume", f"{fmt(res.volume)} m^3"),
@@ -265,8 +280,14 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     mech = mechanism_of(robot)
     family = syn.family_of(mech)
     bounds = [syn.Bound.parse(p, family) for p in args.param or []]
+    collisions = None
+    if args.collisions or args.obstacles:
+        from kinematics.analyses.collisions import design_options
+
+        collisions = design_options(robot, args.collisions, args.obstacles)
     settings = syn.Settings(branch=args.mode or "---", kappa_max=args.kappa_max, limits=args.limits,
-                            cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed)
+                            cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed,
+                            collisions=collisions)
     res = syn.synthesize(mech, bounds, population=args.population, generations=args.generations, seed=args.seed,
                          settings=settings, scheduler=args.scheduler, workers=args.workers,
                          progress=show_progress(args))

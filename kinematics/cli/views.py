@@ -6,7 +6,17 @@ import argparse
 import time
 from typing import Any
 
-from kinematics.cli.args import Command, load, non_negative, number, positive, robot_arg, serial_args
+from kinematics.cli.args import (
+    Command,
+    collision_args,
+    collision_checks,
+    load,
+    non_negative,
+    number,
+    positive,
+    robot_arg,
+    serial_args,
+)
 from kinematics.cli.report import Out, emit, with_plane
 from kinematics.errors import InvalidInputError
 
@@ -38,6 +48,8 @@ def register(command: Command) -> None:
                         "frames, the end effector (drawn anyway for a robot whose mesh files are missing)")
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")
+    collision_args(p, "; with --workspace: the points where every branch collides drawn by binding pair, and "
+                      "the obstacles (p2us, delta, closed loops)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=non_negative, metavar="S", help=argparse.SUPPRESS)
 
@@ -60,6 +72,14 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
 
     mech = mechanism_of(robot)
     three_limb = mech.capabilities >= POSE_REPORTS  # the closed-form parallel robots (`parallel_view`)
+    checks = None
+    if args.collisions or args.obstacles:
+        if not args.workspace:
+            raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
+        if robot.loops is None:
+            raise InvalidInputError("--collisions/--obstacles", "views of open chains are not collision-aware yet "
+                                    "(p2us, delta and closed loops are)")
+        checks = collision_checks(args, robot)
     if three_limb:
         unreachable = _parallel_checks(args, robot, mech)
         if unreachable is not None:
@@ -84,7 +104,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
-                          step=0.02 if args.step is None else args.step, scene=scene)
+                          step=0.02 if args.step is None else args.step, scene=scene, collisions=checks)
         elif robot.loops is None:  # an open chain: joint values drive it
             if args.position is not None:
                 raise InvalidInputError("--position", "give a serial robot's joint values with --q")
@@ -106,7 +126,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         else:
             viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float),
                                  workspace=args.workspace, singularities=args.singularities, limits=args.limits,
-                                 step=0.05 if args.step is None else args.step, scene=scene)
+                                 step=0.05 if args.step is None else args.step, scene=scene, collisions=checks)
         if mesh is not None:
             scene.add_mesh(mesh.vertices, mesh.faces, label=f"mesh {args.mesh}")
             scene.fit_camera()

@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 from kinematics.cli.args import (
     Command,
+    collision_args,
+    collision_checks,
     integer,
     load,
     non_negative,
@@ -41,10 +43,7 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    p.add_argument("--collisions", action="store_true",
-                   help="exclude configurations where two bodies collide (the URDF's collision shapes, less "
-                        "adjacent, touching-at-reference and sidecar-disabled pairs); reports the binding pairs "
-                        "and the volume each removes (p2us, delta, scara, closed loops)")
+    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops)")
     orient = p.add_mutually_exclusive_group()
     orient.add_argument("--orientation", metavar="'rpy R P Y'",
                         help="open chains: the volume of tool positions reachable with the tool frame at this fixed "
@@ -63,6 +62,8 @@ def register(command: Command) -> None:
     p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
                    help="planar arm: joint-grid step in degrees (default 1)")
     serial_args(p)
+    collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
+                      "(p2us, delta, closed loops with singular fields)")
 
     p = command("sweep", cmd_sweep, "design sweep of the 3-[P2(US)] on Dask: volume, singularity-free "
                                      "fraction, conditioning")
@@ -77,6 +78,8 @@ def register(command: Command) -> None:
     p.add_argument("--step", type=positive, default=0.02, metavar="M", help="grid step per design [m] (default 0.02)")
     p.add_argument("--rtol", type=positive, default=1e-2, metavar="R", help="volume tolerance (default 1e-2)")
     p.add_argument("--out", metavar="FILE.csv", help="write the table as CSV")
+    collision_args(p, "; adds each design's collision-free volume (its URDF generated with the robot's "
+                      "collision sizes)")
 
 
 def cmd_workspace_volume(args: argparse.Namespace) -> int:
@@ -177,12 +180,14 @@ def _write_points(path: str, points: np.ndarray, header: str) -> None:
                                                   fmt="%.17g"), "--points")
 
 
-def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...]) -> np.ndarray:
-    """Grid points (cell centres at `step`) inside the union, for --points."""
+def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[str, ...], margin: Any = None
+                   ) -> np.ndarray:
+    """Grid points (cell centres at `step`) inside the union (of `margin`'s last column, default
+    the mechanism's margin), for --points."""
     import numpy as np
 
     lo, hi = mech.bounding_box(limits)
-    margin = mech.margin(branches, limits)
+    margin = mech.margin(branches, limits) if margin is None else margin
     check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
                  hint=f"{step:g} m is too fine a step to list the points")
     axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
@@ -215,7 +220,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     # (a generic closed loop compiles its solver here: its branches come from an atlas search)
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
-    if getattr(args, "collisions", False):
+    if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
@@ -287,15 +292,18 @@ def _orientation(args: argparse.Namespace) -> Any:
 
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],
                       rtol: float | None, out: Out) -> int:
-    """`workspace-volume --collisions`: the collision-free volume per branch and union, the
-    kinematic union and what each binding pair removes (`analyses.collisions`)."""
-    from kinematics.analyses.collisions import measure_collision_workspace
+    """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
+    union, the kinematic union and what each binding pair removes (`analyses.collisions`)."""
+    from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
-    for flag in ("points", "plot"):
-        if getattr(args, flag, None):
-            raise InvalidInputError(f"--{flag}", "not available with --collisions yet")
+    if args.plot:
+        raise InvalidInputError("--plot", "not available with --collisions or --obstacles yet")
+    checks = collision_checks(args, robot)
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
-                                     progress=show_progress(args))
+                                     progress=show_progress(args), collision_model=checks)
+    if args.points:  # the collision-aware union: CollisionMargin's last column
+        pts = _inside_points(mech, args.limits, args.step, branches, margin_builder(mech, robot, checks, args.limits)(branches))
+        _write_points(args.points, pts, ",".join(mech.task_axes))
     ws = cw.workspace
     payload = cw.as_dict()
     payload.update(family=mech.family)
@@ -316,6 +324,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"kinematic {key} [{unit}]", f"{fmt(cw.kinematic, 6)} +/- {fmt(cw.kinematic_error, 2)}"),
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
+                *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
@@ -408,6 +417,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    checks = collision_checks(args, robot)
+    if checks is not None and "singular_fields" not in mech.capabilities:
+        raise InvalidInputError("--collisions/--obstacles", f"{mech.family} singularities are not collision-aware "
+                                "yet (p2us, delta and closed loops with singular fields are)")
     if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
@@ -461,6 +474,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         "any_inside_workspace": res.any_inside,
         "seconds": res.seconds,
     }
+    if checks is not None:
+        _flag_colliding(payload, res.locus, mech, robot, checks, args.limits)
     if args.paper_scan:
         ps = mech.paper_scan()
         payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
@@ -483,6 +498,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             " count as inside only with both grid neighbours inside the workspace."),
             f"any singular point in the workspace: {res.any_inside}",
         ]
+        if checks is not None:
+            c = payload["collisions"]
+            lines.append(f"of those, colliding: {c['colliding_points']} of {c['interior_points']}; any in the "
+                         f"collision-free workspace: {c['any_inside_collision_free']}")
         if args.paper_scan:
             ps = payload["paper_scan"]
             lines += ["", (f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
@@ -496,6 +515,21 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     return 0
 
 
+def _flag_colliding(payload: dict[str, Any], locus: Any, mech: Mechanism, robot: Robot, checks: Any,
+                    limits: str) -> None:
+    """Mark each listed (interior type II/III) singular point `colliding` and add the counts."""
+    import numpy as np
+
+    from kinematics.analyses.collisions import colliding_at, summary
+
+    idx = np.flatnonzero(locus.interior)
+    flags = colliding_at(mech, robot, checks, locus.points[idx], locus.which[idx], limits)
+    for item, flag in zip(payload["singular_points"], flags, strict=True):
+        item["colliding"] = bool(flag)
+    payload["collisions"] = {**summary(checks), "interior_points": len(idx), "colliding_points": int(flags.sum()),
+                             "any_inside_collision_free": bool((~flags).any())}
+
+
 def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses import sweep as sw
     from kinematics.mechanisms import mechanism_of
@@ -506,18 +540,23 @@ def sweep(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if not args.param:
         raise InvalidInputError("--param", f"give at least one, e.g. b=0.25:0.40:16; sweepable: {', '.join(sw.SWEEPABLE)}")
     axes = [sw.Axis.parse(p) for p in args.param]
+    collisions = None
+    if args.collisions or args.obstacles:
+        from kinematics.analyses.collisions import design_options
+
+        collisions = design_options(robot, args.collisions, args.obstacles)
     t0 = time.perf_counter()
     rows = sw.run(axes, params, step=args.step, rtol=args.rtol, scheduler=args.scheduler,
-                  workers=args.workers, progress=show_progress(args))
+                  workers=args.workers, progress=show_progress(args), collisions=collisions)
     seconds = time.perf_counter() - t0
     text = sw.to_csv(rows)
     if args.out:
         write_atomic(args.out, text, "--out")
-    payload = {"designs": rows, "columns": list(sw.COLUMNS), "seconds": seconds,
+    payload = {"designs": rows, "columns": list(sw.columns_of(rows)), "seconds": seconds,
                "scheduler": args.scheduler or "local"}
 
     def human() -> str:
-        shown = [c for c in sw.COLUMNS if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
+        shown = [c for c in sw.columns_of(rows) if c in ("design", *[a.name for a in axes]) or c not in sw.SWEEPABLE]
         return "\n".join([
             f"{len(rows)} designs on {payload['scheduler']} in {seconds:.1f} s"
             + (f"; table written to {args.out}" if args.out else ""),

@@ -28,6 +28,10 @@ penetration depth, the shortest translation that separates them, when they overl
   axis of the segment's part within |z| <= h + r + m (m = h + r; beyond that band the height
   alone keeps the capsule m away).
 
+* **capsule - half-space** (a `coal.Halfspace`, the solid n.x <= d; an obstacle's wall or floor):
+  with z_k = n.p_k - d the end heights, d = min z_k - r, exact apart and in penetration (the
+  half-space's nearest face is the plane).
+
 Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from the
 compiled forward kinematics (`kinematics.generic.batched`) of each geometry's parent frame.
 """
@@ -43,8 +47,8 @@ from numba import njit, prange
 from kinematics.chunks import slices
 from kinematics.generic.collision import CollisionModel
 
-CAPSULE, PLATE, COAL = 0, 1, 2
-"""Pair kinds: closed form, closed form where the footprint test holds, coal."""
+CAPSULE, PLATE, COAL, HALFSPACE = 0, 1, 2, 3
+"""Pair kinds: closed form, closed form where the footprint test holds, coal, closed form."""
 
 CHUNK = 16384
 """Configurations per batch: placements and distances of a chunk stay small."""
@@ -56,7 +60,7 @@ class AnalyticDistances:
 
     Attributes:
         model: the collision model (pairs, names, coal for the other pairs).
-        kinds: (P,) CAPSULE, PLATE or COAL per pair.
+        kinds: (P,) CAPSULE, PLATE, COAL or HALFSPACE per pair.
     """
 
     def __init__(self, model: CollisionModel) -> None:
@@ -70,6 +74,10 @@ class AnalyticDistances:
         self._radius = np.zeros(G)
         self._half = np.zeros(G)
         shape = np.full(G, COAL, dtype=np.int64)
+        # each shape's reference point and direction in its joint's frame: the centre and the z
+        # axis, for a half-space a point of its plane (d n) and its normal n
+        self._local_p = np.array([objs[k].placement.translation for k in range(G)]).reshape(G, 3)
+        self._local_axis = np.array([objs[k].placement.rotation[:, 2] for k in range(G)]).reshape(G, 3)
         for k, g in enumerate(objs):
             geom = g.geometry
             if isinstance(geom, coal.Capsule):
@@ -78,22 +86,25 @@ class AnalyticDistances:
                 shape[k], self._radius[k] = CAPSULE, geom.radius
             elif isinstance(geom, coal.Cylinder):
                 shape[k], self._radius[k], self._half[k] = PLATE, geom.radius, geom.halfLength
+            elif isinstance(geom, coal.Halfspace):
+                shape[k] = HALFSPACE
+                rot = g.placement.rotation
+                self._local_p[k] = g.placement.translation + rot @ (geom.d * np.asarray(geom.n))
+                self._local_axis[k] = rot @ np.asarray(geom.n)
         pairs = np.array(model.pairs, dtype=np.int64).reshape(-1, 2)
         kinds = np.full(len(pairs), COAL, dtype=np.int64)
         for n, (a, b) in enumerate(pairs):
             sa, sb = shape[a], shape[b]
             if sa == CAPSULE and sb == CAPSULE:
                 kinds[n] = CAPSULE
-            elif {sa, sb} == {CAPSULE, PLATE}:
-                kinds[n] = PLATE
-                if sa == PLATE:
+            elif {sa, sb} in ({CAPSULE, PLATE}, {CAPSULE, HALFSPACE}):
+                kinds[n] = sa if sa != CAPSULE else sb
+                if sa != CAPSULE:
                     pairs[n] = (b, a)  # capsule first
         self.kinds = kinds
         self._pairs = pairs
         used = sorted({int(x) for x in pairs[kinds != COAL].ravel()})
         self._used = np.array(used, dtype=np.int64)
-        self._local_R = np.array([objs[k].placement.rotation for k in range(G)]).reshape(G, 3, 3)
-        self._local_p = np.array([objs[k].placement.translation for k in range(G)]).reshape(G, 3)
         # a geometry's placement is in its parent joint's frame: compile each joint's own frame
         rb = model.robot.model
         self._frame_of = {k: _joint_frame(rb, int(objs[k].parentJoint)) for k in used}
@@ -108,7 +119,7 @@ class AnalyticDistances:
         for k in self._used:
             pose = poses[self._frame_of[int(k)]]
             centre[:, k] = pose.position + np.einsum("nij,j->ni", pose.rotation, self._local_p[k])
-            axis[:, k] = np.einsum("nij,j->ni", pose.rotation, self._local_R[k][:, 2])
+            axis[:, k] = np.einsum("nij,j->ni", pose.rotation, self._local_axis[k])
         return centre, axis
 
     def closed_form(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -223,6 +234,13 @@ def _kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no co
                                  centre[n, j, 0] - hj * bx, centre[n, j, 1] - hj * by, centre[n, j, 2] - hj * bz,
                                  2 * hj * bx, 2 * hj * by, 2 * hj * bz)
                 out[n, k] = dist - radius[i] - radius[j]
+                ok[n, k] = True
+                continue
+            if kind == 3:  # capsule i against the half-space j: n.x <= n.c
+                zu = axis[n, j, 0] * (p1x - centre[n, j, 0]) + axis[n, j, 1] * (p1y - centre[n, j, 1]) \
+                    + axis[n, j, 2] * (p1z - centre[n, j, 2])
+                zv = zu + 2 * hi * (axis[n, j, 0] * ax + axis[n, j, 1] * ay + axis[n, j, 2] * az)
+                out[n, k] = min(zu, zv) - radius[i]
                 ok[n, k] = True
                 continue
             # capsule i against plate j (axis a, centre c): end heights z and axis distances rho

@@ -9,6 +9,10 @@ Pairs: every pair of collision geometries on different bodies, less
   by design, as an SRDF's "Default" disabled pairs;
 * pairs **disabled** by the caller or by the loop sidecar's `collisions: disabled:` (link names).
 
+Obstacles (`kinematics.generic.obstacles`): fixed bodies in the world frame, paired with every
+moving body of the robot (never adjacent, never left out as touching: the robot must not touch
+them; only a disabled pair is left out); without self-collisions only those pairs are checked.
+
 Capsules: URDF has no `<capsule>`; a `<collision>` cylinder with a sphere of its radius centred on
 each end face (on the same link) is a capsule written the only way URDF can, and is loaded as one
 `coal.Capsule` (the union of the three is exactly that capsule, so no distance changes sign; its
@@ -27,11 +31,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from kinematics.errors import InvalidInputError, UnknownNameError
+
+if TYPE_CHECKING:
+    from kinematics.generic.obstacles import Obstacles
 
 CONTACT_EPS = 1e-12
 """Subtracted [m] from a colliding mesh pair's hull distance, so that colliding is always < 0."""
@@ -63,14 +70,18 @@ class CollisionModel:
     `pair_links` their link names.
     """
 
-    def __init__(self, robot: Any, geometry: Any, meshes: Any, excluded: Sequence[ExcludedPair]) -> None:
+    def __init__(self, robot: Any, geometry: Any, meshes: Any, excluded: Sequence[ExcludedPair],
+                 obstacles: dict[int, str] | None = None) -> None:
         import pinocchio as pin
 
         self.robot = robot
         self.geometry = geometry
         self.meshes = meshes
         self.excluded = tuple(excluded)
-        self.links = tuple(robot.model.frames[g.parentFrame].name for g in geometry.geometryObjects)
+        self.obstacles = dict(obstacles or {})
+        """Geometry index -> obstacle body, for the geometries that are obstacles."""
+        self.links = tuple(self.obstacles.get(k, robot.model.frames[g.parentFrame].name)
+                           for k, g in enumerate(geometry.geometryObjects))
         self.pairs = tuple((int(p.first), int(p.second)) for p in geometry.collisionPairs)
         self.pair_links = tuple((self.links[a], self.links[b]) for a, b in self.pairs)
         names = [g.name for g in geometry.geometryObjects]
@@ -87,7 +98,8 @@ class CollisionModel:
     @classmethod
     def from_robot(cls, robot: Any, *, disabled: Iterable[tuple[str, str]] = (),
                    reference: np.ndarray | None = None, exclude_touching: bool = True,
-                   urdf_text: str | None = None) -> CollisionModel:
+                   urdf_text: str | None = None, obstacles: Obstacles | None = None,
+                   self_collisions: bool = True) -> CollisionModel:
         """Load `robot`'s collision geometry and choose the pairs to check.
 
         Args:
@@ -99,17 +111,23 @@ class CollisionModel:
                 closed pose.
             exclude_touching: leave out pairs touching at `reference`.
             urdf_text: URDF text to read the geometry from instead of the robot's file.
+            obstacles: fixed bodies in the world (`load_obstacles`), checked against every
+                moving body; their names must differ from the robot's links.
+            self_collisions: check pairs of the robot's own bodies (False: obstacle pairs only).
         """
         import pinocchio as pin
 
         from kinematics.model.geometry import geometry_model
 
         geometry = _merge_capsules(geometry_model(robot, "collision", urdf_text=urdf_text)[0])
-        meshes = _convexify(geometry)
         model = robot.model
+        links = [model.frames[g.parentFrame].name for g in geometry.geometryObjects]
+        taken = {f.name for f in model.frames}
+        on_obstacle = _add_obstacles(geometry, obstacles, taken) if obstacles is not None else {}
+        links = [*links, *on_obstacle.values()]
+        meshes = _convexify(geometry)
         loops = getattr(robot, "loops", None)
         disabled = [*disabled, *getattr(loops, "disabled_collisions", ())]
-        links = [model.frames[g.parentFrame].name for g in geometry.geometryObjects]
         known = sorted(set(links))
         off = set()
         for a, b in disabled:
@@ -124,26 +142,29 @@ class CollisionModel:
             for k in range(i + 1, geometry.ngeoms):
                 ji, jk = (geometry.geometryObjects[n].parentJoint for n in (i, k))
                 key = frozenset((links[i], links[k]))
-                if ji == jk:
-                    continue  # one rigid body: no relative motion
-                reason: Reason | None = ("adjacent" if frozenset((ji, jk)) in adjacent
+                world = (i in on_obstacle) + (k in on_obstacle)  # how many of the two are obstacles
+                if ji == jk or (world == 0 and not self_collisions):
+                    continue  # one rigid body (or both fixed in the world): no relative motion
+                reason: Reason | None = ("adjacent" if world == 0 and frozenset((ji, jk)) in adjacent
                                          else "disabled" if key in off else None)
                 if reason is None:
                     geometry.addCollisionPair(pin.CollisionPair(i, k))
                 elif key not in seen:
                     seen.add(key)
                     excluded.append(ExcludedPair(links[i], links[k], reason))
-        out = cls(robot, geometry, meshes, excluded)
+        out = cls(robot, geometry, meshes, excluded, on_obstacle)
         if exclude_touching and out.pairs:
             q0 = reference_configuration(robot) if reference is None else np.asarray(reference, dtype=float)
             d0 = out.distances(q0[None, :])[0]
-            touching = [n for n in range(len(out.pairs)) if d0[n] <= TOUCH_TOL]
+            touching = [n for n, (a, b) in enumerate(out.pairs)
+                        if d0[n] <= TOUCH_TOL and a not in on_obstacle and b not in on_obstacle]
             if touching:
                 for n in reversed(touching):
                     geometry.removeCollisionPair(geometry.collisionPairs[n])
                 keys = {frozenset(out.pair_links[n]) for n in touching}
                 more = [ExcludedPair(a, b, "touching") for a, b in (sorted(k) for k in keys if k not in seen)]
-                out = cls(robot, geometry, meshes, [*excluded, *sorted(more, key=lambda e: (e.first, e.second))])
+                out = cls(robot, geometry, meshes, [*excluded, *sorted(more, key=lambda e: (e.first, e.second))],
+                          on_obstacle)
         return out
 
     def distances(self, q: np.ndarray) -> np.ndarray:
@@ -192,6 +213,7 @@ class CollisionModel:
         """JSON-ready summary: geometries, checked pairs and excluded pairs with reasons."""
         return {
             "geometries": [g.name for g in self.geometry.geometryObjects],
+            "obstacles": list(dict.fromkeys(self.obstacles.values())),
             "pairs": [{"geometries": list(g), "links": list(k)} for g, k in zip(self.pair_names, self.pair_links, strict=True)],
             "excluded": [{"first": e.first, "second": e.second, "reason": e.reason} for e in self.excluded],
         }
@@ -243,6 +265,22 @@ def _merge_capsules(geometry: Any) -> Any:
         if k not in used:
             out.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame, g.placement,
                                                      capsule_of.get(k, g.geometry)))
+    return out
+
+
+def _add_obstacles(geometry: Any, obstacles: Obstacles, taken: set[str]) -> dict[int, str]:
+    """Append the obstacles' geometries (capsules merged) to `geometry`, on joint 0; returns
+    geometry index -> obstacle body. Raises `InvalidInputError` if a name is the robot's."""
+    import pinocchio as pin
+
+    body = dict(zip((g.name for g in obstacles.geometry.geometryObjects), obstacles.links, strict=True))
+    names = {g.name for g in geometry.geometryObjects}
+    out = {}
+    for g in _merge_capsules(obstacles.geometry).geometryObjects:
+        if g.name in names or body[g.name] in taken:
+            raise InvalidInputError("obstacles", f"{body[g.name]} ({g.name}) is also a name of the robot's; rename it")
+        out[geometry.ngeoms] = body[g.name]
+        geometry.addGeometryObject(pin.GeometryObject(g.name, 0, 0, g.placement, g.geometry))
     return out
 
 

@@ -11,6 +11,7 @@ Modules:
 * `materials`: colours and materials as meshcat takes them.
 * `serial_views`: `scara_view`, `serial_view`, `default_pose`.
 * `mechanism_views`: `closed_loop_view`, `parallel_view`, `conditioning_view`, `closed_loop_pose`.
+* `collision_views`: colliding workspace points by binding pair, obstacles.
 """
 
 from __future__ import annotations

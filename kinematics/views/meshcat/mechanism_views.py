@@ -15,13 +15,14 @@ from kinematics.views.meshcat.scene import Scene
 
 def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspace: bool = False,
                      singularities: bool = False, limits: str = "all", step: float = 0.05,
-                     scene: Scene | None = None) -> Scene:
+                     scene: Scene | None = None, collisions: Any = None) -> Scene:
     """Any URDF + loop sidecar through the generic Pinocchio closed-loop solver: at the sidecar's
     reference configuration, or assembled from actuator values [rad or m]; optionally its workspace
     (grid step `step` [m], through the mechanism's margin: `kinematics.mechanisms.closed_loop`'s
     batched solver, every branch) coloured by conditioning, and its singular points where the
     mechanism gives singular fields; camera framed on all of it. A planar task space is drawn in
-    the plane of the end effector's reference position."""
+    the plane of the end effector's reference position. `collisions` (a `CollisionModel`): the
+    workspace points where every branch collides drawn apart, by binding pair, and its obstacles."""
     from kinematics.generic.closedloop import ClosedLoop
     from kinematics.mechanisms import mechanism_of
 
@@ -38,7 +39,8 @@ def closed_loop_view(robot: Any, actuators: np.ndarray | None = None, *, workspa
         pin.framesForwardKinematics(robot.model, data, loop.reference)
         at = np.asarray(data.oMf[robot.frame_id()].translation, dtype=float)
         mech = mechanism_of(robot)
-        _mechanism_overlays(scene, mech, at, workspace=workspace, singularities=singularities, limits=limits, step=step)
+        _mechanism_overlays(scene, mech, at, workspace=workspace, singularities=singularities, limits=limits, step=step,
+                            robot=robot, collisions=collisions)
         if mech.task_dim == 2:  # look down on a planar workspace
             scene.fit_camera(direction=(0.4, -0.6, 1.0))
             return scene
@@ -124,10 +126,11 @@ def _singular_colours() -> dict[int, tuple[tuple[float, float, float], str]]:
 
 
 def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: bool, singularities: bool,
-                        limits: str, step: float) -> None:
+                        limits: str, step: float, robot: Any = None, collisions: Any = None) -> None:
     """The workspace (grid points inside some branch, coloured by min(iota_I, iota_II) of the
     best-conditioned branch) and the singular points by type, of any mechanism with a margin
-    (and velocity; singular fields for the loci)."""
+    (and velocity; singular fields for the loci). With `collisions` (a `CollisionModel`) the
+    points where every branch collides are drawn apart, by binding pair, and the obstacles."""
     from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
     from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
 
@@ -140,6 +143,11 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
         margin = mech.margin(None, limits)(pts)[:, :-1]
         pts = pts[(margin >= 0).any(axis=1)]
+        if collisions is not None:
+            from kinematics.views.meshcat.collision_views import colliding_overlay
+
+            pts = pts[colliding_overlay(scene, mech, robot, collisions, pts, limits, step * 0.35,
+                                        lambda p: _embed(mech, p, at))]
         cond = np.full(len(pts), -1.0)
         if "velocity" in mech.capabilities and len(pts):
             for b in mech.branches:
@@ -148,8 +156,12 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
         # small, half-transparent points: the robot stays visible inside its workspace
         scene.add_points(_embed(mech, pts, at), cond, "overlays/workspace", size=step * 0.35,
                          cmap=CONDITIONING_CMAP, vrange=(0.0, 1.0), opacity=0.5,
-                         label=f"workspace ({LIMITS_TEXT.get(limits, limits)}), coloured by min(\u03b9_I, \u03b9_II), "
-                               "0 = singular")
+                         label=f"workspace ({LIMITS_TEXT.get(limits, limits)}{', collision-free' if collisions else ''}), "
+                               "coloured by min(\u03b9_I, \u03b9_II), 0 = singular")
+    if collisions is not None and collisions.obstacles:
+        from kinematics.views.meshcat.collision_views import add_obstacles
+
+        add_obstacles(scene, collisions)
     if singularities:
         from kinematics.analyses.singularities import singular_loci
 
@@ -168,13 +180,13 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
 def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
                   actuators: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: bool = False,
                   singularities: bool = False, limits: str = "all", step: float = 0.02,
-                  scene: Scene | None = None) -> Scene:
+                  scene: Scene | None = None, collisions: Any = None) -> Scene:
     """A closed-form parallel robot (the 3-[P2(US)], the Delta: any mechanism with ik, velocity
     and joint values) at a platform position (closed forms -> actuators -> Pinocchio closed-loop
     solve) or at actuator values, with its velocity ellipsoid (from J), its workspace as a point
     cloud coloured by the conditioning min(iota_I, iota_II) of the best-conditioned branch, and
     its singular points by type; the camera framed on all of it, a warning when the pose is
-    singular."""
+    singular. `collisions` (a `CollisionModel`): as `closed_loop_view`'s."""
     from kinematics.generic.closedloop import ClosedLoop
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
     from kinematics.mechanisms import SINGULARITY_TYPES, mechanism_of
@@ -216,7 +228,7 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
                             label="velocity ellipsoid of the platform (largest radius drawn 0.1 m)")
     if workspace or singularities:
         _mechanism_overlays(scene, mech, p, workspace=workspace, singularities=singularities, limits=limits,
-                            step=step)
+                            step=step, robot=robot, collisions=collisions)
     # a low camera: the base disk hangs above the mechanism and hides it from the usual 30 deg
     scene.fit_camera(direction=(1.0, -1.4, 0.2))
     return scene
