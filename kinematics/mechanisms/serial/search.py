@@ -38,6 +38,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from kinematics.generic.dense import cholesky_solve
+
 CHUNK = 32
 """Consecutive targets searched by one work item (warm starts run along it)."""
 
@@ -105,30 +107,21 @@ def chain_fk_many(Q, kind, axis, rot, tra, fp):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
-    """Solve A out = b for a symmetric positive definite A (n, n), overwriting A with its factor."""
-    n = A.shape[0]
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= A[j, k] * A[j, k]
-        s = math.sqrt(max(s, 1e-300))
-        A[j, j] = s
-        for i in range(j + 1, n):
-            t = A[i, j]
-            for k in range(j):
-                t -= A[i, k] * A[j, k]
-            A[i, j] = t / s
-    for i in range(n):
-        t = b[i]
-        for k in range(i):
-            t -= A[i, k] * out[k]
-        out[i] = t / A[i, i]
-    for i in range(n - 1, -1, -1):
-        t = out[i]
-        for k in range(i + 1, n):
-            t -= A[k, i] * out[k]
-        out[i] = t / A[i, i]
+def _boxed_step(A, g, free, lam, q, lo, hi, M, d, qn):  # pragma: no cover - compiled
+    """The damped step of the box-constrained Gauss-Newton descent: (A + lam diag(1 + A_kk)) d = g
+    over the free joints (a joint at a bound pushed outwards is held: its row is the identity and
+    g_k = 0), then qn = q + d clipped into [lo, hi]. False where the damped matrix is not positive
+    definite to working precision (the caller damps more)."""
+    n = q.shape[0]
+    for k in range(n):
+        for j in range(n):
+            M[k, j] = A[k, j]
+        M[k, k] += lam * (1.0 + A[k, k]) if free[k] else 1.0
+    if not cholesky_solve(M, g, d):
+        return False
+    for k in range(n):
+        qn[k] = min(max(q[k] + d[k], lo[k]), hi[k])
+    return True
 
 
 @njit(cache=True)
@@ -205,13 +198,9 @@ def _descend(t, q, lo, hi, kind, axis, rot, tra, fp, vec, dirs, scale, wp, tol, 
         accepted = False
         cn = c
         while lam < 1e10:
-            for k in range(n):
-                for j in range(n):
-                    M[k, j] = A[k, j]
-                M[k, k] += lam * (1.0 + A[k, k]) if free[k] else 1.0
-            _cholesky_solve(M, g, d)
-            for k in range(n):
-                qn[k] = min(max(q[k] + d[k], lo[k]), hi[k])
+            if not _boxed_step(A, g, free, lam, q, lo, hi, M, d, qn):
+                lam *= 8.0
+                continue
             cn = _residual(t, qn, kind, axis, rot, tra, fp, vec, dirs, scale, wp, S, rn, Fn)
             if cn < c:
                 accepted = True
@@ -257,13 +246,9 @@ def _descend_position(t, q, lo, hi, kind, axis, rot, tra, fp, tol, iters, S):  #
                 g[k] = 0.0
         accepted = False
         while lam < 1e10:
-            for k in range(n):
-                for j in range(n):
-                    M[k, j] = A[k, j]
-                M[k, k] += lam * (1.0 + A[k, k]) if free[k] else 1.0
-            _cholesky_solve(M, g, d)
-            for k in range(n):
-                qn[k] = min(max(q[k] + d[k], lo[k]), hi[k])
+            if not _boxed_step(A, g, free, lam, q, lo, hi, M, d, qn):
+                lam *= 8.0
+                continue
             _fk(qn, kind, axis, rot, tra, fp, R, T, W, P, xn, Jn)
             cn = 0.0
             for i in range(3):
