@@ -11,7 +11,8 @@ and, inside a batch, every 64th then every 8th point solved first: continuation,
 least-squares points of targets outside), else (2) the atlas configuration of that slot, which is
 also tried where a neighbour's end stalled less than the continuation radius from closure (a
 neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
-`restarts` quasi-random starts of the block's unknowns where another slot of the block was found
+`restarts` quasi-random starts of the block's unknowns (its locked joints held at the slot's
+angles) where another slot of the block's same assembly (locked joints' half-turn bits) was found
 or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
 (a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
 where it was tried and not found means no restarts). Blocks are solved in a dependency order,

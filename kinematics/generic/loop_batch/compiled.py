@@ -577,8 +577,9 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
 
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
-    where another slot of the block was found, `restarts` quasi-random starts for each slot still
-    missing. A start's held joints come from the earlier blocks' solutions of its slot's
+    where another slot of the block's same assembly (its locked joints' half-turn bits) was found,
+    `restarts` quasi-random starts for each slot still missing, the locked joints held at the
+    slot's atlas angles. A start's held joints come from the earlier blocks' solutions of its slot's
     branch choice; its root (if any) goes to the slot of its label (its determinant's sign and its
     locked joints' half-turn bits), the one nearest the reference kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
