@@ -76,10 +76,30 @@ def _iso_plane_reference(robot, ortho: float, n: int) -> tuple[float, float]:
     return float((_iso_inside(robot, ortho, E) >= 0).sum() * cell), reach["y"]
 
 
+def _iso_closure_points(robot, d) -> tuple[np.ndarray, np.ndarray]:
+    """World positions [m] of the closure's two points at a pose whose loop is open (data d after
+    framesForwardKinematics). iso3d's point closure: its frames closedloop3D_1A (chain 1) and
+    closedloop3D_1B (chain 2). iso6d's 6D closure welds closedloop6D_1A (on part_6, behind a
+    spherical joint of three concurrent revolutes at the point S of chain 1's body part_4) to
+    closedloop6D_1B (on chain 2's part_5): P = S, the revolutes' common origin, and Q = the point of
+    part_5 where S lands when the two frames coincide, oMf[1B] 1A^-1 (1A's placement in part_6)."""
+    m = robot.model
+    if robot.model.existFrame("closedloop3D_1A"):
+        return (np.array(d.oMf[robot.frame_id("closedloop3D_1A")].translation),
+                np.array(d.oMf[robot.frame_id("closedloop3D_1B")].translation))
+    a = m.frames[robot.frame_id("closedloop6D_1A")]
+    S = d.oMi[m.getJointId("part_4_part_6_rev0")].translation
+    for name in ("part_4_part_6_rev1", "part_4_part_6_rev2"):  # concurrent: one centre
+        assert np.linalg.norm(d.oMi[m.getJointId(name)].translation - S) <= 1e-12
+    assert m.names[a.parentJoint] == "part_4_part_6_rev2"
+    return np.array(S), np.array((d.oMf[robot.frame_id("closedloop6D_1B")] * a.placement.inverse()).translation)
+
+
 def _iso_reach(robot, ortho: float) -> dict[str, Any]:
     """The in-plane geometry `_iso_plane_reference` describes, read at the neutral pose with
     freeortho = ortho: joint centres A1, A2, link lengths a1, e, b1, a2, b2, the body's fixed angle
-    delta at B1 between E and P, and the plane's y [m]."""
+    delta at B1 between E and P, and the plane's y [m]. P and Q (`_iso_closure_points`) lie at one
+    y: the closure is in-plane."""
     m = robot.model
     d = m.createData()
     q = pin.neutral(m)
@@ -90,7 +110,9 @@ def _iso_reach(robot, ortho: float) -> dict[str, Any]:
         return np.array([v[0], v[2]])
 
     A1, B1, A2, B2 = (xz(d.oMi[m.getJointId(k)].translation) for k in ("mot1", "free1", "free2", "mot2"))
-    P0, Q0, E0 = (xz(d.oMf[robot.frame_id(f)].translation) for f in ("closedloop3D_1A", "closedloop3D_1B", "effector"))
+    P3, Q3 = _iso_closure_points(robot, d)
+    assert abs(P3[1] - Q3[1]) <= 1e-12, (P3, Q3)
+    P0, Q0, E0 = xz(P3), xz(Q3), xz(d.oMf[robot.frame_id("effector")].translation)
     return {"A1": A1, "A2": A2, "a1": float(np.linalg.norm(B1 - A1)), "e": float(np.linalg.norm(E0 - B1)),
             "b1": float(np.linalg.norm(P0 - B1)), "a2": float(np.linalg.norm(B2 - A2)),
             "b2": float(np.linalg.norm(Q0 - B2)), "delta": float(_angle(P0 - B1) - _angle(E0 - B1)),
@@ -123,16 +145,20 @@ def test_the_iso_fivebar_assemblies_are_branches_in_their_planes():
 
 
 @needs_models
-def test_iso_fivebar_planes_hold_their_geometric_reference(capsys):
+@pytest.mark.parametrize("name", ["5bar_linkage_iso3d", "5bar_linkage_iso6d"])
+def test_iso_fivebar_planes_hold_their_geometric_reference(name, capsys):
     """workspace-volume measures each plane's area and reports the union as their sum; each holds
     the grid count within the reported estimate plus the count's own error (its change from the
     grid of half the resolution: first order at worst in the cell size, so the finer count is at
-    least twice as close). References: 1.17694 m^2 (y = -0.2 m), 0.71852 m^2 (y = -0.15 m)."""
-    path = GEPETTO / "5bar_linkage_iso3d"
+    least twice as close). References: iso3d 1.17694 m^2 (y = -0.2 m), 0.71852 m^2 (y = -0.15 m);
+    iso6d 1.39224 m^2 and 0.74625 m^2 (its 6D closure also closes with freeortho = pi: four
+    branches, two planes)."""
+    path = GEPETTO / name
     assert main(["workspace-volume", str(path), "--range", f"mot1=-{PI}:{PI}", "--range", f"mot2=-{PI}:{PI}",
                  "--rtol", "1e-1", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     robot = load_robot(path)
+    assert len(data["modes"]) == 4 + 2  # two branches per plane, then the planes' unions
     total, total_err = 0.0, 0.0
     for ortho in (0.0, np.pi):
         (fine, y), (coarse, _) = _iso_plane_reference(robot, ortho, 2400), _iso_plane_reference(robot, ortho, 1200)
@@ -164,21 +190,23 @@ def _iso_inside(robot, ortho: float, E: np.ndarray) -> np.ndarray:
 
 
 @needs_models
-def test_iso_fivebar_columns_miss_no_inside_point():
+@pytest.mark.parametrize("name", ["5bar_linkage_iso3d", "5bar_linkage_iso6d"])
+def test_iso_fivebar_columns_miss_no_inside_point(name):
     """Points walked column by column (as the volume engine does) through the batched solver's
     margin, against the geometric reach: inside points (slack > 1e-6 m) the solver calls outside
     were 0.25 % before the single-block restart rule (all within 5 mm of a fold of the reach);
     allowed: 1 in 5,000. No outside point may be called inside."""
     from kinematics.generic.loop_batch import LoopBatch
 
-    robot = load_robot(GEPETTO / "5bar_linkage_iso3d", ranges={"mot1": (-np.pi, np.pi), "mot2": (-np.pi, np.pi)})
+    robot = load_robot(GEPETTO / name, ranges={"mot1": (-np.pi, np.pi), "mot2": (-np.pi, np.pi)})
     batch = LoopBatch.from_robot(robot)
     lo, hi = batch.bounding_box()
     xs, zs = np.arange(lo[0] + 0.01, hi[0], 0.02), np.arange(lo[1] + 0.0033, hi[1], 0.01)
     pts = np.stack(np.meshgrid(xs, zs, indexing="ij"), -1).reshape(-1, 2)
     margin = np.vstack([batch.margin(pts[c:c + 4096]) for c in range(0, len(pts), 4096)])
-    for ortho, tag in ((0.0, "=0"), (np.pi, "=-3.142")):
-        cols = [k for k, n in enumerate(batch.branch_names) if n.endswith(tag)]
+    for ortho, tag in ((0.0, "freeortho=0"), (np.pi, "freeortho=-3.142")):
+        cols = [k for k, n in enumerate(batch.branch_names) if n.split("/")[1] == tag]
+        assert len(cols) == 2
         got = margin[:, cols].max(axis=1) > 0
         slack = _iso_inside(robot, ortho, pts)
         inside = slack > 1e-6

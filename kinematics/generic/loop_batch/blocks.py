@@ -11,7 +11,8 @@ and, inside a batch, every 64th then every 8th point solved first: continuation,
 least-squares points of targets outside), else (2) the atlas configuration of that slot, which is
 also tried where a neighbour's end stalled less than the continuation radius from closure (a
 neighbour outside the workspace leaves its end at a fold, from which Newton can stall), then (3)
-`restarts` quasi-random starts of the block's unknowns where another slot of the block was found
+`restarts` quasi-random starts of the block's unknowns (its locked joints held at the slot's
+angles) where another slot of the block's same assembly (locked joints' half-turn bits) was found
 or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
 (a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
 where it was tried and not found means no restarts). Blocks are solved in a dependency order,
@@ -102,6 +103,13 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
                     for code in range(2 ** nl):
                         other = head + (sign, *(-1 if code >> q & 1 else 1 for q in range(nl)))
                         land[k, s, sign + 1, code] = keys[k].index(other) if other in keys[k] else -1
+        # each slot's assembly: its locked joints' half-turn bits (-1: a block without locked joints)
+        slot_lock = np.full((K, S), -1, dtype=np.int64)
+        for k, bm in enumerate(models):
+            nl = len(locks[k])
+            for s, slot_key in enumerate(keys[k]):
+                if bm.label >= 0 and nl:
+                    slot_lock[k, s] = sum(1 << q for q in range(nl) if slot_key[len(slot_key) - nl + q] < 0)
         hmax = max([len(bm.held) for bm in models] + [1])
         held = np.zeros((K, hmax), dtype=np.int64)
         held_owner = np.zeros((K, hmax), dtype=np.int64)
@@ -156,7 +164,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
              np.array([len(bm.middles) for bm in models], dtype=np.int64), flips, nflip, held,
              np.array([len(bm.held) for bm in models], dtype=np.int64), held_owner, held_pos, held_slot, land, ref, act,
              np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_),
-             lock_idx, lock_ref, np.array([len(c) for c in locks], dtype=np.int64))
+             lock_idx, lock_ref, np.array([len(c) for c in locks], dtype=np.int64), slot_lock)
         kernel_models = tuple((*pack(bm.g), bm.m, bm.nzc, bm.nzn, bm.centre, bm.free, bm.weights) for bm in models)
         # solve order: every block after the blocks it holds joints of, the smallest sub-model first
         # among those ready (a target that one limb cannot reach is dropped before the costlier ones)

@@ -558,6 +558,18 @@ def _det_sign(J, rows, cols, nc, M):  # pragma: no cover - compiled
     return sign
 
 
+@njit(cache=True, inline="always")
+def _flip(x, flips, nflip, k):  # pragma: no cover - compiled
+    """Block k's flippable groups to their middle angle's cos >= 0 (`LoopBatch.canonical`)."""
+    for q in range(nflip[k]):
+        a, b, c3 = flips[k, q, 0], flips[k, q, 1], flips[k, q, 2]
+        if math.cos(x[b]) < 0.0:
+            x[a] += math.pi
+            x[b] = math.pi - x[b]
+            if c3 >= 0:
+                x[c3] += math.pi
+
+
 @njit(cache=True, parallel=True)
 def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
                   restarts, near, alive, found, dist, res, end, counts):  # pragma: no cover - compiled
@@ -565,8 +577,9 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
 
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
-    where another slot of the block was found, `restarts` quasi-random starts for each slot still
-    missing. A start's held joints come from the earlier blocks' solutions of its slot's
+    where another slot of the block's same assembly (its locked joints' half-turn bits) was found,
+    `restarts` quasi-random starts for each slot still missing, the locked joints held at the
+    slot's atlas angles. A start's held joints come from the earlier blocks' solutions of its slot's
     branch choice; its root (if any) goes to the slot of its label (its determinant's sign and its
     locked joints' half-turn bits), the one nearest the reference kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
@@ -575,7 +588,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
     B = bslot.shape[0]
     n = gi[0]
     (pinned, ncol, cols, rows_det, label, middles, nmid, flips, nflip, held, nheld, held_owner, held_pos, held_slot,
-     land, ref, act, held_by_others, lock_idx, lock_ref, nlock) = T
+     land, ref, act, held_by_others, lock_idx, lock_ref, nlock, slot_lock) = T
     nc = ncol[k]
     # a block whose values later blocks hold is solved past TOL (Newton's last step squares the
     # error): a held value within TOL of its root can leave an over-determined block (a second
@@ -590,6 +603,10 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
         t = np.empty(targets.shape[1])
         M = np.empty((nc, nc))
         need = np.empty(S, dtype=np.bool_)
+        again = np.empty(S, dtype=np.bool_)  # the slot gets restarts
+        held_locks = free.copy()  # restarts hold the locked joints at their slot's angles
+        for q in range(nlock[k]):
+            held_locks[lock_idx[k, q]] = False
         for i in range(chunk * BLK, min(N, (chunk + 1) * BLK)):
             for a in range(t.shape[0]):
                 t[a] = targets[i, a]
@@ -621,23 +638,32 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     # or a start stalled within near / 10 of closure: next to a fold of the reach
                     # the neighbour's end and the atlas start can both stall there (0.2 % of the
                     # iso five-bar's inside points were missed, the column integration refining
-                    # around each), while random starts close in about half the tries
+                    # around each), while random starts close in about half the tries.
+                    # All of this per assembly (the slots of one locked-joint code; one group
+                    # where the block has no locked joints): a root in one plane of the iso
+                    # five-bars says nothing about the other plane, whose region differs
                     some = False
-                    for q in range(S):
-                        some = some or found[i, k, q]
-                    if not some:
+                    for g in range(S):
+                        again[g] = False
+                    for g in range(S):
+                        grp = False
                         for q in range(S):
+                            if slot_lock[k, q] != slot_lock[k, g]:
+                                continue
+                            grp = grp or found[i, k, q]
                             verdict = warm[i, k, q, warm.shape[3] - 1]
-                            if not need[q]:
+                            if not need[q] or found[i, k, q]:
                                 continue
                             if nheld[k] > 0:
-                                some = some or verdict != 0.0  # NaN (not tried there) restarts too
+                                grp = grp or verdict != 0.0  # NaN (not tried there) restarts too
                             else:
-                                some = some or verdict == 1.0 or res[i, k, q] < 0.1 * near
+                                grp = grp or verdict == 1.0 or res[i, k, q] < 0.1 * near
+                        again[g] = grp
+                        some = some or (grp and need[g] and not found[i, k, g])
                     if not some:
                         break
                 s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts
-                if not need[s] or found[i, k, s]:
+                if not need[s] or found[i, k, s] or (attempt >= 2 * S and not again[s]):
                     continue
                 # the start: the block's unknowns, then the held joints of this slot's branch choice
                 for j in range(n):
@@ -655,6 +681,13 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     q = idx0 + attempt - 2 * S + 1
                     for c in range(nc):
                         x[cols[k, c]] = lo[k, c] + ((0.5 + q * alpha[k, c]) % 1.0) * (hi[k, c] - lo[k, c])
+                    # a locked joint (`LoopStructure.locked_joints`) at its slot's assembly angle,
+                    # held there: a restart seeks this slot's assembly only, in fewer unknowns
+                    # (a random angle of it mostly led to the other assembly's roots, or to none)
+                    for c in range(nc):
+                        for q2 in range(nlock[k]):
+                            if cols[k, c] == lock_idx[k, q2]:
+                                x[cols[k, c]] = atlas[k, s, c]
                 usable = True
                 for h in range(nheld[k]):
                     o, so = held_owner[k, h], held_slot[k, s, h]
@@ -666,8 +699,9 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 # a slot's first start descends (Nielsen); the atlas retry (a target next to a fold,
                 # its roots nearly double) and the restarts (exploration) keep lam / 10 per step,
                 # whose long Gauss-Newton steps close near-double roots and reach more basins
-                rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, weights, iters, tol, pinned[k], ws, r, rt, J,
-                                Jt, A, D, gr, dx, xt, settle, label[k] >= 0, attempt < S)
+                rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, held_locks if attempt >= 2 * S else free, weights,
+                                iters, tol, pinned[k], ws, r, rt, J, Jt, A, D, gr, dx, xt, settle, label[k] >= 0,
+                                attempt < S)
                 if rr < res[i, k, s]:
                     res[i, k, s] = rr
                     for c in range(nc):
@@ -680,6 +714,9 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     for q in range(nmid[k]):
                         if math.cos(x[middles[k, q]]) < 0.0:
                             sg = -sg
+                    # the locked joints' bits in the pose's one representation (a spherical
+                    # joint's triple can hold a locked joint half a turn off: the same pose)
+                    _flip(x, flips, nflip, k)
                     code = 0
                     for q in range(nlock[k]):
                         if math.cos(x[lock_idx[k, q]] - lock_ref[k, q]) < 0.0:
@@ -688,14 +725,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 if s2 < 0:
                     counts[i, 0] += 1
                     continue
-                # one representation per pose (`LoopBatch.canonical`)
-                for q in range(nflip[k]):
-                    a, b, c3 = flips[k, q, 0], flips[k, q, 1], flips[k, q, 2]
-                    if math.cos(x[b]) < 0.0:
-                        x[a] += math.pi
-                        x[b] = math.pi - x[b]
-                        if c3 >= 0:
-                            x[c3] += math.pi
+                _flip(x, flips, nflip, k)  # one representation per pose (`LoopBatch.canonical`)
                 _wrap(x, gi, centre)
                 d = 0.0
                 for c in range(nc):

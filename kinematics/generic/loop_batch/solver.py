@@ -193,9 +193,16 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         self.limit_margin(np.zeros((1, self.n)), limits)  # validates `limits`
 
         def margin(points: np.ndarray) -> np.ndarray:
-            sol = self.ik(points)
+            p = self._points(points)
+            # a point given twice is solved once (the volume engine's root brackets of several
+            # targets in one column can meet at one abscissa), in first-occurrence order
+            _, first, inv = np.unique(p, axis=0, return_index=True, return_inverse=True)
+            order = np.argsort(first)
+            rank = np.empty_like(order)
+            rank[order] = np.arange(len(order))
+            sol = self.ik(p[first[order]])
             m = sol.margin if limits == "all" else np.where(sol.found, self.limit_margin(sol.x, limits), sol.margin)
-            m = m[:, cols]
+            m = m[:, cols][rank[np.ravel(inv)]]
             return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
         return margin
