@@ -44,6 +44,8 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from kinematics.generic.dense import cholesky_solve
+
 TOL = 1e-12
 """A start has converged when every residual row is <= TOL [m]."""
 
@@ -351,36 +353,6 @@ def _maxabs(r):  # pragma: no cover - compiled
     return m
 
 
-@njit(cache=True, inline="always")
-def _cholesky_solve(A, b, out):  # pragma: no cover - compiled
-    """Solve A out = b for symmetric positive definite A (overwritten); False if not PD."""
-    n = A.shape[0]
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= A[j, k] * A[j, k]
-        if not s > 0.0:
-            return False
-        d = math.sqrt(s)
-        A[j, j] = d
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for k in range(j):
-                s -= A[i, k] * A[j, k]
-            A[i, j] = s / d
-    for i in range(n):
-        s = b[i]
-        for k in range(i):
-            s -= A[i, k] * out[k]
-        out[i] = s / A[i, i]
-    for i in range(n - 1, -1, -1):
-        s = out[i]
-        for k in range(i + 1, n):
-            s -= A[k, i] * out[k]
-        out[i] = s / A[i, i]
-    return True
-
-
 @njit(cache=True)
 def _workspace(gi, m):  # pragma: no cover - compiled
     """Scratch arrays of one Levenberg-Marquardt row (`_lm_row`) for model gi and m residual rows."""
@@ -446,7 +418,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
                 for b in range(n):
                     D[a, b] = A[a, b]
                 D[a, a] += lam * A[a, a] + 1e-14 * trace / n + 1e-300
-            if not _cholesky_solve(D, gr, dx):
+            if not cholesky_solve(D, gr, dx):
                 lam *= up
                 up *= 2.0 if adapt else 1.0
                 continue
