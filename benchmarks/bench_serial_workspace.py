@@ -1,6 +1,6 @@
 """Serial-arm workspaces through the one volume engine: each row of issue 29's table in one run.
 
-Run: python benchmarks/bench_serial_workspace.py [--row NAME ...] [--quick] [--json]
+Run: python benchmarks/bench_serial_workspace.py [--row NAME]... [--quick] [--json]
 Rows (ROWS): the SCARA as a generic open chain (exact area 0.9729265761857 m^2), the revolved 3R
 test arm (exact volume by Pappus, tests/test_serial_workspace.py), the UR5 at the CLI's default
 rtol 1e-3 and at 1e-4 (its error against the 1e-4 run is reported as `true_error`, the 1e-4 run's

@@ -151,6 +151,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "ur5", "--orientation", "rpy 1 2"], "rpy R P Y"),
     (["workspace-volume", "ur5", "--orientation", "rpy 0 0 0", "--tool-axis", "0", "0", "1"], "not allowed with"),
     (["workspace-volume", "scara", "--tool-axis", "0", "0", "1", "--collisions"], "fixed tool orientation"),
+    (["workspace-volume", "scara", "--tool-axis", "0", "0", "1", "--obstacles", "cell.yaml"], "fixed tool orientation"),
     (["workspace-volume", "scara", "--points", "adir"], "is a directory"),
     (["workspace-volume", "p2us", "--step", "0"], POSITIVE),
     (["workspace-volume", "p2us", "--step", "-0.01"], POSITIVE),

@@ -204,8 +204,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if orientation is not None:
         from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
-        if getattr(args, "collisions", False):
-            raise InvalidInputError("--collisions", "not available with a fixed tool orientation yet")
+        if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
+            raise InvalidInputError("--collisions/--obstacles", "not available with a fixed tool orientation yet")
         mech = with_fixed_orientation(robot, orientation)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
