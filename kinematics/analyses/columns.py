@@ -594,15 +594,16 @@ def column_volume(
             break
         first = second
     error = np.maximum(second.error, diff)
+    # every target's own verdict: the runs agree, and the reported error (which includes their
+    # difference) is within the tolerance
+    per_target = agrees & _within(first.estimate, first.error, rtol, floor) & _within(second.estimate, error, rtol, floor)
     return ColumnVolume(
         estimate=second.estimate, error=error,
-        converged=first.converged and second.converged and bool(agrees.all()), rtol=rtol, step=second.step,
+        converged=first.converged and second.converged and bool(per_target.all()), rtol=rtol, step=second.step,
         cell=second.cell, columns=columns, points_evaluated=points,
         check_difference=diff,
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
-        target_converged=agrees & _within(first.estimate, first.error, rtol, floor)
-        & _within(second.estimate, error, rtol, floor),
-        check_agrees=agrees, root_tol=second.root_tol,
+        target_converged=per_target, check_agrees=agrees, root_tol=second.root_tol,
     )
 
 
