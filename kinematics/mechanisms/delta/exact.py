@@ -49,11 +49,11 @@ from kinematics.mechanisms.delta.closed_form import DeltaParams
 from kinematics.mechanisms.delta.roots import (
     DEG,
     ROOT_ERROR,
-    end_error,
     poly_mul,
     poly_value,
     quadratic_roots,
     real_roots,
+    roots_of_quadratic,
 )
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
 from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column, other_axes
@@ -80,18 +80,7 @@ def _through_rho2(b1, b0, rho2, c, lo, hi, out, err, ids, n_out, cid):  # pragma
     a2, a1, a0 = rho2[2], rho2[1], rho2[0]
     for u in (q, b0 / q):
         r = rho2[_DEG] * u - rho2[_DEG - 1]
-        dd = a1 * a1 - 4.0 * a2 * (a0 - r)
-        if not dd > 0.0:
-            continue
-        sd = math.sqrt(dd)
-        qq = -0.5 * (a1 + sd if a1 >= 0.0 else a1 - sd)
-        for k in range(2):
-            z = qq / a2 if k == 0 else (a0 - r) / qq
-            if lo < z < hi:
-                out[n_out] = z
-                err[n_out] = end_error(c, 4, z, lo, hi)
-                ids[n_out] = cid
-                n_out += 1
+        n_out = roots_of_quadratic(a2, a1, a0 - r, c, 4, lo, hi, out, err, ids, n_out, cid)
     return n_out
 
 

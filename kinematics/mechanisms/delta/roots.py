@@ -20,7 +20,7 @@ import math
 from numba import njit
 
 __all__ = ["DEG", "ROOT_ERROR", "bernstein_variations", "end_error", "horner", "monotone_root", "poly_mul",
-           "poly_value", "quadratic_roots", "real_roots"]
+           "poly_value", "quadratic_roots", "real_roots", "roots_of_quadratic"]
 
 DEG = 6
 """Highest degree handled (coefficient arrays have DEG + 1 entries)."""
@@ -225,10 +225,27 @@ def real_roots(c, lo, hi, out, err, ids, n_out, cid, work, stack):  # pragma: no
 def quadratic_roots(c, lo, hi, out, err, ids, n_out, cid):  # pragma: no cover - compiled
     """`real_roots` for c[0] + c[1] s + c[2] s^2 (c[2] != 0), by the quadratic formula in its
     cancellation-free form."""
-    a, b, cc = c[2], c[1], c[0]
+    return roots_of_quadratic(c[2], c[1], c[0], c, 2, lo, hi, out, err, ids, n_out, cid)
+
+
+@njit(cache=True)
+def roots_of_quadratic(a, b, cc, c, deg, lo, hi, out, err, ids, n_out, cid):  # pragma: no cover - compiled
+    """The simple roots in (lo, hi) of a s^2 + b s + cc (a != 0), in the cancellation-free form of
+    the quadratic formula, appended to out / ids with their errors measured on the polynomial c of
+    degree deg they are roots of (the quadratic itself, or a quartic it factors); returns the count."""
     disc = b * b - 4.0 * a * cc
     if not disc > 0.0:  # no root or a double one (a tangency: no sign change)
         return n_out
+    sq = math.sqrt(disc)
+    q = -0.5 * (b + sq if b >= 0.0 else b - sq)  # |q| >= sqrt(disc) / 2 > 0
+    for k in range(2):
+        z = q / a if k == 0 else cc / q
+        if lo < z < hi:
+            out[n_out] = z
+            err[n_out] = end_error(c, deg, z, lo, hi)
+            ids[n_out] = cid
+            n_out += 1
+    return n_out
     sq = math.sqrt(disc)
     q = -0.5 * (b + sq if b >= 0.0 else b - sq)  # |q| >= sqrt(disc) / 2 > 0
     for k in range(2):
