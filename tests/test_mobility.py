@@ -60,7 +60,7 @@ def test_parallelogram_sub_chains_must_share_the_slider(p2us, p2us_ref):
     graph = mob.joint_graph(p2us, p2us_ref)
     limb = mob.screw_analysis(p2us, p2us_ref).limbs[1]
     edges = [e for e in graph.edges if e.name in limb.joints]
-    for path in mob._paths(edges, 0, graph.platform):
+    for path in mob.simple_paths(edges, 0, graph.platform):
         cols = [d for e, _ in path for d in e.dofs]
         assert np.linalg.matrix_rank(graph.twists[:, cols], tol=1e-9) == 6
     assert limb.twist_rank == 5
