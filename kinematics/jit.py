@@ -4,6 +4,11 @@ call will have to (so a command can say "compiling kernels (first run only)" bef
 Numba's on-disk cache (``@njit(cache=True)``) names a kernel's index file
 ``<module file stem>.<qualified name>-<line>.py<version>.nbi`` in the kernel's cache directory;
 `cached` looks for exactly that, so it follows a kernel when its module moves or is renamed.
+
+Numba has no lock between processes: two processes that call an uncached kernel at the same time
+both compile it (the closed-loop solver's kernels take minutes), e.g. the workers of a Dask sweep or
+of a parallel test run. `call` makes the first call of such a kernel wait while another
+process compiles it, then load that compilation from the cache.
 """
 
 from __future__ import annotations
@@ -13,15 +18,21 @@ import os
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["cached", "compiled"]
+__all__ = ["cached", "call", "compiled"]
 
 
-def _index_pattern(kernel: Any) -> str | None:
+def _entry(kernel: Any) -> tuple[str, str] | None:
+    """(cache directory, "<module file stem>.<qualified name>") of a kernel's cache entries."""
     path = kernel.stats.cache_path
     if path is None:
         return None
     stem = os.path.splitext(os.path.basename(kernel.py_func.__code__.co_filename))[0]
-    return os.path.join(glob.escape(path), f"{stem}.{glob.escape(kernel.py_func.__qualname__)}-*.nbi")
+    return path, f"{stem}.{kernel.py_func.__qualname__}"
+
+
+def _index_pattern(kernel: Any) -> str | None:
+    entry = _entry(kernel)
+    return None if entry is None else os.path.join(glob.escape(entry[0]), f"{glob.escape(entry[1])}-*.nbi")
 
 
 def cached(kernels: Iterable[Any]) -> bool:
@@ -37,3 +48,28 @@ def cached(kernels: Iterable[Any]) -> bool:
 def compiled(kernels: Iterable[Any]) -> bool:
     """True when this process compiled any of `kernels` instead of loading it from the cache."""
     return any(sum(kernel.stats.cache_misses.values()) for kernel in kernels)
+
+
+def call(kernel: Any, *args: Any) -> Any:
+    """kernel(*args), compiled (or loaded) first for the arguments' types; when neither this
+    process nor Numba's cache has the kernel yet, the compilation holds an exclusive lock (a file
+    beside its cache entries), so that processes calling it together compile it once: the others
+    wait and load it from the cache.
+
+    Without `fcntl` (Windows) or with a read-only cache directory nothing is locked, and every
+    process compiles for itself, as with Numba alone.
+    """
+    entry, pattern = _entry(kernel), _index_pattern(kernel)
+    if kernel.signatures or entry is None or pattern is None or glob.glob(pattern):
+        return kernel(*args)
+    try:
+        import fcntl
+
+        os.makedirs(entry[0], exist_ok=True)
+        lock = open(os.path.join(entry[0], f"{entry[1]}.lock"), "a")  # noqa: SIM115
+    except (ImportError, OSError):
+        return kernel(*args)
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        kernel.compile(tuple(kernel.typeof_pyval(a) for a in args))  # loads it if another process just did
+    return kernel(*args)
