@@ -168,5 +168,5 @@ class MissingRangeError(UnsupportedRobotError):
         self.purpose = purpose
         example = " ".join(f"--range {j}=LO:HI" for j in self.joints[:2])
         super().__init__(robot, f"{purpose} needs the range of {', '.join(self.joints)}, which the URDF does not give "
-                                f"(its <limit> has no lower/upper); give them on the command line ({example}, "
+                                f"(its <limit> has no lower/upper, or lower = upper); give them on the command line ({example}, "
                                 "in rad or m), as `ranges:` in a loop sidecar, or as load_robot(..., ranges=...)")

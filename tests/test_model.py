@@ -108,6 +108,26 @@ def test_degrees_convert_revolute_only(tmp_path):
     assert robot.joint_values([90.0, 0.5], degrees=True) == pytest.approx([math.pi / 2, 0.5])
 
 
+def test_an_empty_range_reads_as_no_range(tmp_path, capsys):
+    """lower = upper (example-robot-data's double_pendulum writes lower="0" upper="0") is the
+    URDF's placeholder for "no range", never a joint that cannot move; a workspace asks for it."""
+    from kinematics.cli import main
+
+    urdf = tmp_path / "rr.urdf"
+    urdf.write_text(
+        "<robot name='rr'><link name='a'/><link name='b'/><link name='c'/>"
+        "<joint name='r1' type='revolute'><parent link='a'/><child link='b'/><axis xyz='0 0 1'/>"
+        "<limit lower='0' upper='0' effort='0' velocity='0'/></joint>"
+        "<joint name='r2' type='revolute'><parent link='b'/><child link='c'/><origin xyz='1 0 0'/>"
+        "<axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'/></joint></robot>"
+    )
+    robot = load_robot(urdf)
+    assert [d.range_given for d in robot.dofs] == [False, True]
+    assert robot.dofs[0].lower == -math.inf and robot.dofs[0].upper == math.inf
+    assert main(["workspace-volume", str(urdf), "--rtol", "1e-2"]) == 2
+    assert "--range r1=LO:HI" in capsys.readouterr().err
+
+
 def test_continuous_joints_round_trip(rng):
     kinova = load_robot("kinova")
     assert any(d.kind == "continuous" for d in kinova.dofs)

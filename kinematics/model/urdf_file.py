@@ -74,16 +74,30 @@ def read_urdf(path: str | os.PathLike[str]) -> tuple[pin.Model, ET.Element]:
 
 
 def missing_range_sides(root: ET.Element) -> dict[str, tuple[bool, bool]]:
-    """Revolute and prismatic joints of a URDF tree whose `<limit>` lacks `lower` or `upper`:
-    name -> (lower missing, upper missing). The URDF format defaults a missing side to 0, which
-    Pinocchio follows; models exported without ranges (Gepetto's write `<limit effort velocity/>`)
-    mean "no range given", so the toolkit reads such a side as unbounded instead."""
+    """Revolute and prismatic joints of a URDF tree whose `<limit>` lacks `lower` or `upper`, or
+    gives an empty range (lower = upper): name -> (lower missing, upper missing).
+
+    The URDF format defaults a missing side to 0, which Pinocchio follows; models exported without
+    ranges (Gepetto's write `<limit effort velocity/>`) mean "no range given", so the toolkit reads
+    such a side as unbounded instead. An explicit lower = upper (example-robot-data's
+    double_pendulum writes `lower="0" upper="0"` with zero effort and velocity) is the same
+    placeholder written out: a joint that cannot move would be `fixed`, so both sides count as
+    not given rather than as a range of zero width."""
     out = {}
     for joint in root.findall("joint"):
         if joint.get("type") not in ("revolute", "prismatic"):
             continue
         limit = joint.find("limit")
         sides = (limit is None or limit.get("lower") is None, limit is None or limit.get("upper") is None)
+        if limit is not None and not any(sides) and _number(limit.get("lower")) == _number(limit.get("upper")):
+            sides = (True, True)
         if any(sides):
             out[joint.get("name") or ""] = sides
     return out
+
+
+def _number(text: str | None) -> float | None:
+    try:
+        return float(text) if text is not None else None
+    except ValueError:
+        return None

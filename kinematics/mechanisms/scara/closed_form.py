@@ -48,7 +48,8 @@ class ScaraParams:
         """Read l1, l2 and the limits from a loaded URDF model.
 
         The model must be two revolute joints about +z, joint 2 offset from joint 1 along
-        link 1's x axis, and the tool frame offset from joint 2 along link 2's x axis.
+        link 1's x axis, and the tool frame offset from joint 2 along link 2's x axis, both
+        lengths positive, both ranges given; anything else is a general serial arm.
         """
         model = robot.model
         kinds = [d.kind for d in robot.dofs]
@@ -71,10 +72,16 @@ class ScaraParams:
                 raise UnsupportedRobotError(robot.name, f"{what} must be a pure offset along x (and z)")
         if abs(p1.translation[0]) > 1e-12:
             raise UnsupportedRobotError(robot.name, "joint 1 must sit on the base's z axis")
+        l1, l2 = float(p2.translation[0]), float(tool.placement.translation[0])
+        if not (l1 > 0 and l2 > 0):
+            raise UnsupportedRobotError(robot.name, f"link lengths l1 = {l1:g} m, l2 = {l2:g} m: the closed form "
+                                                    "needs both positive")
+        if not all(d.range_given for d in robot.dofs):
+            raise UnsupportedRobotError(robot.name, "the closed form needs both joints' ranges")
         lo, hi = robot.lower, robot.upper
         return cls(
-            l1=float(p2.translation[0]),
-            l2=float(tool.placement.translation[0]),
+            l1=l1,
+            l2=l2,
             lower=(float(lo[0]), float(lo[1])),
             upper=(float(hi[0]), float(hi[1])),
         )
