@@ -44,26 +44,27 @@ def test_covered_partial_turn_is_the_solid_of_revolution(tmp_path):
     arm = SerialArm(load_robot(limited(tmp_path, True)))
     assert arm.reach.setup.mode == "revolved" and arm.reach.turn == pytest.approx((-TURN, TURN))
     exact = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)  # 0.3313338 m^3
-    ws = measure_workspace(arm, step=0.02, rtol=1e-3, check=True)
-    assert ws.result.converged and abs(ws.total - exact) <= ws.error <= 2e-3 * exact
+    ws = measure_workspace(arm, step=0.05, rtol=1e-2, check=True)
+    assert ws.result.converged and abs(ws.total - exact) <= ws.error <= 2e-2 * exact
 
 
 def test_uncovered_partial_turn_is_within_its_bounds(tmp_path):
     """One azimuth per circle (the 2R arm moves in a plane through the axis): W is the sector of
     angle L of the solid, V = (L / 2 pi) V_full = 0.75 V_full. No circle is covered, so the
     estimate is the bounds' midpoint (1 - k) V_full with k = (1 - L / 2 pi) / 2 = 1/8, its error
-    at least k V_full: the true volume is the lower bound, inside the estimate, not converged."""
+    at least k V_full (and at most that plus the quadrature's, 1e-2 here): the true volume is the lower bound, inside the estimate, not converged."""
     arm = SerialArm(load_robot(limited(tmp_path, False)))
     full = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)
-    ws = measure_workspace(arm, step=0.02, rtol=1e-3, check=True)
+    ws = measure_workspace(arm, step=0.05, rtol=1e-2, check=True)
     assert not ws.result.converged
-    assert abs(ws.total - 0.75 * full) <= ws.error <= 0.13 * full
-    assert ws.total == pytest.approx(0.875 * full, rel=1e-3)
+    assert abs(ws.total - 0.75 * full) <= ws.error <= 0.14 * full
+    assert ws.total == pytest.approx(0.875 * full, rel=1e-2)
     # the world margin holds the base within its limits: the sector's membership
     rng = np.random.default_rng(3)
     az = rng.uniform(-math.pi, math.pi, 400)
-    # points of the arm's plane at (rho, z) = (0.5, 0.45) (the pitch 0.05, the elbow ~1.1), turned
-    p = np.column_stack([0.5 * np.cos(az), 0.5 * np.sin(az), np.full(400, 0.45)])
+    # the tip at yaw 0, pitch 0.1, elbow 0.9 (inside the profile), turned about the axis
+    x, _, z = arm.fk(np.array([[0.0, 0.1, 0.9]])).p[0, 0]
+    p = np.column_stack([x * np.cos(az), x * np.sin(az), np.full(400, z)])
     clear = np.abs(np.abs(az) - TURN) > 1e-6
     m = arm.margin()(p)[:, 0]
     np.testing.assert_array_equal((m >= 0)[clear], (np.abs(az) <= TURN)[clear])
