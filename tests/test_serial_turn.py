@@ -51,13 +51,14 @@ def test_covered_partial_turn_is_the_solid_of_revolution(tmp_path):
 def test_uncovered_partial_turn_is_within_its_bounds(tmp_path):
     """One azimuth per circle (the 2R arm moves in a plane through the axis): W is the sector of
     angle L of the solid, V = (L / 2 pi) V_full = 0.75 V_full. No circle is covered, so the
-    estimate is the bounds' midpoint (1 - k) V_full with k = (1 - L / 2 pi) / 2 = 1/8, its error
-    at least k V_full (and at most that plus the quadrature's, 1e-2 here): the true volume is the lower bound, inside the estimate, not converged."""
+    estimate is the bounds' middle (1 - k) V_full with k = (1 - L / 2 pi) / 2 = 1/8, its error
+    at least k V_full (at most that plus the quadrature's and the Monte-Carlo count's): the true
+    volume, the lower bound, is within the estimate, which is not converged."""
     arm = SerialArm(load_robot(limited(tmp_path, False)))
     full = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)
     ws = measure_workspace(arm, step=0.05, rtol=1e-2, check=True)
     assert not ws.result.converged
-    assert abs(ws.total - 0.75 * full) <= ws.error <= 0.14 * full
+    assert abs(ws.total - 0.75 * full) <= ws.error <= 0.16 * full
     assert ws.total == pytest.approx(0.875 * full, rel=1e-2)
     # the world margin holds the base within its limits: the sector's membership
     rng = np.random.default_rng(3)
