@@ -133,12 +133,15 @@ def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
 def test_ur5_rotation_and_axis_agree():
     """The UR5's wrist 3 turns a full turn about the tool's z axis, so the tool held at rpy (pi, 0, 0)
     (z down, x along +x) reaches the same positions as the tool z axis held down: two searches (in
-    space with two tool vectors; on the base's profile with one) give the same sign at random points,
+    space with two tool vectors and six joints; on the base's profile with one and wrist 3 held)
+    give the same sign at random points,
     but for a few near the boundary where one search stops short (at most 0.2 %)."""
     robot = load_robot("ur5")
     rot = with_fixed_orientation(robot, ToolOrientation.rpy(math.pi, 0.0, 0.0))
     ax = with_fixed_orientation(robot, ToolOrientation.axis([0.0, 0.0, -1.0]))
     assert rot.reach.setup.mode == "spatial" and ax.reach.setup.mode == "revolved"
+    # wrist 3 only spins the tool about the held axis: it drops out of that search, not the rotation's
+    assert ax.reach.setup.fixed == ("wrist_3_joint",) and not ax.reach.searched[-1] and rot.reach.searched.all()
     lo, hi = rot.bounding_box()
     p = lo + (hi - lo) * np.random.default_rng(4).random((8000, 3))
     a, b = rot.margin()(p)[:, 0] >= 0, ax.margin()(p)[:, 0] >= 0

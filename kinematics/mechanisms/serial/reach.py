@@ -411,9 +411,36 @@ def _oriented_setup(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientati
     if mode == "revolved" and not orientation.invariant_about(np.asarray(s.axis_direction)):
         mode = "spatial"
     first = 1 if mode == "revolved" else 0
-    active = np.array(dofs[first:], dtype=int)
-    return dataclasses.replace(s, mode=mode, active=active, lo=lo[first:], hi=hi[first:], periodic=periodic[first:],
-                               fixed=())
+    keep = np.ones(len(dofs), bool)
+    keep[:first] = False
+    keep &= ~_spins_tool_axis(robot, kin, orientation, 0.1 * REACH_TOL / max(s.reach, 1e-3))
+    active = np.array(dofs, dtype=int)[keep]
+    return dataclasses.replace(s, mode=mode, active=active, lo=lo[keep], hi=hi[keep], periodic=periodic[keep],
+                               fixed=tuple(robot.dofs[d].name for d, k in zip(dofs, keep, strict=True)
+                                           if not k and d not in dofs[:first]))
+
+
+def _spins_tool_axis(robot: Robot, kin: Any, orientation: ToolOrientation, angle: float) -> np.ndarray:
+    """(n,) per chain joint: it only spins the tool about its matched z axis (a tool axis, not a
+    whole rotation): it never moves the point and its axis is within `angle` [rad] of the tool's z
+    axis at 64 probe configurations (the UR5's wrist 3: 5e-12 rad, its URDF's rounded pi / 2), so
+    neither the point nor the constraint depends on it beyond the search's tolerance and it drops
+    out of the search, held at a value in its range."""
+    from kinematics.generic.batched import configurations
+
+    n = len(kin.idx_v)
+    if orientation.kind != "axis":
+        return np.zeros(n, bool)
+    rng = np.random.default_rng(0)
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
+    poses, J = kin.fk_jacobian(configurations(robot, rng.uniform(lo, hi, (64, robot.nv))))
+    cols = [int(v) for v in kin.idx_v]
+    lin, ang = J[:, :3, cols], J[:, 3:, cols]  # (64, 3, n)
+    z = poses.rotation[:, :, 2]  # the tool's z axis in the world (64, 3)
+    along = np.linalg.norm(np.cross(np.moveaxis(ang, 1, 2), z[:, None, :]), axis=2)  # (64, n)
+    return np.asarray((np.abs(lin).max(axis=(0, 1)) <= 1e-12) & (along.max(axis=0) <= angle)
+                      & (np.linalg.norm(ang, axis=1).min(axis=0) > 0.5))
 
 
 def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
