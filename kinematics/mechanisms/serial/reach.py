@@ -46,7 +46,7 @@ import numpy as np
 from kinematics.generic.batched import compile_frame
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
-from kinematics.mechanisms.serial.orientation import ToolOrientation
+from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup
 from kinematics.model.robot import Robot
 
 REACH_TOL = 1e-10
@@ -123,7 +123,7 @@ class Reach:
         self.kin = compile_frame(robot, frame)
         self.setup: Setup = setup(robot, self.kin)
         if orientation is not None:
-            self.setup = _oriented_setup(robot, self.kin, self.setup, orientation)
+            self.setup = oriented_setup(robot, self.kin, self.setup, orientation, REACH_TOL)
         self.setup, self.turn = _partial_turn(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
         self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
@@ -390,57 +390,6 @@ class ReachMargin:
         ok = res.target_converged & (error <= res.rtol * np.abs(volume) * (1.0 + 1e-12))
         return dataclasses.replace(res, estimate=volume, error=error, converged=bool(res.converged and ok.all()),
                                    target_converged=ok)
-
-
-def _oriented_setup(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation) -> Setup:
-    """The setup with every chain joint searched (a joint that never moves the point still turns
-    the tool) and the mode a fixed orientation allows: a solid of revolution only when the
-    constraint is unchanged by the base's turn (a tool axis along the base axis)."""
-    import dataclasses
-
-    from kinematics.mechanisms.serial.joint_box import dof_of
-
-    dofs = [dof_of(robot, int(v)) for v in kin.idx_v]
-    robot.require_ranges([robot.dofs[i].name for i in dofs], "a workspace")
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)[dofs]
-    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)[dofs]
-    kinds = [robot.dofs[i].kind for i in dofs]
-    periodic = np.array([k == "continuous" or (k == "revolute" and h - l >= 2 * math.pi - 1e-9)
-                         for k, l, h in zip(kinds, lo, hi, strict=True)])
-    mode = s.mode
-    if mode == "revolved" and not orientation.invariant_about(np.asarray(s.axis_direction)):
-        mode = "spatial"
-    first = 1 if mode == "revolved" else 0
-    keep = np.ones(len(dofs), bool)
-    keep[:first] = False
-    keep &= ~_spins_tool_axis(robot, kin, orientation, 0.1 * REACH_TOL / max(s.reach, 1e-3))
-    active = np.array(dofs, dtype=int)[keep]
-    return dataclasses.replace(s, mode=mode, active=active, lo=lo[keep], hi=hi[keep], periodic=periodic[keep],
-                               fixed=tuple(robot.dofs[d].name for d, k in zip(dofs, keep, strict=True)
-                                           if not k and d not in dofs[:first]))
-
-
-def _spins_tool_axis(robot: Robot, kin: Any, orientation: ToolOrientation, angle: float) -> np.ndarray:
-    """(n,) per chain joint: it only spins the tool about its matched z axis (a tool axis, not a
-    whole rotation): it never moves the point and its axis is within `angle` [rad] of the tool's z
-    axis at 64 probe configurations (the UR5's wrist 3: 5e-12 rad, its URDF's rounded pi / 2), so
-    neither the point nor the constraint depends on it beyond the search's tolerance and it drops
-    out of the search, held at a value in its range."""
-    from kinematics.generic.batched import configurations
-
-    n = len(kin.idx_v)
-    if orientation.kind != "axis":
-        return np.zeros(n, bool)
-    rng = np.random.default_rng(0)
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
-    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
-    poses, J = kin.fk_jacobian(configurations(robot, rng.uniform(lo, hi, (64, robot.nv))))
-    cols = [int(v) for v in kin.idx_v]
-    lin, ang = J[:, :3, cols], J[:, 3:, cols]  # (64, 3, n)
-    z = poses.rotation[:, :, 2]  # the tool's z axis in the world (64, 3)
-    along = np.linalg.norm(np.cross(np.moveaxis(ang, 1, 2), z[:, None, :]), axis=2)  # (64, n)
-    return np.asarray((np.abs(lin).max(axis=(0, 1)) <= 1e-12) & (along.max(axis=0) <= angle)
-                      & (np.linalg.norm(ang, axis=1).min(axis=0) > 0.5))
 
 
 def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
