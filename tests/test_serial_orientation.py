@@ -130,20 +130,25 @@ def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
     assert code == 2 and "--cells" in err
 
 
-def test_ur5_rotation_and_axis_agree():
+def test_ur5_rotation_and_axis_agree(monkeypatch):
     """The UR5's wrist 3 turns a full turn about the tool's z axis, so the tool held at rpy (pi, 0, 0)
-    (z down, x along +x) reaches the same positions as the tool z axis held down: two searches (in
-    space with two tool vectors and six joints; on the base's profile with one and wrist 3 held)
-    give the same sign at random points,
-    but for a few near the boundary where one search stops short (at most 0.2 %)."""
+    (z down, x along +x) reaches the same positions as the tool z axis held down: the rotation is
+    reduced to that axis (`orientation.reduced`: on the base's profile, wrist 3 held), and the
+    search without the reduction (in space with two tool vectors and six joints) gives the same
+    sign at random points, but for a few near the boundary where one search stops short (at most
+    0.2 %)."""
+    from kinematics.mechanisms.serial import reach as reach_module
+
     robot = load_robot("ur5")
     rot = with_fixed_orientation(robot, ToolOrientation.rpy(math.pi, 0.0, 0.0))
-    ax = with_fixed_orientation(robot, ToolOrientation.axis([0.0, 0.0, -1.0]))
-    assert rot.reach.setup.mode == "spatial" and ax.reach.setup.mode == "revolved"
-    # wrist 3 only spins the tool about the held axis: it drops out of that search, not the rotation's
-    assert ax.reach.setup.fixed == ("wrist_3_joint",) and not ax.reach.searched[-1] and rot.reach.searched.all()
-    lo, hi = rot.bounding_box()
+    assert rot.reach.orientation is not None and rot.reach.orientation.kind == "axis"
+    assert rot.reach.setup.mode == "revolved" and rot.reach.setup.fixed == ("wrist_3_joint",)
+    assert not rot.reach.searched[-1]
+    monkeypatch.setattr(reach_module, "reduced", lambda robot, kin, orientation, tol, reach: orientation)
+    full = with_fixed_orientation(robot, ToolOrientation.rpy(math.pi, 0.0, 0.0))
+    assert full.reach.setup.mode == "spatial" and full.reach.searched.all()
+    lo, hi = full.bounding_box()
     p = lo + (hi - lo) * np.random.default_rng(4).random((8000, 3))
-    a, b = rot.margin()(p)[:, 0] >= 0, ax.margin()(p)[:, 0] >= 0
+    a, b = full.margin()(p)[:, 0] >= 0, rot.margin()(p)[:, 0] >= 0
     assert a.sum() > 1000  # (about 19 % of the reach ball's box)
     assert (a != b).mean() <= 2e-3

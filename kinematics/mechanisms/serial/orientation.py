@@ -114,24 +114,40 @@ def oriented_setup(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientatio
     first = 1 if mode == "revolved" else 0
     keep = np.ones(len(dofs), bool)
     keep[:first] = False
-    keep &= ~_spins_tool_axis(robot, kin, orientation, 0.1 * tol / max(s.reach, 1e-3))
+    if orientation.kind == "axis":
+        keep &= ~_spins_tool_axis(robot, kin, 0.1 * tol / max(s.reach, 1e-3))
     active = np.array(dofs, dtype=int)[keep]
     return dataclasses.replace(s, mode=mode, active=active, lo=lo[keep], hi=hi[keep], periodic=periodic[keep],
                                fixed=tuple(robot.dofs[d].name for d, k in zip(dofs, keep, strict=True)
                                            if not k and d not in dofs[:first]))
 
 
-def _spins_tool_axis(robot: Robot, kin: Any, orientation: ToolOrientation, angle: float) -> np.ndarray:
-    """(n,) per chain joint: it only spins the tool about its matched z axis (a tool axis, not a
-    whole rotation): it never moves the point and its axis is within `angle` [rad] of the tool's z
-    axis at 64 probe configurations (the UR5's wrist 3: 5e-12 rad, its URDF's rounded pi / 2), so
-    neither the point nor the constraint depends on it beyond the search's tolerance and it drops
-    out of the search, held at a value in its range."""
+def reduced(robot: Robot, kin: Any, orientation: ToolOrientation, tol: float, reach: float) -> ToolOrientation:
+    """A whole rotation is its tool z axis alone when a full-turn joint only spins the tool about
+    that axis (`_spins_tool_axis`; the UR5's wrist 3): any spin about z is then reachable without
+    moving the point or the axis, so the two sets are equal (exact). Otherwise `orientation`."""
+    if orientation.kind != "rotation":
+        return orientation
+    from kinematics.mechanisms.serial.joint_box import dof_of
+
+    spins = _spins_tool_axis(robot, kin, 0.1 * tol / max(reach, 1e-3))
+    dofs = [robot.dofs[dof_of(robot, int(v))] for v in kin.idx_v]
+    full = np.array([d.kind == "continuous" or (d.kind == "revolute" and d.upper - d.lower >= 2 * math.pi - 1e-9)
+                     for d in dofs])
+    if not (spins & full).any():
+        return orientation
+    return ToolOrientation("axis", orientation.matrix, f"{orientation.text} (as its z axis: a full-turn joint spins the "
+                                                       "tool about it)")
+
+
+def _spins_tool_axis(robot: Robot, kin: Any, angle: float) -> np.ndarray:
+    """(n,) per chain joint: it only spins the tool about the tool's z axis: it never moves the
+    point and its axis is within `angle` [rad] of the tool's z axis at 64 probe configurations (the
+    UR5's wrist 3: 5e-12 rad, its URDF's rounded pi / 2), so neither the point nor a held z axis
+    depends on it beyond the search's tolerance: it drops out of a tool axis's search, held at a
+    value in its range."""
     from kinematics.generic.batched import configurations
 
-    n = len(kin.idx_v)
-    if orientation.kind != "axis":
-        return np.zeros(n, bool)
     rng = np.random.default_rng(0)
     lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)

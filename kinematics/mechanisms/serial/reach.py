@@ -46,7 +46,7 @@ import numpy as np
 from kinematics.generic.batched import compile_frame
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
-from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup
+from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup, reduced
 from kinematics.model.robot import Robot
 
 REACH_TOL = 1e-10
@@ -123,6 +123,8 @@ class Reach:
         self.kin = compile_frame(robot, frame)
         self.setup: Setup = setup(robot, self.kin)
         if orientation is not None:
+            orientation = reduced(robot, self.kin, orientation, REACH_TOL, self.setup.reach)
+            self.orientation = orientation
             self.setup = oriented_setup(robot, self.kin, self.setup, orientation, REACH_TOL)
         self.setup, self.turn = _partial_turn(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
