@@ -293,6 +293,25 @@ class Reach:
         flat = np.ascontiguousarray(np.nan_to_num(Q.reshape(-1, Q.shape[-1])))
         return kernels.chain_jacobian_many(flat, *self.args).reshape(*Q.shape[:-1], 3, Q.shape[-1])
 
+    def task_jacobians(self, Q: np.ndarray) -> np.ndarray:
+        """(..., 3, n) position Jacobians at chain values Q (..., n), restricted with a fixed
+        orientation to the joint velocities that keep it: J N, the columns of N (n, n) an
+        orthonormal basis of the null space of the held tool directions' Jacobian (singular values
+        below 1e-9 x the largest, `kernels.chain_task_jacobian_many`), the others zero. Without an
+        orientation, `jacobians`."""
+        if self.orientation is None:
+            return self.jacobians(Q)
+        Q = np.asarray(Q, dtype=float)
+        flat = np.ascontiguousarray(np.nan_to_num(Q.reshape(-1, Q.shape[-1])))
+        F = kernels.chain_task_jacobian_many(flat, *self.args, self.vec)
+        _, sv, Vh = np.linalg.svd(F[:, 3:, :])
+        n = flat.shape[1]
+        s = np.zeros((len(flat), n))
+        s[:, :sv.shape[1]] = sv
+        free = s <= 1e-9 * np.maximum(s[:, :1], 1e-300)  # (rows of Vh: sorted like the singular values)
+        N = np.swapaxes(Vh, 1, 2) * free[:, None, :]
+        return (F[:, :3, :] @ N).reshape(*Q.shape[:-1], 3, n)
+
     def world(self, points: np.ndarray) -> np.ndarray:
         """World targets (N, 3) of task points (N, d) (a planar arm's: in its plane)."""
         pts = np.asarray(points, dtype=float)
