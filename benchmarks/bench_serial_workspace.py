@@ -4,9 +4,10 @@ Run: python benchmarks/bench_serial_workspace.py [--row NAME]... [--quick] [--js
 Rows (ROWS): the SCARA as a generic open chain (exact area 0.9729265761857 m^2), the revolved 3R
 test arm (exact volume by Pappus, tests/test_serial_workspace.py), the UR5 at the CLI's default
 rtol 1e-3 and at 1e-4 (its error against the 1e-4 run is reported as `true_error`, the 1e-4 run's
-own estimate beside it), the panda (example-robot-data) and the SCARA's closed-form margin at rtol
-1e-5. Every run is `measure_workspace(..., check=True)` (the half-step run, with twice the search's
-seeds, compared with the first). The kernels are compiled on a small run first. The machine
+own estimate beside it), the panda and the kinova (example-robot-data) at the CLI's defaults (step
+1 cm, rtol 1e-3) and the SCARA's closed-form margin at rtol 1e-5. Every run is
+`measure_workspace(..., check=True)` (the half-step run, with twice the search's seeds, compared
+with the first). The kernels are compiled on a small run first. The machine
 (cores, uptime load, `_timing.calibration()`) is recorded beside the figures: the CPU is shared.
 JSON: `results` (one row per robot: ROW_KEYS) and `machine`.
 """
@@ -53,7 +54,8 @@ ROWS: dict[str, tuple[str, bool, float, float, float]] = {
     "arm3r": (str(ARM3R), True, 0.005, 1e-5, 1e-5),
     "ur5": ("ur5", True, 0.01, 1e-3, 1e-3),
     "ur5-1e-4": ("ur5", True, 0.005, 1e-4, 1e-4),
-    "panda": ("panda", True, 0.02, 1e-3, 1e-3),
+    "panda": ("panda", True, 0.01, 1e-3, 1e-3),
+    "kinova": ("kinova", True, 0.01, 1e-3, 1e-3),
     "scara-closed-form": ("scara", False, 0.01, 1e-5, 1e-5),
 }
 QUICK = {"scara-serial": (0.05, 1e-2), "arm3r": (0.05, 1e-2)}

@@ -108,7 +108,8 @@ def test_orientation_parsing_and_bad_input(tmp_path):
 
 def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
     """`workspace-volume --tool-axis` reports the orientation and the annulus's area; `dexterity
-    --cells --cells-out` writes the per-cell table the JSON carries."""
+    --cells --cells-out` writes the per-cell table the JSON carries; `dexterity --tool-axis` the
+    mean Yoshikawa index with the orientation held."""
     from tests.test_cli import run, run_json
 
     code, d, _ = run_json(capsys, "workspace-volume", str(MODELS / "planar3r.urdf"), "--tool-axis",
@@ -128,19 +129,56 @@ def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
     assert float(lines[1].split(",")[lines[0].split(",").index("area_m2")]) == rows[0]["area_m2"]
     code, _, err = run(capsys, "dexterity", str(MODELS / "planar3r.urdf"), "--cells-out", str(csv))
     assert code == 2 and "--cells" in err
+    # dexterity with phi held: w = A1 A2 |sin e| / sqrt(3) (test_planar_3r_fixed_orientation_jacobian)
+    # averaged over the annulus, whose area element is A1 A2 sin e de dtheta:
+    # mean w = A1 A2 / sqrt(3) x int sin^2 e de / int sin e de over [0.3, 2.5]
+    code, d, _ = run_json(capsys, "dexterity", str(MODELS / "planar3r.urdf"), "--samples", "1024", "--replicates",
+                          "4", "--tool-axis", str(math.cos(0.7)), str(math.sin(0.7)), "0")
+    sin2 = 1.1 - (math.sin(5.0) - math.sin(0.6)) / 4
+    exact = A1 * A2 / math.sqrt(3) * sin2 / (math.cos(0.3) - math.cos(2.5))  # 0.029206 m^2/rad^2
+    assert code == 0 and d["orientation"]["kind"] == "axis"
+    assert abs(d["yoshikawa_mean"] - exact) <= d["yoshikawa_error"]
 
 
-def test_ur5_rotation_and_axis_agree():
+def test_ur5_rotation_and_axis_agree(monkeypatch):
     """The UR5's wrist 3 turns a full turn about the tool's z axis, so the tool held at rpy (pi, 0, 0)
-    (z down, x along +x) reaches the same positions as the tool z axis held down: two searches (in
-    space with two tool vectors; on the base's profile with one) give the same sign at random points,
-    but for a few near the boundary where one search stops short (at most 0.2 %)."""
+    (z down, x along +x) reaches the same positions as the tool z axis held down: the rotation is
+    reduced to that axis (`orientation.reduced`: on the base's profile, wrist 3 held), and the
+    search without the reduction (in space with two tool vectors and six joints) gives the same
+    sign at random points, but for a few near the boundary where one search stops short (at most
+    0.2 %)."""
+    from kinematics.mechanisms.serial import reach as reach_module
+
     robot = load_robot("ur5")
     rot = with_fixed_orientation(robot, ToolOrientation.rpy(math.pi, 0.0, 0.0))
-    ax = with_fixed_orientation(robot, ToolOrientation.axis([0.0, 0.0, -1.0]))
-    assert rot.reach.setup.mode == "spatial" and ax.reach.setup.mode == "revolved"
-    lo, hi = rot.bounding_box()
+    assert rot.reach.orientation is not None and rot.reach.orientation.kind == "axis"
+    assert rot.reach.setup.mode == "revolved" and rot.reach.setup.fixed == ("wrist_3_joint",)
+    assert not rot.reach.searched[-1]
+    monkeypatch.setattr(reach_module, "reduced", lambda robot, kin, orientation, tol, reach: orientation)
+    full = with_fixed_orientation(robot, ToolOrientation.rpy(math.pi, 0.0, 0.0))
+    assert full.reach.setup.mode == "spatial" and full.reach.searched.all()
+    lo, hi = full.bounding_box()
     p = lo + (hi - lo) * np.random.default_rng(4).random((8000, 3))
-    a, b = rot.margin()(p)[:, 0] >= 0, ax.margin()(p)[:, 0] >= 0
+    a, b = full.margin()(p)[:, 0] >= 0, rot.margin()(p)[:, 0] >= 0
     assert a.sum() > 1000  # (about 19 % of the reach ball's box)
     assert (a != b).mean() <= 2e-3
+
+
+def test_planar_3r_fixed_orientation_jacobian():
+    """With the end orientation phi held, the joint velocities that keep it are dq1 + dq2 + dq3 = 0,
+    and the point moves with the wrist point w = p - a3 (cos phi, sin phi): dp = J_2R (dq1, dq2).
+    In an orthonormal basis of that plane (its projection on (dq1, dq2) scales areas by 1/sqrt(3),
+    the plane's normal (1, 1, 1) / sqrt(3)), sqrt(det(J J^T)) = A1 A2 |sin e| / sqrt(3), e the
+    elbow of w (cos e = (|w|^2 - A1^2 - A2^2) / (2 A1 A2)); to 1e-9 (the solutions reach within 1e-10 m)."""
+    arm = with_fixed_orientation(load_robot(MODELS / "planar3r.urdf"),
+                                 ToolOrientation.axis([math.cos(0.7), math.sin(0.7), 0.0]))
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-0.6, 0.6, (400, 2))
+    J, ok = arm.reaching_jacobians(p)
+    assert ok[:, 0].sum() > 50
+    w = p - 0.1 * np.array([math.cos(0.7), math.sin(0.7)])
+    cos_e = (np.sum(w**2, axis=1) - A1**2 - A2**2) / (2 * A1 * A2)
+    expected = A1 * A2 * np.sqrt(np.clip(1 - cos_e**2, 0.0, None)) / math.sqrt(3)
+    Jok = J[ok]
+    got = np.sqrt(np.abs(np.linalg.det(Jok @ np.swapaxes(Jok, -1, -2))))
+    np.testing.assert_allclose(got, np.broadcast_to(expected[:, None], ok.shape)[ok], rtol=0, atol=1e-9)

@@ -256,7 +256,7 @@ def revolved_ws():
     from kinematics.analyses.workspace import measure_workspace
     from kinematics.mechanisms.serial.mechanism import SerialArm
 
-    return measure_workspace(SerialArm(load_robot(MODELS / "arm3r_revolved.urdf")), step=0.01, rtol=1e-5,
+    return measure_workspace(SerialArm(load_robot(MODELS / "arm3r_revolved.urdf")), step=0.01, rtol=1e-4,
                              check=True)
 
 
@@ -266,9 +266,9 @@ def test_revolved_volume_through_columns(revolved_ws):
     ws = revolved_ws
     assert ws.result.columns > 0 and not ws.planar
     assert abs(ws.total - exact) <= ws.error
-    assert abs(ws.total - exact) <= 1e-4 * exact  # 1e-5 needs the 5 mm step (the benchmark's row)
+    assert abs(ws.total - exact) <= 1e-4 * exact
     # converged means the reported error (with the check's difference) is within rtol, no less
-    assert ws.result.converged == (ws.error <= 1e-5 * ws.total) == bool(ws.result.target_converged[-1])
+    assert ws.result.converged == (ws.error <= 1e-4 * ws.total) == bool(ws.result.target_converged[-1])
     lo, hi = np.asarray(ws.as_dict()["bbox"])
     rmax = math.sqrt(L2**2 + L3**2 + 2 * L2 * L3 * math.cos(0.3))
     assert hi[0] <= rmax + 1e-9 and hi[0] >= rmax - 0.02  # the world box of the swept profile

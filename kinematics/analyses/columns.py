@@ -37,8 +37,8 @@ into the outer integral.
   grazing the columns this biases the volume low: 1.6e-4 relative on the 3-[P2(US)] at 5 mm;
 * across columns, a feature between the nodes of every interval at every level is not seen.
   `check` reruns the whole computation at half the step (twice the nodes); where the two disagree
-  beyond their error estimates it halves the step again, up to CHECK_HALVINGS times in all, and
-  compares the last two runs (a sliver thinner than the step shrinks with it: between two
+  beyond their error estimates, or the last target's difference exceeds its tolerance, it halves
+  the step again, up to CHECK_HALVINGS times in all, and compares the last two runs (a sliver thinner than the step shrinks with it: between two
   boundaries tangent to each other, the part a column can miss has an area of order step^1.5).
   The result is the finest run's, its error at least the last two runs' difference; it reports
   not converged if even those disagree.
@@ -64,7 +64,8 @@ MIN_NODES = 16
 step: a step wider than the box would otherwise start both runs from the same few nodes."""
 
 CHECK_HALVINGS = 3
-"""`check`: the most times the step is halved (s/2, s/4, s/8) while successive runs disagree."""
+"""`check`: the most times the step is halved (s/2, s/4, s/8) while successive runs disagree (or the
+last target's difference exceeds its tolerance)."""
 
 RTOL_FLOOR = 1e-9
 """Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
@@ -589,8 +590,11 @@ def column_volume(
         columns, points = columns + second.columns, points + second.points_evaluated
         diff = np.abs(first.estimate - second.estimate)
         agrees = diff <= first.error + second.error
+        # the last target's (the union's) difference enters its error: while it exceeds the
+        # tolerance the finer run alone can still meet it (a grazing sliver the coarser run missed)
+        settled = agrees.all() and bool(_within(second.estimate, diff, rtol, floor)[-1])
         # a finer run costs about twice the last (sampled columns: twice the samples per column)
-        if agrees.all() or level == CHECK_HALVINGS or points + 2 * second.points_evaluated > max_points:
+        if settled or level == CHECK_HALVINGS or points + 2 * second.points_evaluated > max_points:
             break
         first = second
     error = np.maximum(second.error, diff)

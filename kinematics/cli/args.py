@@ -202,3 +202,26 @@ def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
 
     obstacles = load_obstacles(args.obstacles) if args.obstacles else None
     return collision_model_of(robot, obstacles, self_collisions=args.collisions)
+
+
+def orientation_args(p: argparse.ArgumentParser, what: str) -> None:
+    """--orientation / --tool-axis (open chains): `what` is measured with the tool held so."""
+    orient = p.add_mutually_exclusive_group()
+    orient.add_argument("--orientation", metavar="'rpy R P Y'",
+                        help=f"open chains: {what} with the tool frame at this fixed rotation (roll, pitch, yaw "
+                             "[rad], URDF convention), within the joint limits (--json key orientation: kind, text, "
+                             "tool_z, rotation)")
+    orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
+                        help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
+                             "e.g. 0 0 -1 for a tool pointing down")
+
+
+def orientation_of(args: argparse.Namespace) -> Any:
+    """The fixed tool orientation of --orientation / --tool-axis (a `ToolOrientation`), or None."""
+    from kinematics.mechanisms.serial.orientation import ToolOrientation
+
+    if getattr(args, "orientation", None):
+        return ToolOrientation.parse(args.orientation)
+    if getattr(args, "tool_axis", None):
+        return ToolOrientation.axis(args.tool_axis)
+    return None

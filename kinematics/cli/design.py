@@ -5,7 +5,17 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from kinematics.cli.args import Command, collision_args, collision_checks, integer, load, positive, robot_arg
+from kinematics.cli.args import (
+    Command,
+    collision_args,
+    collision_checks,
+    integer,
+    load,
+    orientation_args,
+    orientation_of,
+    positive,
+    robot_arg,
+)
 from kinematics.cli.report import Out, emit, fmt, key_values
 from kinematics.files import check_output, write_atomic
 
@@ -48,6 +58,8 @@ def register(command: Command) -> None:
                         "side, each cell's measure, mean 1/kappa, Yoshikawa index and smallest radius with error bars "
                         "(--json key cells: step_m, origin, shape, rows)")
     p.add_argument("--cells-out", metavar="FILE.csv", help="write the per-cell table as CSV (needs --cells)")
+    orientation_args(p, "the dexterity over the tool positions reachable (J restricted to the joint velocities "
+                        "that keep the orientation)")
 
     p = command("synthesize", cmd_synthesize, "p2us, delta: multi-objective dimensional synthesis (NSGA-II) on "
                 "Dask: maximise the usable cube and the GCI, minimise the footprint; the Pareto front")
@@ -192,8 +204,11 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses.dexterity import dexterity as measure
     from kinematics.mechanisms import UNION, mechanism_of
+    from kinematics.mechanisms.base import Mechanism
+    from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
-    mech = mechanism_of(robot)
+    orientation = orientation_of(args)
+    mech: Mechanism = mechanism_of(robot) if orientation is None else with_fixed_orientation(robot, orientation)
     branches = None if args.mode in (None, UNION) else [args.mode]
     if args.cells_out and args.cells is None:
         from kinematics.errors import InvalidInputError
@@ -204,6 +219,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     res = measure(mech, branches, limits=args.limits, samples=args.samples, replicates=args.replicates,
                   seed=args.seed, cells=args.cells)
     payload = res.as_dict()
+    if orientation is not None:
+        payload["orientation"] = orientation.as_dict()
     if args.cells_out:
         write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
     target = payload["target"]
@@ -249,6 +266,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                    "area [m^2]" if res.planar else "volume [m^3]"], rows),
             *(["", *notes] if notes else []),
             f"{UNION}: {payload['configurations']}",
+            *([f"tool held at {orientation.text}: J restricted to the joint velocities that keep it"]
+              if orientation is not None else []),
             *([(f"per-cell table: {len(payload['cells']['rows'])} cells of {fmt(payload['cells']['step_m'], 4)} m "
                f"(--json key cells{'; written to ' + args.cells_out if args.cells_out else ''})")]
               if "cells" in payload else []),

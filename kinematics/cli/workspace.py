@@ -15,7 +15,8 @@ from kinematics.cli.args import (
     integer,
     load,
     non_negative,
-    number,
+    orientation_args,
+    orientation_of,
     positive,
     robot_arg,
     scan_args,
@@ -44,14 +45,7 @@ def register(command: Command) -> None:
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
     collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops)")
-    orient = p.add_mutually_exclusive_group()
-    orient.add_argument("--orientation", metavar="'rpy R P Y'",
-                        help="open chains: the volume of tool positions reachable with the tool frame at this fixed "
-                             "rotation (roll, pitch, yaw [rad], URDF convention), within the joint limits (--json "
-                             "key orientation: kind, text, tool_z, rotation)")
-    orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
-                        help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
-                             "e.g. 0 0 -1 for a tool pointing down")
+    orientation_args(p, "the volume of tool positions reachable")
 
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -200,7 +194,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    orientation = _orientation(args)
+    orientation = orientation_of(args)
     if orientation is not None:
         from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
@@ -277,17 +271,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     out(args, payload, human)
     return 0
-
-
-def _orientation(args: argparse.Namespace) -> Any:
-    """The fixed tool orientation of --orientation / --tool-axis (a `ToolOrientation`), or None."""
-    from kinematics.mechanisms.serial.orientation import ToolOrientation
-
-    if getattr(args, "orientation", None):
-        return ToolOrientation.parse(args.orientation)
-    if getattr(args, "tool_axis", None):
-        return ToolOrientation.axis(args.tool_axis)
-    return None
 
 
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],

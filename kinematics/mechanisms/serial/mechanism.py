@@ -72,10 +72,11 @@ class SerialArm(Mechanism):
         (N, K, d, n) [m/rad or m/m] over the chain joints and (N, K) whether seed k reached the
         point (`Reach.configurations`: each of the K seeds descended to its end, so a
         non-redundant arm's distinct solutions -- elbow up and down -- appear when seeds lie in
-        their basins, and a redundant arm's K points of its self-motion set)."""
+        their basins, and a redundant arm's K points of its self-motion set). With a fixed tool
+        orientation: restricted to the joint velocities that keep it (`Reach.task_jacobians`)."""
         self.check_limits(limits)
         Q, ok = self.reach.configurations(self.reach.world(points))
-        J = self.reach.jacobians(Q)[..., self._rows(), :]
+        J = self.reach.task_jacobians(Q)[..., self._rows(), :]
         return np.where(ok[..., None, None], J, np.nan), ok
 
     def kernels(self) -> tuple[Any, ...]:

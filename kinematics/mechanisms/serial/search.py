@@ -364,3 +364,18 @@ def chain_jacobian_many(Q, kind, axis, rot, tra, fp):  # pragma: no cover - comp
         for i in range(b * 256, min(N, (b + 1) * 256)):
             _fk(Q[i], kind, axis, rot, tra, fp, R, T, W, P, x, out[i])
     return out
+
+
+@njit(cache=True, parallel=True)
+def chain_task_jacobian_many(Q, kind, axis, rot, tra, fp, vec):  # pragma: no cover - compiled
+    """(N, 3 + 3m, n) at chain values Q (N, n): the frame position's Jacobian, then for each tool
+    vector v_a (m, 3) the derivative of its world direction R(q) v_a (w_k x R v_a for revolute k)."""
+    N, n = Q.shape
+    m = vec.shape[0]
+    out = np.empty((N, 3 + 3 * m, n))
+    for b in prange((N + 255) // 256):
+        S = scratch(n, m)
+        t, dirs, r = np.zeros(3), np.zeros((m, 3)), np.empty(3 + 3 * m)
+        for i in range(b * 256, min(N, (b + 1) * 256)):
+            _residual(t, Q[i], kind, axis, rot, tra, fp, vec, dirs, 1.0, 1.0, S, r, out[i])
+    return out
