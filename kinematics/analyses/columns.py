@@ -70,6 +70,14 @@ RTOL_FLOOR = 1e-9
 """Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
 neither the brackets nor double-precision sums of ~1e6 columns (~1e-10) dominate the estimate."""
 
+BREAK_WIDTH = 1e-3
+"""`piecewise_1d`: a located break's bracket is at most this fraction of the node spacing (or
+narrower than xtol). Under the pieces' grading a bracket of relative width w spans ~sqrt(w / 3) of
+the rule's variable at the piece's end, so a wider one puts the first levels' Gauss nodes across
+the break, whose variation bound then refines there level by level; bisecting a break 10 more
+times (one column each) measured 1.8-2.6x fewer columns in all on p2us and the Delta, and a
+smaller error estimate."""
+
 CHUNK_POINTS = 1 << 19
 """Margin evaluations per batch (bounds memory to ~ this many x targets doubles)."""
 
@@ -418,7 +426,8 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
     1. f on n0 + 1 equally spaced nodes; every pair of neighbours with different signatures
        brackets a break (or several), which bisection narrows until its bracket is below
        xtol x (b - a), or until width x |f(left) - f(right)| <= brk_tol (a square-root edge or a
-       kink gets there long before a jump). Each break is charged its final bracket's
+       kink gets there long before a jump) and the bracket is at most BREAK_WIDTH x the node
+       spacing (so that the pieces' nodes do not fall across it). Each break is charged its final bracket's
        width x |f(left) - f(right)|: the two pieces' rules meet at its midpoint.
     2. Each piece [u, v] between consecutive breaks is integrated in t, x = u + (v - u) s(t),
        s = `_smoothstep` (square-root ends become analytic), by `adaptive_1d` with `order` nodes,
@@ -443,10 +452,12 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
     bp, bk = np.nonzero(sg[:, 1:] != sg[:, :-1])
     xa, xb, sa, sb, va, vb = X[bp, bk], X[bp, bk + 1], sg[bp, bk], sg[bp, bk + 1], vv[bp, bk], vv[bp, bk + 1]
     tol = xtol * width
+    near = BREAK_WIDTH * width / n0
     btol = np.broadcast_to(np.asarray(brk_tol, dtype=float), (P,))
     done: list[tuple[np.ndarray, ...]] = []
     while len(bp) and evals < max_evals:
-        fine = ((xb - xa) <= tol[bp]) | ((xb - xa) * np.abs(va - vb).max(axis=1) <= btol[bp])
+        fine = ((xb - xa) <= tol[bp]) | (((xb - xa) * np.abs(va - vb).max(axis=1) <= btol[bp])
+                                         & ((xb - xa) <= near[bp]))
         if fine.any():
             done.append((bp[fine], xa[fine], xb[fine], va[fine], vb[fine]))
             keep = ~fine
