@@ -233,9 +233,14 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
 
     Illinois false position; a point closer than the tolerance to an end is nudged to the
     tolerance (Brent), and a bracket that did not halve in two steps is bisected, so every bracket
-    ends narrower than `tol`. A bracket that stalls a second time is bisected from then on: the
-    margin jumps there (a closed loop's margin falls from its slack to minus a small residual at
-    the reach boundary), where false position needs about two evaluations per halving.
+    ends narrower than `tol`. A bracket that stalls a second time is taken for a jump of the margin
+    (a closed loop's falls from its slack inside to minus a small least-squares residual outside,
+    which goes to zero at the reach boundary): from then on the secant through the last two
+    outside points (f < 0) estimates the root, and the point evaluated is that estimate moved
+    0.45 tol towards the bracket's farther end (two such steps close the bracket once the
+    estimate is within tol / 2: on a residual linear in the distance, the first estimate); a step
+    that lands nowhere useful (the bracket did not halve in two steps) is a bisection, as is every
+    step before two outside points are known.
     Returns (root, final bracket width, margin evaluations).
     """
     lo, hi = a.copy(), b.copy()
@@ -244,6 +249,10 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
     width_two_ago = hi - lo
     width_prev = hi - lo
     stalls = np.zeros(len(lo), np.int8)
+    # the last two outside points and their raw margins (Illinois halves flo / fhi), the newest last
+    neg = fa < 0
+    ox1, of1 = np.where(neg, a, b), np.where(neg, fa, fb)
+    ox0, of0 = np.full(len(lo), np.nan), np.full(len(lo), np.nan)
     d = len(others) + 1
     evals = 0
     for it in range(max_iter):
@@ -257,7 +266,13 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         stalled = 0.5 * width_two_ago[active] < W
         if it >= 2:
             stalls[active] += stalled
-            x = np.where(stalled | (stalls[active] >= 2), 0.5 * (L + H), x)
+            jump = stalls[active] >= 2
+            x1, f1, x0, f0 = ox1[active], of1[active], ox0[active], of0[active]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                est = x1 - f1 * (x1 - x0) / (f1 - f0)
+            probe = est + np.where(H - est > est - L, 0.45, -0.45) * tol  # towards the farther end
+            use = jump & ~stalled & np.isfinite(probe) & (probe > L) & (probe < H)
+            x = np.where(use, probe, np.where(stalled | jump, 0.5 * (L + H), x))
         nudge = 0.45 * tol
         x = np.where(x - L < nudge, L + nudge, x)
         x = np.where(H - x < nudge, H - nudge, x)
@@ -267,6 +282,11 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         vals = _check_margin(margin(pts), len(active))
         evals += len(active)
         fx = vals[np.arange(len(active)), target[active]]
+        out = fx < 0
+        ox0[active] = np.where(out, ox1[active], ox0[active])
+        of0[active] = np.where(out, of1[active], of0[active])
+        ox1[active] = np.where(out, x, ox1[active])
+        of1[active] = np.where(out, fx, of1[active])
         same_lo = (fx >= 0) == (FL >= 0)
         # Illinois: when the same end moves twice in a row, halve the other end's value
         s = side[active]
