@@ -1,7 +1,8 @@
 """Wall time of whole `kinematics workspace-volume` commands (issue 31's table), each run as a
 subprocess, so the figure includes the process start, the imports, Numba's kernel cache loading,
 the singular-locus scan and the reports, beside the volume's own share (`volume_seconds` of the
-command's JSON).
+command's JSON) and the process's CPU seconds (user + system, every thread: less sensitive to
+other load than the wall time).
 
 Rows (ROWS; `--rows` picks some):
 * p2us: `kinematics workspace-volume p2us` (every limit; goal <= 1.5 s wall);
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -32,7 +34,7 @@ from typing import Any
 from _timing import calibration, dump, machine_line, parse
 
 JSON_KEYS = ("rows", "repeats", "machine")
-ROW_KEYS = ("row", "command", "wall_s", "volume_s", "volume", "error_estimate")
+ROW_KEYS = ("row", "command", "wall_s", "cpu_s", "volume_s", "volume", "error_estimate")
 FIVEBAR = "/work/shared/models/gepetto/5bar_linkage"
 PI = "3.141592653589793"
 ROWS: dict[str, list[str]] = {
@@ -51,14 +53,17 @@ def run_row(name: str, args: list[str], repeats: int) -> dict[str, Any]:
     best: dict[str, Any] | None = None
     for _ in range(repeats):
         t = time.perf_counter()
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         run = subprocess.run(argv, check=False, capture_output=True, text=True,
                              env={**os.environ, "TQDM_DISABLE": "1"})
         wall = time.perf_counter() - t
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         if run.returncode != 0:
             raise SystemExit(f"{' '.join(argv)} failed ({run.returncode}): {run.stderr[-2000:]}")
         out = json.loads(run.stdout)
         if best is None or wall < best["wall_s"]:
-            best = {"row": name, "command": "kinematics workspace-volume " + " ".join(args), "wall_s": wall,
+            best = {"row": name, "command": "kinematics workspace-volume " + " ".join(args), "wall_s": wall, "cpu_s": cpu,
                     "volume_s": out["volume_seconds"], "volume": out.get("volume_m3", out.get("area_m2")),
                     "error_estimate": out["error_estimate"], "converged": out["converged"]}
     assert best is not None
@@ -78,6 +83,7 @@ def main() -> None:
         args = [x.format(fivebar=a.fivebar) for x in ROWS[name]] + (QUICK_ARGS if a.quick else [])
         if name == "fivebar" and not os.path.isdir(a.fivebar):
             rows.append({"row": name, "command": "kinematics workspace-volume " + " ".join(args), "wall_s": None,
+                         "cpu_s": None,
                          "volume_s": None, "volume": None, "error_estimate": None,
                          "skipped": f"no model at {a.fivebar}"})
             continue
@@ -90,7 +96,7 @@ def main() -> None:
         if r.get("skipped"):
             print(f"{r['row']:16s} skipped: {r['skipped']}")
         else:
-            print(f"{r['row']:16s} {r['wall_s']:7.2f} s wall (volume {r['volume_s']:.2f} s)  "
+            print(f"{r['row']:16s} {r['wall_s']:7.2f} s wall, {r['cpu_s']:.2f} s CPU (volume {r['volume_s']:.2f} s)  "
                   f"{r['volume']:.6g} +/- {r['error_estimate']:.2g}  [{r['command']}]")
     print(machine_line(machine))
 

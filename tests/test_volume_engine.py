@@ -96,6 +96,31 @@ def test_roots_of_a_margin_that_jumps_cost_one_evaluation_per_halving():
     assert refine <= roots * (math.ceil(math.log2(step / tol)) + 4), refine / roots
 
 
+@pytest.mark.parametrize("outside", ["linear", "sqrt"])
+def test_a_jump_with_a_residual_that_vanishes_at_the_boundary_is_closed_by_secant(outside):
+    """Outside a closed loop's workspace the margin is minus a least-squares residual that goes to
+    zero at the reach boundary: the secant through two outside points finds the root. Linear in
+    the distance: the estimate is exact, two probes 0.45 tol either side of it close the bracket,
+    ~10 evaluations a root (bisection alone: 26). Like sqrt(distance): the secant gains little, and
+    the stall guard keeps it within bisection's count."""
+    from kinematics.analyses.columns import _Counter
+
+    def jump(p):
+        r = np.linalg.norm(p, axis=1)
+        d = np.maximum(r - 1.0, 0.0)
+        return np.where(r <= 1.0, 1.0, -(d if outside == "linear" else np.sqrt(d)))
+
+    base = np.array([[0.0], [0.3], [0.6], [0.9], [0.99]])
+    step, tol = 0.05, 1e-9
+    counter = _Counter(2)
+    ell, err, _ = column_lengths(jump, base, -1.3, 1.3, step, counter=counter, root_tol=tol)
+    np.testing.assert_allclose(ell[:, 0], 2 * np.sqrt(1 - base[:, 0] ** 2), rtol=0, atol=2 * tol)
+    assert np.all(err <= 2 * tol)
+    per_root = (counter.points - len(base) * (math.ceil(2.6 / step) + 1)) / (2 * len(base))
+    bound = 12 if outside == "linear" else math.ceil(math.log2(step / tol)) + 4
+    assert per_root <= bound, per_root
+
+
 def test_thin_interval_shorter_than_the_step_can_be_missed_and_longer_is_found():
     slab = 0.004  # inside set: |z - 0.0123| <= 0.002, a 4 mm interval
 

@@ -126,17 +126,17 @@ def _limb_polys(p0, ax, g, i, passive, P, t):  # pragma: no cover - compiled
     for k in range(5):
         D[k] = (rho2[k] if k < 3 else 0.0) - D[k]
     for j in (1, 2):
-        cs, sn = (g[30], g[31]) if j == 1 else (g[32], g[33])
+        cs, sn = (g[32], g[33]) if j == 1 else (g[34], g[35])
         P[j, :] = 0.0
         P[j, 0] = cs * x0 - sn * h0 - K[0]
         P[j, 1] = cs * x1 - sn * h1 - K[1]
         P[j, 2] = -K[2]
     if not passive:
         return
-    cc = g[34]
+    cc = g[36]
     # elbow: ((K - l_a) cos c_E - l_b cos(cone))^2 - sin^2(c_E) D
     a = t[2]
-    cE, sE2 = g[35], g[36]
+    cE, sE2 = g[37], g[38]
     a[:] = 0.0
     for k in range(3):
         a[k] = K[k] * cE
@@ -308,7 +308,7 @@ class ExactColumns:
     def __init__(self, params: DeltaParams, modes: np.ndarray, passive: bool) -> None:
         self.passive = bool(passive)
         lo, hi = params.theta_limits
-        # the scan kernel's geometry, then the trigonometry `_limb_polys` needs (indices 30-36)
+        # the scan kernel's geometry, then the trigonometry `_limb_polys` needs (indices 32-38)
         self.g = np.concatenate([kernel_geometry(params), [
             math.cos(lo), math.sin(lo), math.cos(hi), math.sin(hi), math.cos(params.cone),
             math.cos(params.elbow_socket), math.sin(params.elbow_socket) ** 2]])

@@ -54,7 +54,8 @@ def kernel_geometry(params: DeltaParams) -> np.ndarray:
     P = params
     limbs = np.concatenate([P.e[:, :2], P.t[:, :2], P.platform_sockets], axis=1).ravel()  # 7 per limb
     lo, hi = P.theta_limits
-    rest = [P.r - P.R, P.la, P.lb, lo, hi, 0.5 * (lo + hi), P.cone, P.elbow_socket, BOUNDARY_TOL * P.lb**2]
+    rest = [P.r - P.R, P.la, P.lb, lo, hi, 0.5 * (lo + hi), P.cone, P.elbow_socket, BOUNDARY_TOL * P.lb**2,
+            math.cos(P.elbow_socket), math.sin(P.elbow_socket)]
     return np.concatenate([limbs, rest])
 
 
@@ -64,7 +65,8 @@ def _limb(px, py, pz, g, i, passive, out):  # pragma: no cover - compiled
     returns the limb's discriminant field (l_b - near)(far - l_b)."""
     ex, ey, tx, ty = g[7 * i], g[7 * i + 1], g[7 * i + 2], g[7 * i + 3]
     spx, spy, spz = g[7 * i + 4], g[7 * i + 5], g[7 * i + 6]
-    off, la, lb, lo, hi, centre, cone, sock, tol = g[21], g[22], g[23], g[24], g[25], g[26], g[27], g[28], g[29]
+    off, la, lb, lo, hi, centre, cone, tol = g[21], g[22], g[23], g[24], g[25], g[26], g[27], g[29]
+    c_sock, s_sock = g[30], g[31]
     vx = px + off * ex
     vy = py + off * ey
     h = pz
@@ -87,21 +89,31 @@ def _limb(px, py, pz, g, i, passive, out):  # pragma: no cover - compiled
     phi0 = math.atan2(-h, x)
     half = math.atan2(s, K)
     two_pi = 2.0 * math.pi
+    # cos and sin of the roots phi0 +/- half without trigonometry: x = rho cos(phi0), -h = rho sin(phi0),
+    # (K, s) = hypot(K, s) (cos(half), sin(half)) (hypot(K, s) = rho where disc >= 0)
+    norm = rho * math.sqrt(K * K + s * s)
+    inv = 1.0 / norm if norm > 0.0 else 0.0
     for r in range(2):
-        q = phi0 + half if r == 0 else phi0 - half
+        sigma = 1.0 if r == 0 else -1.0
+        q = phi0 + sigma * half
         a = q - centre + math.pi
         q = a - two_pi * math.floor(a / two_pi) + centre - math.pi
-        cq = math.cos(q)
-        sq = math.sin(q)
+        if inv > 0.0:
+            cq = (K * x + sigma * h * s) * inv
+            sq = (sigma * x * s - K * h) * inv
+        else:  # on the actuator's axis
+            cq = math.cos(q)
+            sq = math.sin(q)
         # n = (v - l_a d(q)) / l_b, d(q) = cos q e - sin q z
         nx = (vx - la * cq * ex) / lb
         ny = (vy - la * cq * ey) / lb
         nz = (h + la * sq) / lb
         slack = la * min(q - lo, hi - q)
         if passive:
-            ce = math.cos(q + sock) * (nx * ex + ny * ey) - math.sin(q + sock) * nz  # n . d(q + sock)
+            # n . d(q + sock), by the angle sum
+            ce = (cq * c_sock - sq * s_sock) * (nx * ex + ny * ey) - (sq * c_sock + cq * s_sock) * nz
             cp = -(nx * spx + ny * spy + nz * spz)
-            angle = max(math.acos(min(1.0, max(-1.0, ce))), math.acos(min(1.0, max(-1.0, cp))))
+            angle = math.acos(min(1.0, max(-1.0, min(ce, cp))))  # the larger angle: acos decreases
             slack = min(slack, lb * (cone - angle))
         m = min(reach, slack)
         out[r] = m if math.isfinite(m) else min(reach, 0.0)
