@@ -29,6 +29,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from kinematics import jit
 from kinematics.generic.loop_batch.atlas import BranchSolutions, LoopAtlas
 from kinematics.generic.loop_batch.compiled import block_kernel, pack
 from kinematics.generic.loop_batch.margins import LoopMargins, assemble_kernel
@@ -254,6 +255,6 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
             if every_block:
                 alive[:] = True
             gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
-            block_kernel(k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"], tb["atlas"], starts, tb["lo"],
-                          tb["hi"], tb["alpha"], int(self.restarts), WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res,
-                          out.end, out.counts)
+            jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
+                     tb["atlas"], starts, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
+                     WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)

@@ -483,6 +483,13 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
     return res, it
 
 
+# lm_kernel calls `_lm_row` compiled on its own rather than inlined: inlining it into both parallel
+# kernels doubled the solver's first compilation (lm_kernel ~110 of ~280 s under load, ~40 s this
+# way) for no measurable gain in lm_kernel's callers (Gepetto's five-bar workspace: the same CPU
+# time, 1 thread); block_kernel, the hot path, keeps it inlined (not inlining it there cost 20 %).
+_lm_row_called = njit(cache=True)(_lm_row.py_func)
+
+
 @njit(cache=True, parallel=True)
 def lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, x_out, res_out, it_out, pinned):  # pragma: no cover - compiled
     """`_lm_row` from every row's start x0 towards its target."""
@@ -495,8 +502,8 @@ def lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, 
         for row in range(blk * BLK, min(nrows, (blk + 1) * BLK)):
             for j in range(n):
                 x[j] = x0[row, j]
-            res, it = _lm_row(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r, rt, J,
-                              Jt, A, D, gr, dx, xt, 3, True, False)
+            res, it = _lm_row_called(targets[row], x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, ws, r,
+                                     rt, J, Jt, A, D, gr, dx, xt, 3, True, False)
             for j in range(n):
                 x_out[row, j] = x[j]
             res_out[row] = res

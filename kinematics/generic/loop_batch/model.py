@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 
+from kinematics import jit
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.loop_batch.compiled import PRISMATIC, REVOLUTE, TOL, eval_kernel, lm_kernel, pack
 from kinematics.model.robot import Robot
@@ -197,8 +198,8 @@ class LoopModel:
         res = np.empty(len(t))
         its = np.empty(len(t), dtype=np.int64)
         if len(t):
-            lm_kernel(t, x0, *self._packed, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x, res, its,
-                       bool(pinned))
+            jit.call(lm_kernel, t, x0, *self._packed, self._m, self._nzc, self._nzn, self._centre, free, roww, iters, tol, x,
+                     res, its, bool(pinned))
         return x, res, its
 
     def evaluate(self, targets: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
