@@ -209,8 +209,8 @@ def test_workspace_volume_names_the_branches_that_did_not_converge(capsys, monke
     measurement is substituted by a real one of the same shape: a slab the 2 cm columns step over, the check allowed one halving
     (tests/test_volume_engine.py) as branch '+++', a ball as the union."""
     import kinematics.analyses.workspace as wsmod
-    from kinematics.analyses import columns
     from kinematics.analyses.columns import column_volume
+    from kinematics.analyses.columns import engine as columns
 
     def margin(p):
         ball = 0.5 - np.linalg.norm(p, axis=1)

@@ -76,7 +76,7 @@ def test_roots_of_a_margin_that_jumps_cost_one_evaluation_per_halving():
     residual outside). Roots are still bracketed to root_tol, and a bracket that keeps stalling is
     bisected: about log2(step / root_tol) evaluations a root, where Illinois false position alone
     needed about twice as many."""
-    from kinematics.analyses.columns import _Counter
+    from kinematics.analyses.columns import Counter
 
     def jump(p):  # the unit disc; inside a constant 1 m, outside minus the distance to it
         r = np.linalg.norm(p, axis=1)
@@ -84,7 +84,7 @@ def test_roots_of_a_margin_that_jumps_cost_one_evaluation_per_halving():
 
     base = np.array([[0.0], [0.3], [0.6], [0.9], [0.99]])
     step, tol = 0.05, 1e-9
-    counter = _Counter(2)
+    counter = Counter(2)
     ell, err, ends = column_lengths(jump, base, -1.3, 1.3, step, counter=counter, root_tol=tol)
     exact = 2 * np.sqrt(1 - base[:, 0] ** 2)
     # each of the two ends is bracketed to tol, its midpoint within tol / 2 of the root
@@ -103,7 +103,7 @@ def test_a_jump_with_a_residual_that_vanishes_at_the_boundary_is_closed_by_secan
     the distance: the estimate is exact, two probes 0.45 tol either side of it close the bracket,
     ~10 evaluations a root (bisection alone: 26). Like sqrt(distance): the secant gains little, and
     the stall guard keeps it within bisection's count."""
-    from kinematics.analyses.columns import _Counter
+    from kinematics.analyses.columns import Counter
 
     def jump(p):
         r = np.linalg.norm(p, axis=1)
@@ -112,7 +112,7 @@ def test_a_jump_with_a_residual_that_vanishes_at_the_boundary_is_closed_by_secan
 
     base = np.array([[0.0], [0.3], [0.6], [0.9], [0.99]])
     step, tol = 0.05, 1e-9
-    counter = _Counter(2)
+    counter = Counter(2)
     ell, err, _ = column_lengths(jump, base, -1.3, 1.3, step, counter=counter, root_tol=tol)
     np.testing.assert_allclose(ell[:, 0], 2 * np.sqrt(1 - base[:, 0] ** 2), rtol=0, atol=2 * tol)
     assert np.all(err <= 2 * tol)
@@ -306,7 +306,7 @@ def test_the_target_the_check_disagrees_on_is_named(monkeypatch):
     every column finds it. The two runs disagree on the slab by its whole volume, far beyond their
     estimates, and agree on the ball (the last target): only the slab is reported (the check
     allowed one halving here; with more it finds the slab, next test)."""
-    from kinematics.analyses import columns
+    from kinematics.analyses.columns import engine as columns
     from kinematics.analyses.workspace import Workspace
 
     monkeypatch.setattr(columns, "CHECK_HALVINGS", 1)
