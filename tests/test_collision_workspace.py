@@ -122,3 +122,26 @@ def test_cli_reports_the_binding_pair_and_its_removal(tmp_path, capsys):
     assert d["area_m2"] == pytest.approx(math.pi * 0.48, rel=1e-2) and c["removed"] == pytest.approx(0, abs=1e-6)
     assert [e["reason"] for e in c["excluded"]] == ["touching"] and c["binding_pairs"] == []
     assert free < d["area_m2"]
+
+
+def test_delta_pairs_never_near_contact_give_the_kinematic_volume(rng):
+    """No pair of the Delta comes near contact inside its workspace (mode ---): the pre-scan
+    clears every cell and the collision-free volume is the kinematic one from its exact columns,
+    no pair binding. Held independently by coal: at random points of the workspace (rejection
+    sampling in its box), the configurations built by `joint_values` have every pair apart."""
+    from kinematics.analyses.collisions import collision_model_of
+    from kinematics.analyses.workspace import measure_workspace
+
+    robot = load_robot("delta")
+    mech = mechanism_of(robot)
+    cw = measure_collision_workspace(mech, robot, step=0.04, rtol=1e-2, branches=["---"], check=False)
+    kin = measure_workspace(mech, step=0.04, rtol=1e-2, branches=["---"])
+    assert cw.pairs == () and cw.collision["pairs_that_can_bind"] == 0
+    assert cw.workspace.total == pytest.approx(kin.total, rel=1e-12) and cw.removed == 0.0
+    lo, hi = mech.bounding_box("all")
+    pts = lo + (hi - lo) * rng.random((400, 3))
+    pts = pts[mech.margin(["---"])(pts)[:, 0] > 0][:60]
+    assert len(pts) >= 30
+    cm = collision_model_of(robot)
+    q = np.array([robot.configuration([mech.joint_values(p, "---")[n] for n in robot.joint_names]) for p in pts])
+    assert cm.distances(q).min() > 0

@@ -90,13 +90,11 @@ class Prescan:
 def _slopes(grid: np.ndarray, spacing: np.ndarray) -> np.ndarray:
     """(P,) the largest |change| per metre of each pair's distance between grid neighbours that
     are both inside (NaN outside); +inf for a pair with no such neighbours (nothing observed)."""
-    d = grid.ndim - 1
-    best = np.full(grid.shape[-1], -np.inf)
+    d, P = grid.ndim - 1, grid.shape[-1]
+    best = np.full(P, -np.inf)
     for k in range(d):
-        diff = np.abs(np.diff(grid, axis=k)) / spacing[k]
-        with np.errstate(invalid="ignore"):
-            best = np.fmax(best, np.nanmax(np.where(np.isfinite(diff), diff, -np.inf).reshape(-1, grid.shape[-1]),
-                                           axis=0, initial=-np.inf))
+        diff = np.abs(np.diff(grid, axis=k)).reshape(-1, P) / spacing[k]  # NaN where an end is outside
+        best = np.fmax(best, np.fmax.reduce(diff, axis=0, initial=-np.inf))  # fmax skips NaN
     return np.where(np.isfinite(best), best, np.inf)
 
 

@@ -150,7 +150,7 @@ class AnalyticDistances:
             ok |= (self.kinds == PLATE) & (out > 0)
         rows = np.flatnonzero(~ok.all(axis=1))
         if len(rows):
-            d = self.model.distances(q[rows])
+            d = self.model.distances(q[rows], only=np.flatnonzero(~ok[rows].all(axis=0)))
             out[rows] = np.where(ok[rows], out[rows], d)
         return out
 
