@@ -12,14 +12,18 @@ so every term has the true distance's sign and the min's zero set is the true on
 Where k_b <= 0 the point is outside whatever the distances, so m_b = k_b there (no configuration
 exists); this keeps the sign of the min everywhere, and every sign change of m_b is one of the
 min's. The union's margin is max_b m_b. Both are continuous where they change sign, so
-`column_volume`'s sampled columns (the exact-columns path knows nothing of collisions) integrate
-them with the error estimate they give any margin (same caveats: a feature thinner than the
-column step can be missed; the check run at half the step looks for it).
+`column_volume`'s sampled columns integrate them with the error estimate they give any margin
+(same caveats: a feature thinner than the column step can be missed; the check run at half the
+step looks for it).
 
-Which pairs bind: a pre-scan on a grid finds the pairs with a negative distance somewhere inside
-the kinematic workspace; each of them (at most `MAX_WATCHED`, most often negative first) gets
-its own target, the union with that pair alone, so the volume it removes alone is measured in
-the same run, as is the kinematic union (the volume the collisions remove in all).
+A pre-scan on a grid (`kinematics.analyses.collision_prescan`) finds the pairs with a negative
+distance somewhere inside the kinematic workspace and the cells where some pair comes near
+contact. Where none does, the measurement is the kinematic one, by the mechanism's exact columns
+where it has them (the Delta: no pair comes near contact); otherwise the distances are evaluated
+in the close cells only (m_b = k_b elsewhere). Each binding pair (at most `MAX_WATCHED`, most
+often negative first) gets its own target, the union with that pair alone, so the volume it
+removes alone is measured in the same run, as is the kinematic union (the volume the collisions
+remove in all).
 
 Obstacles (`kinematics.generic.obstacles`) add pairs (robot body, obstacle) to the same margin;
 with `self_collisions=False` they are the only pairs.
@@ -51,7 +55,7 @@ MAX_WATCHED = 8
 """Binding pairs measured one by one (each adds a target to the volume run)."""
 
 PRESCAN_CELLS = 48
-"""Grid points per axis of the binding-pair pre-scan."""
+"""Most grid points per axis of the pre-scan (fewer when the box is under 47 column steps wide)."""
 
 
 def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_collisions: bool = True
@@ -338,7 +342,9 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
-    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
+    # no finer than the columns' step (a coarse measurement needs no fine pre-scan), 12 at least
+    cells = int(np.clip(np.ceil(float(np.max(hi - lo)) / step) + 1, 12, PRESCAN_CELLS))
+    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, cells)
     order = np.argsort(-scan.counts, kind="stable")
     found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
     watched = [k for k, _ in found[:watch]]
