@@ -55,7 +55,8 @@ MAX_WATCHED = 8
 """Binding pairs measured one by one (each adds a target to the volume run)."""
 
 PRESCAN_CELLS = 48
-"""Most grid points per axis of the pre-scan (fewer when the box is under 47 column steps wide)."""
+"""Grid points per axis of the pre-scan (a coarser grid clears fewer cells: its threshold grows
+with the cell diagonal)."""
 
 
 def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_collisions: bool = True
@@ -342,9 +343,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
-    # no finer than the columns' step (a coarse measurement needs no fine pre-scan), 12 at least
-    cells = int(np.clip(np.ceil(float(np.max(hi - lo)) / step) + 1, 12, PRESCAN_CELLS))
-    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, cells)
+    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
     order = np.argsort(-scan.counts, kind="stable")
     found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
     watched = [k for k, _ in found[:watch]]
