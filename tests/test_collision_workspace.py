@@ -78,7 +78,7 @@ FLOOR = "obstacles:\n  - {name: floor, halfspace: [0, 0, 1, -0.62]}\n"
 
 
 def test_volume_above_a_floor_is_the_kinematic_volume_above_the_platforms_reach(tmp_path):
-    """p2us-results (mode ---) above a floor z >= -0.62 m, in the slab of the workspace 0.06 m
+    """p2us-results (mode ---) above a floor z >= -0.62 m, in the slab of the workspace 0.04 m
     either side of z0 = -0.62 + 0.048: its lowest body is the platform's sphere (radius
     d + 0.02 = 0.048 m about the task point, the generator's documented sizes), so the
     collision-free volume is the kinematic volume of the slab's upper half, measured independently
@@ -92,15 +92,15 @@ def test_volume_above_a_floor_is_the_kinematic_volume_above_the_platforms_reach(
     mech = mechanism_of(robot)
     lo, hi = mech.bounding_box("all")
     z0 = -0.62 + mech.params.d + 0.02
-    cw = measure_collision_workspace(mech, robot, step=0.02, rtol=1e-2, branches=["---"], check=False,
+    cw = measure_collision_workspace(mech, robot, step=0.04, rtol=2e-2, branches=["---"], check=False,
                                      obstacles=load_obstacles(tmp_path / "floor.yaml"), self_collisions=False,
-                                     box=(np.array([lo[0], lo[1], z0 - 0.06]), np.array([hi[0], hi[1], z0 + 0.06])))
-    upper = column_volume(mech.margin(["---"]), np.array([lo[0], lo[1], z0]), np.array([hi[0], hi[1], z0 + 0.06]),
-                          step=0.02, rtol=1e-5)
+                                     box=(np.array([lo[0], lo[1], z0 - 0.04]), np.array([hi[0], hi[1], z0 + 0.04])))
+    upper = column_volume(mech.margin(["---"]), np.array([lo[0], lo[1], z0]), np.array([hi[0], hi[1], z0 + 0.04]),
+                          step=0.04, rtol=1e-5)
     free, err = cw.workspace.total, cw.workspace.error
     assert cw.kinematic - upper.estimate[-1] > 0.3 * cw.kinematic  # the floor removes a good part
-    # both within their error estimates (rtol 1e-2 and 1e-5)
-    assert abs(free - upper.estimate[-1]) <= err + upper.error[-1] and err <= 1e-2 * free
+    # both within their error estimates (rtol 2e-2 and 1e-5)
+    assert abs(free - upper.estimate[-1]) <= err + upper.error[-1] and err <= 2e-2 * free
     assert cw.pairs[0].links == ("platform", "floor")  # the lowest body: most points below the floor
     assert cw.pairs[0].removed == pytest.approx(cw.kinematic - upper.estimate[-1], abs=cw.pairs[0].error + err)
 
