@@ -74,6 +74,37 @@ def test_p2us_results_loses_the_sliver_above_the_base():
         assert p.removed == pytest.approx(cw.removed, abs=p.error)
 
 
+FLOOR = "obstacles:\n  - {name: floor, halfspace: [0, 0, 1, -0.62]}\n"
+
+
+def test_volume_above_a_floor_is_the_kinematic_volume_above_the_platforms_reach(tmp_path):
+    """p2us-results (mode ---) above a floor z >= -0.62 m, in the slab of the workspace 0.04 m
+    either side of z0 = -0.62 + 0.048: its lowest body is the platform's sphere (radius
+    d + 0.02 = 0.048 m about the task point, the generator's documented sizes), so the
+    collision-free volume is the kinematic volume of the slab's upper half, measured independently
+    by the exact columns over that box, and the floor pair removes the lower half. The pre-scan
+    clears the cells far above the floor; distances are evaluated only in the others."""
+    from kinematics.analyses.columns import column_volume
+    from kinematics.generic.obstacles import load_obstacles
+
+    (tmp_path / "floor.yaml").write_text(FLOOR)
+    robot = load_robot("p2us-results")
+    mech = mechanism_of(robot)
+    lo, hi = mech.bounding_box("all")
+    z0 = -0.62 + mech.params.d + 0.02
+    cw = measure_collision_workspace(mech, robot, step=0.04, rtol=2e-2, branches=["---"], check=False,
+                                     obstacles=load_obstacles(tmp_path / "floor.yaml"), self_collisions=False,
+                                     box=(np.array([lo[0], lo[1], z0 - 0.04]), np.array([hi[0], hi[1], z0 + 0.04])))
+    upper = column_volume(mech.margin(["---"]), np.array([lo[0], lo[1], z0]), np.array([hi[0], hi[1], z0 + 0.04]),
+                          step=0.04, rtol=1e-5)
+    free, err = cw.workspace.total, cw.workspace.error
+    assert cw.kinematic - upper.estimate[-1] > 0.3 * cw.kinematic  # the floor removes a good part
+    # both within their error estimates (rtol 2e-2 and 1e-5)
+    assert abs(free - upper.estimate[-1]) <= err + upper.error[-1] and err <= 2e-2 * free
+    assert cw.pairs[0].links == ("platform", "floor")  # the lowest body: most points below the floor
+    assert cw.pairs[0].removed == pytest.approx(cw.kinematic - upper.estimate[-1], abs=cw.pairs[0].error + err)
+
+
 def test_cli_reports_the_binding_pair_and_its_removal(tmp_path, capsys):
     """`workspace-volume --collisions --json` on the wall arm: the area, the kinematic area and
     the one binding pair with what it removes (the hand-derived figures, to 1 %)."""
@@ -91,3 +122,26 @@ def test_cli_reports_the_binding_pair_and_its_removal(tmp_path, capsys):
     assert d["area_m2"] == pytest.approx(math.pi * 0.48, rel=1e-2) and c["removed"] == pytest.approx(0, abs=1e-6)
     assert [e["reason"] for e in c["excluded"]] == ["touching"] and c["binding_pairs"] == []
     assert free < d["area_m2"]
+
+
+def test_delta_pairs_never_near_contact_give_the_kinematic_volume(rng):
+    """No pair of the Delta comes near contact inside its workspace (mode ---): the pre-scan
+    clears every cell and the collision-free volume is the kinematic one from its exact columns,
+    no pair binding. Held independently by coal: at random points of the workspace (rejection
+    sampling in its box), the configurations built by `joint_values` have every pair apart."""
+    from kinematics.analyses.collisions import collision_model_of
+    from kinematics.analyses.workspace import measure_workspace
+
+    robot = load_robot("delta")
+    mech = mechanism_of(robot)
+    cw = measure_collision_workspace(mech, robot, step=0.04, rtol=1e-2, branches=["---"], check=False)
+    kin = measure_workspace(mech, step=0.04, rtol=1e-2, branches=["---"])
+    assert cw.pairs == () and cw.collision["pairs_that_can_bind"] == 0
+    assert cw.workspace.total == pytest.approx(kin.total, rel=1e-12) and cw.removed == 0.0
+    lo, hi = mech.bounding_box("all")
+    pts = lo + (hi - lo) * rng.random((400, 3))
+    pts = pts[mech.margin(["---"])(pts)[:, 0] > 0][:60]
+    assert len(pts) >= 30
+    cm = collision_model_of(robot)
+    q = np.array([robot.configuration([mech.joint_values(p, "---")[n] for n in robot.joint_names]) for p in pts])
+    assert cm.distances(q).min() > 0

@@ -12,14 +12,18 @@ so every term has the true distance's sign and the min's zero set is the true on
 Where k_b <= 0 the point is outside whatever the distances, so m_b = k_b there (no configuration
 exists); this keeps the sign of the min everywhere, and every sign change of m_b is one of the
 min's. The union's margin is max_b m_b. Both are continuous where they change sign, so
-`column_volume`'s sampled columns (the exact-columns path knows nothing of collisions) integrate
-them with the error estimate they give any margin (same caveats: a feature thinner than the
-column step can be missed; the check run at half the step looks for it).
+`column_volume`'s sampled columns integrate them with the error estimate they give any margin
+(same caveats: a feature thinner than the column step can be missed; the check run at half the
+step looks for it).
 
-Which pairs bind: a pre-scan on a grid finds the pairs with a negative distance somewhere inside
-the kinematic workspace; each of them (at most `MAX_WATCHED`, most often negative first) gets
-its own target, the union with that pair alone, so the volume it removes alone is measured in
-the same run, as is the kinematic union (the volume the collisions remove in all).
+A pre-scan on a grid (`kinematics.analyses.collision_prescan`) finds the pairs with a negative
+distance somewhere inside the kinematic workspace and the cells where some pair comes near
+contact. Where none does, the measurement is the kinematic one, by the mechanism's exact columns
+where it has them (the Delta: no pair comes near contact); otherwise the distances are evaluated
+in the close cells only (m_b = k_b elsewhere). Each binding pair (at most `MAX_WATCHED`, most
+often negative first) gets its own target, the union with that pair alone, so the volume it
+removes alone is measured in the same run, as is the kinematic union (the volume the collisions
+remove in all).
 
 Obstacles (`kinematics.generic.obstacles`) add pairs (robot body, obstacle) to the same margin;
 with `self_collisions=False` they are the only pairs.
@@ -31,11 +35,13 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from kinematics.analyses.collision_prescan import Prescan
 from kinematics.analyses.columns import ColumnVolume, column_volume
 from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, root_tolerance
 from kinematics.errors import InvalidInputError, MissingCapabilityError
@@ -49,7 +55,8 @@ MAX_WATCHED = 8
 """Binding pairs measured one by one (each adds a target to the volume run)."""
 
 PRESCAN_CELLS = 48
-"""Grid points per axis of the binding-pair pre-scan."""
+"""Grid points per axis of the pre-scan (a coarser grid clears fewer cells: its threshold grows
+with the cell diagonal)."""
 
 
 def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_collisions: bool = True
@@ -158,16 +165,20 @@ class CollisionMargin:
     union max_b k_b, the union with each watched pair alone, then the union max_b m_b."""
 
     def __init__(self, mech: Mechanism, robot: Any, distances: AnalyticDistances, branches: Sequence[str],
-                 limits: str, watched: Sequence[int] = ()) -> None:
+                 limits: str, watched: Sequence[int] = (), prescan: Prescan | None = None) -> None:
         self.mech, self.robot, self.distances = mech, robot, distances
         self.branches, self.limits = tuple(branches), limits
         self.watched = np.asarray(watched, dtype=np.int64)
         self.kinematic = mech.margin(self.branches, limits)
+        self.prescan = prescan
+        """With a pre-scan (of these branches), distances are evaluated only in its close cells:
+        elsewhere no pair comes near contact, and m_b = k_b."""
 
-    def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray) -> np.ndarray:
-        """(M, P) pair distances at the points `inside` (a mask) in branch b."""
+    def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
+        """(M, P) pair distances at the points `inside` (a mask) in branch b (`signs`: only their
+        signs need be right, `AnalyticDistances.distances`)."""
         q = configurations(self.mech, self.robot, points[inside], self.branches[b])
-        return self.distances.distances(q, signs=True)
+        return self.distances.distances(q, signs=signs)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float)
@@ -175,8 +186,11 @@ class CollisionMargin:
         B, W = len(self.branches), len(self.watched)
         each = kin[:, :B].copy()
         watch = np.repeat(kin[:, :B, None], W, axis=2)
+        cell = self.prescan.cell_index(pts) if self.prescan is not None else None
         for b in range(B):
             inside = kin[:, b] > 0
+            if self.prescan is not None:
+                inside &= self.prescan.close[b][cell]
             if not inside.any():
                 continue
             d = self.branch_distances(pts, b, inside)
@@ -247,22 +261,6 @@ def collision_map(mech: Mechanism, robot: Any, model: CollisionModel, points: np
     return each.max(axis=1), pair[np.arange(len(pts)), best]
 
 
-def binding_pairs(margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int = PRESCAN_CELLS
-                  ) -> list[tuple[int, int]]:
-    """(pair index, grid points where it is negative inside the kinematic workspace), most first,
-    over a grid of `cells` points per axis."""
-    axes = [np.linspace(lo[k], hi[k], cells) for k in range(len(lo))]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
-    kin = margin.kinematic(pts)
-    counts = np.zeros(len(margin.distances.kinds), dtype=np.int64)
-    for b in range(len(margin.branches)):
-        inside = kin[:, b] > 0
-        if inside.any():
-            counts += (margin.branch_distances(pts, b, inside) < 0).sum(axis=0)
-    order = np.argsort(-counts, kind="stable")
-    return [(int(k), int(counts[k])) for k in order if counts[k] > 0]
-
-
 @dataclass(frozen=True)
 class PairRemoval:
     """Volume [m^3] (area [m^2]) a binding pair removes from the kinematic union when it alone is
@@ -322,6 +320,11 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
+    A pre-scan (`kinematics.analyses.collision_prescan.Prescan`) finds the pairs that bind and the
+    cells where some pair comes near contact; where none does, the measurement is the kinematic
+    one (the mechanism's exact columns where it has them), else one sampled run of the joined
+    margin (`CollisionMargin`, distances evaluated in the close cells only).
+
     Args:
         collision_model: the pairs to check (default: `CollisionModel.from_robot(robot)`: the
             URDF's collision shapes less adjacent, touching-at-reference and sidecar-disabled pairs).
@@ -340,19 +343,27 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
-    found = binding_pairs(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi)
+    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
+    order = np.argsort(-scan.counts, kind="stable")
+    found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
     watched = [k for k, _ in found[:watch]]
-    margin = CollisionMargin(mech, robot, dist, chosen, limits, watched)
+    margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
     rtol = 1e-2 if rtol is None else rtol
-    res = column_volume(margin, lo, hi, step=step, rtol=rtol, check=check, progress=progress, floor=BRANCH_FLOOR,
-                        root_tol=root_tolerance(rtol, step),
-                        max_points=MAX_POINTS if max_points is None else max_points)
+    budget = MAX_POINTS if max_points is None else max_points
     B, W = len(chosen), len(watched)
-    ws = Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, _take(res, [*range(B), B + 1 + W]),
+    run = partial(column_volume, lo=lo, hi=hi, step=step, rtol=rtol, check=check, progress=progress,
+                  floor=BRANCH_FLOOR, root_tol=root_tolerance(rtol, step), max_points=budget)
+    if not scan.close.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
+        res = run(margin.kinematic)
+        kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
+    else:
+        res = run(margin)
+        kin, kin_err = float(res.estimate[B]), float(res.error[B])
+        removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]
+        res = _take(res, [*range(B), B + 1 + W])
+    ws = Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res,
                    time.perf_counter() - t0, mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
-    kin, kin_err = float(res.estimate[B]), float(res.error[B])
-    pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], kin - float(res.estimate[B + 1 + n]),
-                              kin_err + float(res.error[B + 1 + n]), count)
-                  for n, (k, count) in enumerate(found[:watch]))
+    pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], removed, error, count)
+                  for (k, count), (removed, error) in zip(found[:watch], removals, strict=True))
     return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]),
-                              summary(cm, dist))
+                              {**summary(cm, dist), "pairs_that_can_bind": int(scan.active.sum())})

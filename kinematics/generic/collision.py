@@ -167,11 +167,13 @@ class CollisionModel:
                           on_obstacle)
         return out
 
-    def distances(self, q: np.ndarray) -> np.ndarray:
+    def distances(self, q: np.ndarray, only: np.ndarray | None = None) -> np.ndarray:
         """Signed distance [m] of every pair at each configuration.
 
         Args:
             q: (N, nq) configurations.
+            only: pair indices: compute these alone (the other columns are NaN), unless one of
+                them has a mesh (then every pair is computed).
 
         Returns:
             (N, P) distances, pair order as `pairs`; (N, 0) when no pair can collide.
@@ -185,6 +187,13 @@ class CollisionModel:
         out = np.empty((len(q), len(self.pairs)))
         results = self._gdata.distanceResults
         model, data = self.robot.model, self._data
+        if only is not None and not np.isin(only, self._mesh_pairs).any():
+            out[:] = np.nan
+            for n, qn in enumerate(q):
+                pin.updateGeometryPlacements(model, data, self.geometry, self._gdata, qn)
+                for k in only:
+                    out[n, k] = pin.computeDistance(self.geometry, self._gdata, int(k)).min_distance
+            return out
         for n, qn in enumerate(q):
             pin.computeDistances(model, data, self.geometry, self._gdata, qn)
             out[n] = [r.min_distance for r in results]
