@@ -141,13 +141,11 @@ def _measure(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.
 
 
 def root_tolerance(rtol: float, step: float) -> float:
-    """Width [m] to which sampled columns bracket their roots: 0.1 x rtol x step (at least ROOT_TOL).
+    """Width [m] to which sampled columns bracket their roots: 1e-3 x rtol x step (at least ROOT_TOL).
     A column has a few ends, each bracket's width enters the error estimate, so the brackets add
-    about 0.1 x rtol x (ends x step / column length) of the measure (~0.3 % of the tolerance on
-    the Gepetto five-bar), while a margin that jumps at the boundary (a closed loop's) costs up to
-    one evaluation per halving, each a small batch of the loop solver at the boundary, its dearest
-    points (1e-3 x rtol x step measured 1.2x its CPU time there, the same area to 8 digits)."""
-    return max(ROOT_TOL, 0.1 * rtol * step)
+    about 1e-3 x rtol x (ends x step / column length) of the measure: nothing beside rtol, while a
+    margin that jumps at the boundary (a closed loop's) costs one evaluation per halving."""
+    return max(ROOT_TOL, 1e-3 * rtol * step)
 
 
 def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | None = 1e-4,
