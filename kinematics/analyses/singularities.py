@@ -158,7 +158,9 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     planes = int(dims[2]) if len(dims) == 3 else 1  # a planar task space is one plane
     t0 = time.perf_counter()
     ix, iy = (a.ravel() for a in np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij"))
-    plane_ids = ix * dims[1] + iy
+    P = len(ix)  # points per plane; a point's id is plane x P + its index in the plane
+    grid = np.arange(P).reshape(dims[0], dims[1])
+    in_plane = ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel()))
     found: list[tuple] = []
     bar = None
     if progress:
@@ -167,36 +169,37 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
         bar = tqdm(total=planes, desc="singularities", unit="plane", delay=1.0, leave=False)
     prev = None
     # closed forms (a design in `params`): a point's fields do not depend on the batch, so several
-    # planes go to one call (each call of a parallel kernel pays its threads' start-up); the
-    # generic solver, whose warm starts do depend on it, keeps one plane per call
-    per_call = max(1, PLANES_POINTS // len(ix)) if mech.params is not None else 1
-    fields: Any = None
-    block: Any = None
-    for k in range(planes):
-        if k % per_call == 0:
-            ks = np.arange(k, min(planes, k + per_call))
-            zs = [np.full(len(ix) * len(ks), np.repeat(lo[2] + step * ks, len(ix)))] if len(dims) == 3 else []
-            block = np.stack([np.tile(lo[0] + step * ix, len(ks)), np.tile(lo[1] + step * iy, len(ks))] + zs, axis=1)
-            fields = mech.singular_fields(block, limits)
-        sl = slice((k % per_call) * len(ix), (k % per_call + 1) * len(ix))
-        pts = block[sl]
-        cur = {"margin": fields.margin[sl], "det": fields.det[sl], "disc": fields.limb[sl]}
-        ids = plane_ids + k * len(plane_ids)
-        grid = np.arange(len(ix)).reshape(dims[0], dims[1])
+    # planes go to one call (each call of a parallel kernel pays its threads' start-up) and their
+    # edges are examined together; the generic solver, whose warm starts do depend on it, keeps one
+    # plane per call
+    per_call = max(1, PLANES_POINTS // P) if mech.params is not None else 1
+    for k0 in range(0, planes, per_call):
+        K = min(planes, k0 + per_call) - k0
+        ks = np.arange(k0, k0 + K)
+        zs = [np.repeat(lo[2] + step * ks, P)] if len(dims) == 3 else []
+        pts = np.stack([np.tile(lo[0] + step * ix, K), np.tile(lo[1] + step * iy, K)] + zs, axis=1)
+        fields = mech.singular_fields(pts, limits)
+        cur = {"margin": fields.margin, "det": fields.det, "disc": fields.limb}
+        ids = k0 * P + np.arange(K * P)
         signs = np.concatenate([cur["disc"] >= 0, cur["det"] > 0], axis=1)
-        for ea, eb in ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel())):
-            # only an edge whose ends differ in some sign can cross a locus (the same hits, in order)
-            e = np.flatnonzero((signs[ea] != signs[eb]).any(axis=1))
+        code = signs @ (1 << np.arange(signs.shape[1], dtype=np.int64))  # every sign of a point in one integer
+        shift = (np.arange(K) * P)[:, None]
+        edges = [((ea[None] + shift).ravel(), (eb[None] + shift).ravel()) for ea, eb in in_plane]
+        edges.append((np.arange((K - 1) * P), np.arange(P, K * P)))  # between this call's planes
+        for ea, eb in edges:
+            # only an edge whose ends differ in some sign can cross a locus
+            e = np.flatnonzero(code[ea] != code[eb])
             sa, sb = ea[e], eb[e]
             _edges({n: v[sa] for n, v in cur.items()}, {n: v[sb] for n, v in cur.items()},
                    pts[sa], pts[sb], ids[sa], ids[sb], mode_cols, found)
-        if prev is not None:
-            e = np.flatnonzero((prev[3] != signs).any(axis=1))
+        if prev is not None:  # the previous call's last plane to this call's first
+            e = np.flatnonzero(prev[3] != code[:P])
             _edges({n: v[e] for n, v in prev[0].items()}, {n: v[e] for n, v in cur.items()}, prev[1][e], pts[e],
                    prev[2][e], ids[e], mode_cols, found)
-        prev = (cur, pts, ids, signs)
+        last = slice((K - 1) * P, K * P)
+        prev = ({n: v[last] for n, v in cur.items()}, pts[last], ids[last], code[last])
         if bar is not None:
-            bar.update(1)
+            bar.update(K)
     if bar is not None:
         bar.close()
     locus = _assemble(found, mech.branches)
