@@ -48,7 +48,7 @@ def test_covered_partial_turn_is_the_solid_of_revolution(tmp_path):
     assert ws.result.converged and abs(ws.total - exact) <= ws.error <= 2e-2 * exact
 
 
-def test_uncovered_partial_turn_is_within_its_bounds(tmp_path):
+def test_uncovered_partial_turn_is_within_its_bounds(tmp_path, capsys):
     """One azimuth per circle (the 2R arm moves in a plane through the axis): W is the sector of
     angle L of the solid, V = (L / 2 pi) V_full = 0.75 V_full. No circle is covered, so the
     estimate is the bounds' middle (1 - k) V_full with k = (1 - L / 2 pi) / 2 = 1/8, its error
@@ -60,6 +60,13 @@ def test_uncovered_partial_turn_is_within_its_bounds(tmp_path):
     assert not ws.result.converged
     assert abs(ws.total - 0.75 * full) <= ws.error <= 0.16 * full
     assert ws.total == pytest.approx(0.875 * full, rel=1e-2)
+    # the reason names the bound a finer step cannot shrink (k V_full alone is 12 % of the volume)
+    assert "no finer step" in ws.unconverged()["union"]
+    assert ws.result.fixed_error[-1] >= 0.125 * full * (1 - 0.05)  # k D, D ~ V_full (Monte Carlo, 5 %)
+    from kinematics.cli import main
+
+    assert main(["workspace-volume", str(limited(tmp_path, False)), "--step", "0.05", "--rtol", "1e-2"]) == 0
+    assert "a smaller --step cannot help" in capsys.readouterr().err  # not "try a smaller --step"
     # the world margin holds the base within its limits: the sector's membership
     rng = np.random.default_rng(3)
     az = rng.uniform(-math.pi, math.pi, 400)

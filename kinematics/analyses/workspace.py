@@ -65,9 +65,16 @@ class Workspace:
         r = self.result
         if not isinstance(r, ColumnVolume):
             return {}
-        return {name: ("the run at half the step disagreed beyond the error estimates" if not r.check_agrees[k]
-                       else "error estimate above the tolerance")
-                for k, name in enumerate(self.targets) if not r.target_converged[k]}
+
+        def why(k: int) -> str:
+            if not r.check_agrees[k]:
+                return "the run at half the step disagreed beyond the error estimates"
+            if r.fixed_error is not None and r.fixed_error[k] > r.rtol * abs(float(r.estimate[k])):
+                return (f"a bound no finer step reduces ({r.fixed_error[k]:.2g} m^3 of the error estimate: a partial "
+                        "base turn whose circles the cover test cannot prove whole) exceeds the tolerance")
+            return "error estimate above the tolerance"
+
+        return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}
 
     @property
     def total(self) -> float:

@@ -345,8 +345,12 @@ def _not_converged(ws: Any) -> str:
     for name, why in failed.items():
         by_reason.setdefault(why, []).append(name)
     detail = "; ".join(f"{', '.join(names)}: {why}" for why, names in by_reason.items())
-    advice = ("try a smaller --step" if ws.targets[-1] in failed
-              else "the union converged; try a smaller --step, or leave those branches out with --modes")
+    if ws.targets[-1] not in failed:
+        advice = "the union converged; try a smaller --step, or leave those branches out with --modes"
+    elif "no finer step" in failed[ws.targets[-1]]:
+        advice = "a smaller --step cannot help; the estimate and its error are the answer at this --rtol"
+    else:
+        advice = "try a smaller --step"
     return f"not converged on {len(failed)} of {len(ws.targets)} targets ({detail}); {advice}"
 
 

@@ -63,6 +63,8 @@ class ColumnVolume:
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
         root_tol: sampled columns: the width [m] every root was bracketed to.
+        fixed_error: (T,) the part of `error` that no finer step reduces (a bound a margin's own
+            `finish` adds, e.g. a serial arm's partial base turn), or None.
     """
 
     estimate: np.ndarray
@@ -78,6 +80,7 @@ class ColumnVolume:
     target_converged: np.ndarray
     check_agrees: np.ndarray
     root_tol: float = ROOT_TOL
+    fixed_error: np.ndarray | None = None
 
 
 def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:

@@ -410,7 +410,7 @@ class ReachMargin:
         error = res.error + k * (D + 4 * sd)
         ok = res.target_converged & (error <= res.rtol * np.abs(volume) * (1.0 + 1e-12))
         return dataclasses.replace(res, estimate=volume, error=error, converged=bool(res.converged and ok.all()),
-                                   target_converged=ok)
+                                   target_converged=ok, fixed_error=np.full_like(error, k * (D + 4 * sd)))
 
 
 def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
