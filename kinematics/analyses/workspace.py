@@ -65,16 +65,26 @@ class Workspace:
         r = self.result
         if not isinstance(r, ColumnVolume):
             return {}
+        fixed = self.fixed_error_binds()
+        bound = np.zeros_like(r.error) if r.fixed_error is None else r.fixed_error
 
         def why(k: int) -> str:
             if not r.check_agrees[k]:
                 return "the run at half the step disagreed beyond the error estimates"
-            if r.fixed_error is not None and r.fixed_error[k] > r.rtol * abs(float(r.estimate[k])):
-                return (f"a bound no finer step reduces ({r.fixed_error[k]:.2g} m^3 of the error estimate: a partial "
+            if fixed[k]:
+                return (f"a bound no finer step reduces ({bound[k]:.2g} m^3 of the error estimate: a partial "
                         "base turn whose circles the cover test cannot prove whole) exceeds the tolerance")
             return "error estimate above the tolerance"
 
         return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}
+
+    def fixed_error_binds(self) -> np.ndarray:
+        """(T,) per target: the part of its error estimate no finer step reduces
+        (`ColumnVolume.fixed_error`) alone exceeds its tolerance."""
+        r = self.result
+        if not isinstance(r, ColumnVolume) or r.fixed_error is None:
+            return np.zeros(len(self.targets), dtype=bool)
+        return np.asarray(r.fixed_error > r.rtol * np.abs(r.estimate))
 
     @property
     def total(self) -> float:

@@ -347,7 +347,7 @@ def _not_converged(ws: Any) -> str:
     detail = "; ".join(f"{', '.join(names)}: {why}" for why, names in by_reason.items())
     if ws.targets[-1] not in failed:
         advice = "the union converged; try a smaller --step, or leave those branches out with --modes"
-    elif "no finer step" in failed[ws.targets[-1]]:
+    elif ws.fixed_error_binds()[-1]:
         advice = "a smaller --step cannot help; the estimate and its error are the answer at this --rtol"
     else:
         advice = "try a smaller --step"
