@@ -23,6 +23,8 @@ from kinematics.cli import (
     jacobian,
     manipulability,
     mobility,
+    singular,
+    sweep,
     urdf,
     views,
     workspace,
@@ -34,7 +36,7 @@ EXIT_INTERRUPTED, EXIT_PIPE = 130, 141
 
 COMMANDS: tuple[Callable[[Command], None], ...] = (
     info.register, fk.register, ik.register, jacobian.register, manipulability.register, mobility.register,
-    workspace.register,  # workspace-volume, singularities, sweep
+    workspace.register, singular.register, sweep.register,
     design.register,  # usable-workspace, dexterity, synthesize, workspace-mesh
     guidance.register, views.register, urdf.register,
 )

@@ -118,7 +118,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                     raise InvalidInputError("--guide", "guidance runs are for planar arms")
                 ws = None
                 if args.workspace or args.singularities:
-                    from kinematics.cli.workspace import serial_scan
+                    from kinematics.cli.singular import serial_scan
 
                     ws = serial_scan(args, robot)
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,

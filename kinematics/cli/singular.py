@@ -1,0 +1,240 @@
+"""`kinematics singularities`: its arguments and handler (closed forms, singular fields of closed
+loops, possibly singular joint boxes of serial arms)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import TYPE_CHECKING, Any
+
+from kinematics.cli.args import (
+    Command,
+    collision_args,
+    collision_checks,
+    load,
+    positive,
+    robot_arg,
+    scan_args,
+    serial_args,
+)
+from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
+from kinematics.errors import InvalidInputError
+from kinematics.sizes import check_points
+
+if TYPE_CHECKING:
+    from kinematics.mechanisms.base import Mechanism
+    from kinematics.model.robot import Robot
+
+
+def register(command: Command) -> None:
+    p = command("singularities", cmd_singularities,
+                "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
+                "(planar arm); possibly singular joint boxes (serial arms)")
+    robot_arg(p)
+    scan_args(p, 0.01)
+    p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")
+    p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
+                   help="planar arm: joint-grid step in degrees (default 1)")
+    serial_args(p)
+    collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
+                      "(p2us, delta, closed loops with singular fields)")
+
+
+def cmd_singularities(args: argparse.Namespace) -> int:
+    """Singular loci over a grid (p2us) or the joint grid (planar arm)."""
+    return singularities(args, load(args), emit)
+
+
+def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
+    """`serial_workspace` with the CLI's --resolution, --max-points and --rtol (0: 0.02)."""
+    from kinematics.analyses.serial_workspace import serial_workspace
+
+    if getattr(args, "modes", None):
+        raise InvalidInputError("--modes", "working modes are for the 3-[P2(US)] and the planar arm")
+    if getattr(args, "limits", "all") != "all":
+        raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
+    if getattr(args, "plot", None):
+        raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
+    if budget < 1000:
+        raise InvalidInputError("--max-points", f"must be at least 1000, got {budget}")
+    if args.resolution is not None:
+        if args.resolution < 4:
+            raise InvalidInputError("--resolution", f"must be at least 4 cells, got {args.resolution}")
+        check_points("--resolution", float(args.resolution) ** 3, hint="fewer cells across")
+    rtol = getattr(args, "rtol", 0.0) or 0.02
+    return serial_workspace(robot, rtol=rtol, resolution=args.resolution, max_points=budget,
+                            progress=show_progress(args))
+
+
+def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
+    """An evenly spaced sample of the possibly singular boxes: world position [m] (the base joint
+    at 0 for a solid of revolution), the ball radius [m] their image lies within, the joint values."""
+    import dataclasses
+
+    import numpy as np
+
+    k = len(ws.singular_radius)
+    idx = np.unique(np.linspace(0, k - 1, min(k, count)).astype(int)) if k else np.zeros(0, dtype=int)
+    world = dataclasses.replace(ws, singular_points=ws.singular_points[idx]).world_points("singular", turns=1)
+    return [{"position": p.tolist(), "radius_m": float(r), "q": q.tolist()}
+            for p, r, q in zip(world, ws.singular_radius[idx], ws.singular_configurations[idx], strict=True)]
+
+
+def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    ws = serial_scan(args, robot)
+    sample = singular_sample(ws)
+    r = ws.singular_radius
+    payload = {
+        "robot": robot.name, "frame": ws.frame, "mode": ws.mode,
+        "singular_boxes": len(r),
+        "tolerance": "a joint box counts when sigma_min(J(centre)) <= sum_i d_i |dJ/dq_i| (its own Lipschitz "
+                     "bound, no chosen threshold); every rank-deficient configuration's image lies within "
+                     "radius_m of a listed point",
+        "radius_m": {"min": float(r.min()), "max": float(r.max())} if len(r) else None,
+        "singular_points": sample,
+        "points_evaluated": ws.points_evaluated, "max_points": args.max_points, "cell_m": ws.grid.cell,
+        "seconds": ws.seconds,
+    }
+
+    def human() -> str:
+        rad = payload["radius_m"]
+        rows = [(fmt(p["position"], 4), fmt(p["radius_m"], 3)) for p in sample[:: max(1, len(sample) // 10)]]
+        return "\n".join([
+            f"{robot.name}: joint boxes of frame {ws.frame} that may hold a rank-deficient position Jacobian",
+            key_values([
+                ("possibly singular boxes", f"{len(r):,}"),
+                ("image radius [m]", f"{fmt(rad['min'], 3)} .. {fmt(rad['max'], 3)}" if rad else "-"),
+                ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"),
+                ("time [s]", f"{ws.seconds:.2f}"),
+            ], digits=None),
+            "tolerance: " + payload["tolerance"],
+            "",
+            table(["position [m] (sample)", "radius [m]"], rows) if rows else "no singular box",
+        ])
+
+    out(args, payload, human)
+    return 0
+
+
+def joint_singular_points(sing: dict[str, Any]) -> list[dict[str, Any]]:
+    """JSON-ready points of a joint-space singular set (`Mechanism.joint_singularities`)."""
+    return [{"position": p.tolist(), "q": q.tolist(), "type": "theta2 = 0"}
+            for p, q in zip(sing["singular_points"], sing["singular_q"], strict=True)]
+
+
+def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(robot)
+    checks = collision_checks(args, robot)
+    if checks is not None and "singular_fields" not in mech.capabilities:
+        raise InvalidInputError("--collisions/--obstacles", f"{mech.family} singularities are not collision-aware "
+                                "yet (p2us, delta and closed loops with singular fields are)")
+    if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
+        # an open chain without closed forms: its joint boxes that may hold a rank-deficient
+        # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
+        return _serial_singularities(args, robot, out)
+    if "joint_singularities" in mech.capabilities:
+        mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
+        s = mech.joint_singularities(math.radians(args.angle_step_deg))
+        pts = joint_singular_points(s)
+        payload = {
+            "robot": robot.name,
+            "singular_points": pts,
+            "theta2_zero_within_limits": s["theta2_zero_within_limits"],
+            "theta2_pi_within_limits": s["theta2_pi_within_limits"],
+            "min_radius": {"min": float(s["min_radius"].min()), "max": float(s["min_radius"].max())},
+            "grid": [len(s["theta1"]), len(s["theta2"])],
+        }
+        if args.plot:
+            from kinematics.views import plots
+
+            plots.headless()
+            plots.save(plots.scara_workspace(mech.params, s), args.plot)
+
+        def human() -> str:
+            return "\n".join([
+                f"{robot.name}: det J = l1 l2 sin(theta2) = 0 at theta2 = 0 (stretched) and theta2 = +/-pi (folded)",
+                key_values([
+                    ("theta2 = 0 within limits", payload["theta2_zero_within_limits"]),
+                    ("theta2 = pi within limits", payload["theta2_pi_within_limits"]),
+                    ("singular points found", len(pts)),
+                    ("joint grid", f"{payload['grid'][0]} x {payload['grid'][1]}"),
+                    ("smallest radius [m]", f"{fmt(payload['min_radius']['min'])} .. {fmt(payload['min_radius']['max'])}"),
+                ], digits=None),
+            ])
+
+        out(args, payload, human)
+        return 0
+    from kinematics.analyses.singularities import singular_loci
+
+    mech.require("singular_fields", "singularities")
+    if args.paper_scan:
+        mech.require("paper_scan", "--paper-scan (paper B's 512-point scan of the 3-[P2(US)])")
+    res = singular_loci(mech, step=args.step, limits=args.limits, branches=args.modes or None,
+                        progress=show_progress(args))
+    payload = {
+        "robot": robot.name,
+        "limits": args.limits,
+        "step_m": args.step,
+        "points_evaluated": res.points_evaluated,
+        "singularities": res.summary(),
+        "singular_points": res.locus.as_list(),
+        "any_inside_workspace": res.any_inside,
+        "seconds": res.seconds,
+    }
+    if checks is not None:
+        _flag_colliding(payload, res.locus, mech, robot, checks, args.limits)
+    if args.paper_scan:
+        ps = mech.paper_scan()
+        payload["paper_scan"] = {k: v for k, v in ps.items() if k != "rows"}
+        payload["paper_scan"]["rows"] = ps["rows"]
+    if args.plot:
+        from kinematics.views import plots
+
+        plots.headless()
+        plots.save(plots.p2us_singular_loci(res), args.plot)
+
+    def p2us_human() -> str:
+        rows = [(k, *v.values()) for k, v in payload["singularities"].items()]
+        lines = [
+            (f"{robot.name}: singular loci on a {args.step:g} m grid ({args.limits} limits), "
+            f"{res.points_evaluated:,} points in {res.seconds:.2f} s"),
+            "",
+            table(["type", "locus points", "in the workspace (type I: on its boundary)"], rows),
+            "",
+            ("Type I points lie on reach boundaries, so at best on the workspace's boundary; type II/III"
+            " count as inside only with both grid neighbours inside the workspace."),
+            f"any singular point in the workspace: {res.any_inside}",
+        ]
+        if checks is not None:
+            c = payload["collisions"]
+            lines.append(f"of those, colliding: {c['colliding_points']} of {c['interior_points']}; any in the "
+                         f"collision-free workspace: {c['any_inside_collision_free']}")
+        if args.paper_scan:
+            ps = payload["paper_scan"]
+            lines += ["", (f"paper B's scan: {ps['actuator_triples']} actuator triples -> {ps['poses']} poses "
+                          f"(both assembly modes), tolerance {ps['tolerance']:g}"),
+                      table(["type", "poses", "within limits"],
+                            [(k, v["all"], v["within_limits"]) for k, v in ps["counts"].items()]),
+                      f"smallest iota_I {fmt(ps['min_iota_I'])}, iota_II {fmt(ps['min_iota_II'])}"]
+        return "\n".join(lines)
+
+    out(args, payload, p2us_human)
+    return 0
+
+
+def _flag_colliding(payload: dict[str, Any], locus: Any, mech: Mechanism, robot: Robot, checks: Any,
+                    limits: str) -> None:
+    """Mark each listed (interior type II/III) singular point `colliding` and add the counts."""
+    import numpy as np
+
+    from kinematics.analyses.collisions import colliding_at, summary
+
+    idx = np.flatnonzero(locus.interior)
+    flags = colliding_at(mech, robot, checks, locus.points[idx], locus.which[idx], limits)
+    for item, flag in zip(payload["singular_points"], flags, strict=True):
+        item["colliding"] = bool(flag)
+    payload["collisions"] = {**summary(checks), "interior_points": len(idx), "colliding_points": int(flags.sum()),
+                             "any_inside_collision_free": bool((~flags).any())}
