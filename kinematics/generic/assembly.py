@@ -116,7 +116,8 @@ _DEFAULT: weakref.WeakKeyDictionary[Robot, Assembly] = weakref.WeakKeyDictionary
 
 
 def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *,
-             hold: Sequence[str] = (), seed: int = 0, loop: ClosedLoop | None = None) -> Assembly:
+             hold: Sequence[str] = (), seed: int = 0, loop: ClosedLoop | None = None, diagnose: bool = True,
+             ranges: bool = True) -> Assembly:
     """A configuration of `robot` with every loop closed, found from `values` (module docstring).
 
     Args:
@@ -127,6 +128,11 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
         hold: joints kept at their start values (e.g. the actuators at `--q`).
         seed: seed of the random restarts (the answer is deterministic for a fixed seed).
         loop: the robot's `ClosedLoop`, if the caller has one.
+        diagnose: on failure, say why in the message: the closures left open at the closest pose,
+            and whether the loops close with every closure a point, or with the ranges ignored
+            (two more searches).
+        ranges: False: the joint ranges are ignored (each joint's restarts within half a turn of
+            its start); for that diagnosis.
 
     Raises:
         AssemblyError: no closed configuration within the ranges was found.
@@ -136,7 +142,7 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     from kinematics.errors import UnknownJointError
     from kinematics.generic.closedloop import ClosedLoop
 
-    default = values is None and not hold and seed == 0
+    default = values is None and not hold and seed == 0 and ranges
     if default and robot in _DEFAULT:
         return _DEFAULT[robot]
     loop = loop or ClosedLoop(robot)
@@ -158,7 +164,7 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     held_dofs = [names.index(h) for h in hold]
     free_dofs = np.array([i for i in range(robot.nv) if i not in held_dofs], dtype=int)
     free_v = np.array([robot.dofs[i].idx_v for i in free_dofs], dtype=int)
-    lo, hi = robot.lower, robot.upper
+    lo, hi = (robot.lower, robot.upper) if ranges else (np.full(robot.nv, -np.inf), np.full(robot.nv, np.inf))
     angular = _angular(robot)
 
     def nearest_turn(v: np.ndarray) -> np.ndarray:
@@ -188,7 +194,7 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
         return result(q, err, 1)  # a start that closes is the caller's pose, ranges or not
     # 2: projection over every free joint
     for clip in (False, True):
-        q, err = _project(loop, robot.configuration(np.clip(start, lo, hi)), free_v, clip)
+        q, err = _project(loop, robot.configuration(np.clip(start, lo, hi)), free_v, clip, lo, hi)
         if err <= TOLERANCE and within(robot.values_from_configuration(q)):
             return result(q, err, 2)
     # 3: seeded restarts, the nearest closed pose kept
@@ -199,12 +205,12 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     r_hi = np.where(np.isfinite(hi), hi, start + span)
     best: tuple[float, np.ndarray, float] | None = None
     kept = 0
-    closest = err
+    closest = (err, q)
     for _ in range(RESTARTS):
         v = start.copy()
         v[free_dofs] = rng.uniform(r_lo[free_dofs], r_hi[free_dofs])
-        q, err = _project(loop, robot.configuration(v), free_v, clip=True)
-        closest = min(closest, err)
+        q, err = _project(loop, robot.configuration(v), free_v, True, lo, hi)
+        closest = min(closest, (err, q), key=lambda c: c[0])
         vals = robot.values_from_configuration(q)
         if err > TOLERANCE or not within(vals):
             continue
@@ -219,9 +225,55 @@ def assemble(robot: Robot, values: Sequence[float] | np.ndarray | None = None, *
     what = {"given": "the given joint values", "sidecar reference": "the sidecar's reference configuration",
             "neutral": "the neutral pose (q = 0)"}[source]
     held = f" with {', '.join(hold)} held" if hold else ""
+    why = _diagnosis(robot, loop, closest[1], start, tuple(hold), seed) if diagnose else ""
     raise AssemblyError(f"assembling {robot.name} from {what}{held} (closure gap {gap:.3g} there; "
-                        f"projection and {RESTARTS} random restarts found no closed pose within the joint ranges)",
-                        MAX_ITER, closest, TOLERANCE)
+                        f"projection and {RESTARTS} random restarts found no closed pose within the joint ranges"
+                        f"{why})", MAX_ITER, closest[0], TOLERANCE)
+
+
+def _diagnosis(robot: Robot, loop: ClosedLoop, q: np.ndarray, start: np.ndarray, hold: tuple[str, ...],
+               seed: int) -> str:
+    """Why no closed pose was found, for the error message: the closures the closest pose leaves
+    open (position [m] and orientation [rad] apart), and two searches a user would try next: the
+    6D closures taken as points (their frames' orientations free), and the joint ranges ignored."""
+    import dataclasses
+
+    e, _ = loop.residual(q)
+    open_, k = [], 0
+    for c in loop.spec.closures:
+        part = e[k:k + c.size]
+        k += c.size
+        lin = float(np.linalg.norm(part[:3]))
+        ang = float(np.linalg.norm(part[3:])) if c.size == 6 else 0.0
+        if max(lin, ang) > TOLERANCE:
+            open_.append(f"{c.name} ({lin:.2g} m" + (f", {ang:.2g} rad" if c.size == 6 else "") + ")")
+    parts = [f"; the closest pose found leaves {len(open_)} of {len(loop.spec.closures)} closures open: "
+             + ", ".join(open_[:4]) + (", ..." if len(open_) > 4 else "")]
+    if any(c.size == 6 for c in loop.spec.closures):
+        spec = loop.spec
+        points = dataclasses.replace(robot, loops=dataclasses.replace(
+            spec, closures=tuple(dataclasses.replace(c, type="point") for c in spec.closures)))
+        try:
+            assemble(points, start, hold=hold, seed=seed, diagnose=False)
+            parts.append("; with every closure a point (`3d`: the paired frames' orientations free) it closes, "
+                         "so the 6D closures' frame orientations are what cannot be matched")
+        except AssemblyError:
+            parts.append("; it does not close with every closure a point either")
+    if np.isfinite(robot.lower).any() or np.isfinite(robot.upper).any():
+        try:
+            a = assemble(robot, start, hold=hold, seed=seed, diagnose=False, ranges=False)
+            _, K = loop.residual(a.q)
+            # the joints the loops depend on there, outside their ranges (a joint outside every loop
+            # was only moved by a restart)
+            out = [d.name for d, x in zip(robot.dofs, a.values, strict=True)
+                   if (x < d.lower - RANGE_TOL or x > d.upper + RANGE_TOL) and np.any(K[:, d.idx_v] != 0.0)]
+            parts.append(f"; ignoring the joint ranges it closes, with {', '.join(out[:6])}"
+                         + (", ..." if len(out) > 6 else "") + (" outside their ranges" if len(out) > 1 else " outside its range")
+                         if out else
+                         "; ignoring the joint ranges it closes at a pose within them that the restarts missed")
+        except AssemblyError:
+            parts.append("; ignoring the joint ranges it does not close either")
+    return "".join(parts)
 
 
 def _angular(robot: Robot) -> np.ndarray:
@@ -233,14 +285,14 @@ def _wrapped(robot: Robot, dv: np.ndarray) -> np.ndarray:
     return np.where(_angular(robot), (dv + np.pi) % (2 * np.pi) - np.pi, dv)
 
 
-def _project(loop: ClosedLoop, q: np.ndarray, free_v: np.ndarray, clip: bool) -> tuple[np.ndarray, float]:
+def _project(loop: ClosedLoop, q: np.ndarray, free_v: np.ndarray, clip: bool, lo: np.ndarray, hi: np.ndarray
+             ) -> tuple[np.ndarray, float]:
     """Gauss-Newton from `q` on the velocity indices `free_v`: minimum-norm steps, a step halved
-    while the residual grows; with `clip`, the joint values clipped into their ranges after each
+    while the residual grows; with `clip`, the joint values clipped into [lo, hi] after each
     step (projected Gauss-Newton). Returns (q, largest closure error)."""
     import pinocchio as pin
 
     robot = loop.robot
-    lo, hi = robot.lower, robot.upper
 
     def clipped(qq: np.ndarray) -> np.ndarray:
         v = robot.values_from_configuration(qq)
