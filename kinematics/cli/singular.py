@@ -37,7 +37,7 @@ def register(command: Command) -> None:
                    help="planar arm: joint-grid step in degrees (default 1)")
     serial_args(p)
     collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
-                      "(p2us, delta, closed loops with singular fields)")
+                      "(p2us, delta, the planar arm, closed loops with singular fields)")
 
 
 def cmd_singularities(args: argparse.Namespace) -> int:
@@ -128,9 +128,11 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     mech = mechanism_of(robot)
     checks = collision_checks(args, robot)
-    if checks is not None and "singular_fields" not in mech.capabilities:
-        raise InvalidInputError("--collisions/--obstacles", f"{mech.family} singularities are not collision-aware "
-                                "yet (p2us, delta and closed loops with singular fields are)")
+    if checks is not None and not ({"joint_singularities", "singular_fields"} & mech.capabilities):
+        raise InvalidInputError("--collisions/--obstacles", "a serial arm's possibly singular joint boxes are found "
+                                "with its base joint at 0 (its workspace a solid of revolution), and whether a "
+                                "configuration collides depends on that angle; p2us, delta, the planar arm and "
+                                "closed loops with singular fields are collision-aware")
     if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
@@ -147,6 +149,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             "min_radius": {"min": float(s["min_radius"].min()), "max": float(s["min_radius"].max())},
             "grid": [len(s["theta1"]), len(s["theta2"])],
         }
+        if checks is not None:
+            _flag_colliding_configurations(payload, robot, checks, s["singular_q"])
         if args.plot:
             from kinematics.views import plots
 
@@ -162,6 +166,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
                     ("singular points found", len(pts)),
                     ("joint grid", f"{payload['grid'][0]} x {payload['grid'][1]}"),
                     ("smallest radius [m]", f"{fmt(payload['min_radius']['min'])} .. {fmt(payload['min_radius']['max'])}"),
+                    *([("colliding singular configurations",
+                        f"{payload['collisions']['colliding_points']} of {len(pts)}")] if checks is not None else []),
                 ], digits=None),
             ])
 
@@ -238,3 +244,21 @@ def _flag_colliding(payload: dict[str, Any], locus: Any, mech: Mechanism, robot:
         item["colliding"] = bool(flag)
     payload["collisions"] = {**summary(checks), "interior_points": len(idx), "colliding_points": int(flags.sum()),
                              "any_inside_collision_free": bool((~flags).any())}
+
+
+def _flag_colliding_configurations(payload: dict[str, Any], robot: Robot, checks: Any, values: Any) -> None:
+    """Mark each listed singular point `colliding` where its configuration (joint values `values`,
+    one row per point) brings some checked pair to a negative signed distance, and add the counts."""
+    import numpy as np
+
+    from kinematics.analyses.collisions import summary
+
+    q = np.array([robot.configuration(v) for v in np.asarray(values, dtype=float)]).reshape(len(values), -1)
+    depth, pair = checks.margin(q) if len(q) else (np.zeros(0), np.zeros(0, dtype=int))
+    flags = depth < 0
+    for item, flag, k in zip(payload["singular_points"], flags, pair, strict=True):
+        item["colliding"] = bool(flag)
+        if flag:
+            item["pair"] = list(checks.pair_links[int(k)])
+    payload["collisions"] = {**summary(checks), "singular_points": len(flags), "colliding_points": int(flags.sum()),
+                             "any_collision_free": bool((~flags).any())}
