@@ -49,7 +49,7 @@ def register(command: Command) -> None:
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")
     collision_args(p, "; with --workspace: the points where every branch collides drawn by binding pair, and "
-                      "the obstacles (p2us, delta, closed loops)")
+                      "the obstacles (p2us, delta, the planar arm, closed loops)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=non_negative, metavar="S", help=argparse.SUPPRESS)
 
@@ -76,9 +76,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     if args.collisions or args.obstacles:
         if not args.workspace:
             raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
-        if robot.loops is None:
-            raise InvalidInputError("--collisions/--obstacles", "views of open chains are not collision-aware yet "
-                                    "(p2us, delta and closed loops are)")
+        if robot.loops is None and "joint_singularities" not in mech.capabilities:
+            raise InvalidInputError("--collisions/--obstacles", "a serial arm's workspace is not collision-aware yet "
+                                    "(its volume neither); p2us, delta, the planar arm and closed loops are")
         checks = collision_checks(args, robot)
     if three_limb:
         unreachable = _parallel_checks(args, robot, mech)
@@ -112,7 +112,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 if args.q is not None else None
             if "joint_singularities" in mech.capabilities:  # a planar arm with closed forms
                 viz.scara_view(robot, q, ellipse=args.ellipsoid, workspace=args.workspace,
-                               singularities=args.singularities, guide=args.guide, scene=scene)
+                               singularities=args.singularities, guide=args.guide, scene=scene, collisions=checks,
+                               step=0.02 if args.step is None else args.step)
             else:
                 if args.guide is not None:
                     raise InvalidInputError("--guide", "guidance runs are for planar arms")

@@ -103,6 +103,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
+        if "ik" not in mech.capabilities:  # the collision margin needs each point's configurations
+            raise InvalidInputError("--collisions/--obstacles", "a serial arm's workspace is not collision-aware "
+                                    "yet (its reachability search does not exclude colliding configurations); "
+                                    "p2us, delta, the planar arm and closed loops are")
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}

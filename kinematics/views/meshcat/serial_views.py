@@ -42,10 +42,13 @@ def _check_pose(scene: Scene, radii: np.ndarray, what: str) -> None:
 
 
 def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False, workspace: bool = False,
-               singularities: bool = False, guide: int | None = None, scene: Scene | None = None) -> Scene:
+               singularities: bool = False, guide: int | None = None, scene: Scene | None = None,
+               collisions: Any = None, step: float = 0.02) -> Scene:
     """The planar arm at q [rad] (default: `default_pose`), with its velocity ellipse at the tool,
     its reachable workspace coloured by the smallest radius, the theta2 = 0 singular arc, or an
-    animated guidance run; the camera framed on all of it."""
+    animated guidance run; the camera framed on all of it. With `collisions` (a `CollisionModel`)
+    the workspace is drawn on a task-space grid of `step` [m] instead: the points where both elbows
+    collide apart, by binding pair, the collision-free ones in one colour, and the obstacles."""
     from kinematics.generic.manipulability import ellipsoid
     from kinematics.generic.serial import forward_kinematics, task_jacobian
     from kinematics.mechanisms.scara.closed_form import ScaraParams, fk, manipulability
@@ -66,7 +69,9 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
         t2 = np.linspace(sp.lower[1], sp.upper[1], 90)
         Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1).reshape(-1, 2)
         xy = fk(sp, Q)
-        if workspace:
+        if workspace and collisions is not None:
+            _collision_workspace(scene, robot, collisions, step, tool[2])
+        elif workspace:
             r = manipulability(sp, Q).radii[:, 0]
             scene.add_points(np.hstack([xy, np.full((len(xy), 1), tool[2])]), r, "overlays/workspace",
                              cmap=RADIUS_CMAP, label="reachable points, coloured by the smallest radius [m per rad/s]")
@@ -88,6 +93,31 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
                                                                                           tool[2])]))
     scene.fit_camera()
     return scene
+
+
+def _collision_workspace(scene: Scene, robot: Any, collisions: Any, step: float, z: float) -> None:
+    """The planar arm's workspace on a grid of `step` [m] in its plane (at height z [m]): the
+    colliding points by binding pair (`collision_views.colliding_overlay`), the free ones, the
+    obstacles."""
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
+    from kinematics.views.meshcat.collision_views import add_obstacles, colliding_overlay
+
+    mech = mechanism_of(robot)
+    lo, hi = mech.bounding_box("all")
+    check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS, hint=f"{step:g} m is too fine a step for a view")
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    pts = pts[(mech.margin(None, "all")(pts)[:, :-1] >= 0).any(axis=1)]
+
+    def embed(p: np.ndarray) -> np.ndarray:
+        return np.hstack([p, np.full((len(p), 1), z)])
+
+    free = colliding_overlay(scene, mech, robot, collisions, pts, "all", step * 0.35, embed)
+    scene.add_points(embed(pts[free]), name="overlays/workspace", colour=(0.2, 0.55, 0.85), size=step * 0.35,
+                     opacity=0.5, label=f"collision-free workspace ({int(free.sum())} points)")
+    if collisions.obstacles:
+        add_obstacles(scene, collisions)
 
 
 VIEW_CELLS = 100_000
