@@ -218,10 +218,10 @@ def orientation_args(p: argparse.ArgumentParser, what: str) -> None:
 
 def orientation_of(args: argparse.Namespace) -> Any:
     """The fixed tool orientation of --orientation / --tool-axis (a `ToolOrientation`), or None."""
+    if not (getattr(args, "orientation", None) or getattr(args, "tool_axis", None)):
+        return None
     from kinematics.mechanisms.serial.orientation import ToolOrientation
 
     if getattr(args, "orientation", None):
         return ToolOrientation.parse(args.orientation)
-    if getattr(args, "tool_axis", None):
-        return ToolOrientation.axis(args.tool_axis)
-    return None
+    return ToolOrientation.axis(args.tool_axis)

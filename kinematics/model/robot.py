@@ -12,7 +12,6 @@ file stem in that package). Robots are loaded with a fixed base.
 from __future__ import annotations
 
 import functools
-import importlib.metadata
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -287,6 +286,8 @@ def urdf_in(directory: Path) -> Path:
 @functools.cache
 def erd_robots_dir() -> Path | None:
     """The `robots/` folder of the installed example-robot-data package, if any."""
+    import importlib.metadata  # ~14 ms at start-up otherwise: only when a name is not built in
+
     try:
         dist = importlib.metadata.distribution("example-robot-data")
     except importlib.metadata.PackageNotFoundError:
