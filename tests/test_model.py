@@ -145,3 +145,25 @@ def test_pinocchio_and_yourdfpy_agree(name, rng):
         assert agree.frames >= 4
         assert agree.max_position_error <= 1e-12
         assert agree.max_rotation_error <= 1e-12
+
+
+def test_default_tool_frame_of_a_tree_is_moved_by_joints(tmp_path):
+    """The tool frame defaults to the last link, unless no joint moves it (a sensor fixed to the
+    base written last, as tiago's URDF does): then the last link of the chain with the most
+    moving joints (here the 2-joint arm's tip, not the 1-joint branch or the sensor)."""
+    joint = ("<joint name='{n}' type='revolute'><parent link='{p}'/><child link='{c}'/><axis xyz='0 0 1'/>"
+             "<limit lower='-1' upper='1' effort='1' velocity='1'/></joint>")
+    links = "".join(f"<link name='{n}'/>" for n in ("base", "a1", "a2", "tip", "b1", "laser"))
+    urdf = tmp_path / "tree.urdf"
+    urdf.write_text(
+        f"<robot name='tree'>{links}"
+        + joint.format(n="j1", p="base", c="a1") + joint.format(n="j2", p="a1", c="a2")
+        + "<joint name='tip_joint' type='fixed'><parent link='a2'/><child link='tip'/></joint>"
+        + joint.format(n="k1", p="base", c="b1")
+        + "<joint name='laser_joint' type='fixed'><parent link='base'/><child link='laser'/></joint></robot>")
+    assert load_robot(urdf).tool_frame == "tip"
+    # the last link moved by a joint stays the default, however short its chain
+    urdf.write_text(urdf.read_text().replace(
+        "<joint name='laser_joint' type='fixed'><parent link='base'/>",
+        "<joint name='laser_joint' type='fixed'><parent link='b1'/>"))
+    assert load_robot(urdf).tool_frame == "laser"

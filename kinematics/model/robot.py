@@ -315,8 +315,23 @@ def robot_names() -> tuple[str, ...]:
 
 
 def _default_tool_frame(model: pin.Model) -> str:
-    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-    return bodies[-1] if bodies else model.frames[-1].name
+    """The last body frame; where no joint moves it (a tree whose file ends with a sensor on the
+    base, e.g. tiago's laser), the last body of the chain with the most moving joints."""
+    bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
+    if not bodies:
+        return str(model.frames[-1].name)
+
+    def moving_joints(j: int) -> int:
+        n = 0
+        while j > 0:
+            n += model.joints[j].nv > 0
+            j = model.parents[j]
+        return n
+
+    depth = [moving_joints(f.parentJoint) for f in bodies]
+    if depth[-1] > 0:
+        return str(bodies[-1].name)
+    return str(bodies[max(range(len(bodies)), key=lambda k: (depth[k], k))].name)
 
 
 def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
