@@ -29,6 +29,12 @@ class KinematicsError(Exception):
     """Root of every error the toolkit raises on purpose."""
 
 
+class KinematicsWarning(UserWarning):
+    """Something the toolkit did differently from what a file asked, and went on (e.g. a Gepetto
+    `robot.yaml` substitution naming a joint the URDF lacks, left out as Gepetto's loader does).
+    The command line prints each as one `warning:` line on stderr."""
+
+
 class InvalidInputError(KinematicsError, ValueError):
     """A numeric input is malformed: wrong length, NaN/inf, out of a declared domain."""
 

@@ -117,10 +117,20 @@ def _run(argv: Sequence[str] | None) -> int:
         return EXIT_OK
     import warnings
 
+    from kinematics.errors import KinematicsWarning
+
+    def show(message: Warning | str, category: type[Warning], *rest: object, **kw: object) -> None:
+        if issubclass(category, KinematicsWarning):  # one line, like the errors
+            print(f"kinematics {args.command}: warning: {message}", file=sys.stderr)
+        else:
+            default_show(message, category, *rest, **kw)  # type: ignore[arg-type]
+
     try:
         with warnings.catch_warnings():
             # an overflow or invalid operation the inputs provoked is bad input, not a result
             warnings.simplefilter("error", RuntimeWarning)
+            warnings.simplefilter("default", KinematicsWarning)
+            default_show, warnings.showwarning = warnings.showwarning, show
             _check_outputs(args)
             return int(args.func(args))
     except KinematicsError as exc:

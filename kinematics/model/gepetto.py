@@ -41,7 +41,7 @@ from typing import Any
 
 import pinocchio as pin
 
-from kinematics.errors import ModelFileError, UnknownFrameError, UnknownJointError, closest
+from kinematics.errors import KinematicsWarning, ModelFileError, UnknownFrameError, UnknownJointError, closest
 from kinematics.model.loops import Closure, LoopSpec
 
 FILENAME = "robot.yaml"
@@ -179,8 +179,11 @@ def read_gepetto(path: str | os.PathLike[str]) -> GepettoSpec | None:
 def substitute_joints(root: ET.Element, spec: GepettoSpec) -> ET.Element:
     """A copy of the URDF tree `root` with each substituted joint replaced (see module doc).
 
+    A substitution naming a joint the URDF lacks is left out with a `KinematicsWarning` (naming the
+    closest joints), as Gepetto's loader skips it.
+
     Raises:
-        GepettoFormatError: a substituted joint is missing or fixed, or a new name collides.
+        GepettoFormatError: a substituted joint is fixed, or a new name collides.
     """
     out = copy.deepcopy(root)
     joints = {j.get("name"): j for j in out.findall("joint")}
@@ -188,7 +191,17 @@ def substitute_joints(root: ET.Element, spec: GepettoSpec) -> ET.Element:
     for name, kind in spec.substitutions:
         joint = joints.get(name)
         if joint is None:
-            raise UnknownJointError(name, [n for n in joints if n and joints[n].get("type") != "fixed"])
+            # Gepetto's loader applies a substitution only to the joints it finds, so its models
+            # load with such a name (disney_robot's URDF misspells one); so do they here, loudly
+            import warnings
+
+            near = closest(name, [n for n in joints if n and joints[n].get("type") != "fixed"])
+            guess = f" (did you mean {' or '.join(repr(n) for n in near)}?)" if near else ""
+            warnings.warn(KinematicsWarning(
+                f"{spec.path}: joint_name lists {name!r}, which the URDF does not have{guess}; its {kind} "
+                "substitution is left out (as Gepetto's loader does), so that joint keeps its URDF type"),
+                stacklevel=2)
+            continue
         if joint.get("type") in ("fixed", "floating", "planar"):
             raise GepettoFormatError(spec.path, f"joint {name!r} is a {joint.get('type')} joint in the URDF; only "
                                      "revolute, continuous and prismatic joints can be substituted", "joint_name")
