@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from kinematics.analyses import mobility as mob
-from kinematics.errors import KinematicsError, UnknownFrameError, UnknownJointError
+from kinematics.errors import KinematicsError, KinematicsWarning, UnknownFrameError, UnknownJointError
 from kinematics.generic.closedloop import ClosedLoop
 from kinematics.model.gepetto import GepettoFormatError
 from kinematics.model.robot import load_robot
@@ -131,7 +131,6 @@ def test_tool_frame_becomes_the_end_effector(tmp_path):
     (GOOD + "joint_name: [mot2]\njoint_type: [FIXED]\n", GepettoFormatError, "motor 'mot2' is substituted"),
     (GOOD + "joint_name: [closedloop1_A_frame]\njoint_type: [SPHERICAL]\n", GepettoFormatError,
      "fixed joint in the URDF"),
-    (GOOD + "joint_name: [nope]\njoint_type: [SPHERICAL]\n", UnknownJointError, "unknown joint 'nope'"),
     (GOOD.replace("closedloop1_B", "nowhere"), UnknownFrameError, "unknown frame 'nowhere'"),
     (GOOD.replace("'mot2'", "'motor_2'"), UnknownJointError,
      r"unknown joint 'motor_2' \(did you mean 'mot2'\?\); valid: mot1"),
@@ -146,6 +145,16 @@ def test_refusals(tmp_path, capsys, text, error, match):
     assert isinstance(info.value, KinematicsError)
     code, out, err = run(capsys, "info", str(path))
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_substitution_of_an_unknown_joint_is_left_out_with_a_warning(tmp_path, capsys):
+    # as Gepetto's loader: the other substitution applies, the unknown name is skipped, loudly
+    path = fivebar_with(tmp_path, GOOD + "joint_name: [free_2, free3]\njoint_type: [SPHERICAL, SPHERICAL]\n")
+    with pytest.warns(KinematicsWarning, match="'free_2', which the URDF does not have \\(did you mean 'free2'"):
+        robot = load_robot(path)
+    assert "free2" in robot.joint_names and "free3_X" in robot.joint_names
+    code, out, err = run(capsys, "info", str(path))
+    assert code == 0 and err.startswith("kinematics info: warning: ") and len(err.strip().splitlines()) == 1
 
 
 def test_cli_on_the_fixture(capsys):
