@@ -45,6 +45,7 @@ class Prescan:
         inside: (B,) grid points inside each branch's kinematic workspace.
         close: (B, cells - 1, ...) per branch, the cells where collisions are looked for.
         active: (P,) the pairs close somewhere.
+        slopes: (B, P) each pair's observed slope per branch [m/m] (+inf: nothing observed).
     """
 
     def __init__(self, margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int) -> None:
@@ -60,6 +61,7 @@ class Prescan:
         self.inside = np.zeros(B, dtype=np.int64)
         self.close = np.zeros((B,) + (cells - 1,) * d, dtype=bool)
         self.active = np.zeros(P, dtype=bool)
+        self.slopes = np.full((B, P), np.inf)
         diagonal = float(np.linalg.norm(self.spacing))
         for b in range(B):
             inside = kin[:, b] > 0
@@ -73,7 +75,7 @@ class Prescan:
             if not P:
                 continue
             grid = np.where(inside[:, None], dist, np.nan).reshape(*shape, P)
-            slope = _slopes(grid, self.spacing)
+            slope = self.slopes[b] = _slopes(grid, self.spacing)
             threshold = SAFETY * slope * diagonal  # (P,)
             boundary = _on_boundary(inside.reshape(shape))
             near = grid < np.where(boundary[..., None], 2.0 * threshold, threshold)

@@ -316,7 +316,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 collision_model: CollisionModel | None = None,
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
                                 max_points: int | None = None, watch: int = MAX_WATCHED,
-                                obstacles: Obstacles | None = None, self_collisions: bool = True) -> CollisionWorkspace:
+                                obstacles: Obstacles | None = None, self_collisions: bool = True,
+                                exact: bool = True) -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
@@ -357,6 +358,11 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         res = run(margin.kinematic)
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
     else:
+        if exact:
+            from kinematics.analyses.collision_columns import ExactCollisionMargin, has_exact_columns
+
+            if has_exact_columns(margin):
+                margin = ExactCollisionMargin(margin, scan, step, root_tolerance(rtol, step))
         res = run(margin)
         kin, kin_err = float(res.estimate[B]), float(res.error[B])
         removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]

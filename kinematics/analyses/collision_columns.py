@@ -1,0 +1,389 @@
+"""Collision-free exact columns: the collision margin along the kinematic intervals of the
+closed-form mechanisms' exact columns (3-[P2(US)], Delta).
+
+Along an axis-parallel column each working mode's kinematic inside set is a union of intervals with
+algebraic ends (`kinematics.mechanisms.p2us.exact`, `kinematics.mechanisms.delta.exact`); they come
+from the mode's own exact columns, one call per batch of columns: where a column has more than one
+interval in a z range (more than two ends), the range is halved for those columns until each part
+holds one. Inside an interval the configuration is a smooth closed-form function of z, and so is
+every pair's signed distance d_p. The collision margin is checked only in the pre-scan's close
+cells (`kinematics.analyses.collision_prescan`; elsewhere no pair comes near contact and the whole
+interval is free):
+
+* samples every `spacing` [m] (at least both ends, nudged EDGE inside), then, per gap of width w
+  between two samples, the pre-scan's observed slopes s_p (times SAFETY) decide whether it can hold
+  a root: a gap whose ends are both clear cannot when every pair has d_p(a) + d_p(b) > s_p w; one
+  colliding at both ends cannot when |m(a)| + |m(b)| > max_p s_p w (m = min_p d_p). Gaps that can
+  are halved, at most MAX_REFINE times;
+* every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
+  8th step on); the binding pair at a root is the smallest pair at its colliding side;
+* the collision-free pieces of every branch, and their unions over the branches, give the
+  targets' lengths: each branch's, the kinematic union (the exact columns' own), the union with
+  each watched pair alone, the union with every pair.
+
+Errors: the kinematic ends' (the exact columns') plus `root_tol` per collision end. The signature
+is the kinematic one combined with, per target, the binding pair of each collision end in order,
+so the column engine locates where a collision end appears, vanishes or changes pair as it does a
+kinematic one. What it can miss, beside the exact columns' caveats: the slopes are observed on the
+pre-scan's grid, not bounded (a pair closing in faster, as near a reach boundary where the joints
+turn fast, can dip below zero between two samples), and a dip narrower than spacing / 2^MAX_REFINE;
+the check run halves the spacing (`for_check`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from kinematics.analyses.collision_prescan import SAFETY, Prescan
+from kinematics.analyses.collisions import CollisionMargin, configurations
+
+EDGE = 1e-10
+"""[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
+
+MAX_REFINE = 10
+"""Most halvings of a gap between two samples that the slopes say may hold a root."""
+
+MAX_SPLITS = 40
+"""Most halvings of a z range while separating a column's kinematic intervals."""
+
+ROOT_STEPS = 80
+"""Most steps of the root refinement (each halves the bracket from the 8th on)."""
+
+_PRIME = np.uint64(1099511628211)
+
+
+class CollisionColumns:
+    """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
+    margin included (module docstring): each branch, the kinematic union, the union with each
+    watched pair alone, the union."""
+
+    def __init__(self, margin: CollisionMargin, prescan: Prescan, spacing: float, root_tol: float) -> None:
+        self.margin, self.prescan = margin, prescan
+        self.spacing, self.root_tol = float(spacing), float(root_tol)
+        mech = margin.mech
+        self.union = margin.kinematic.exact_columns
+        self.branch = [mech.margin([b], margin.limits).exact_columns for b in margin.branches]
+        slopes = np.array(prescan.slopes, dtype=float)
+        finite = np.where(np.isfinite(slopes), slopes, 0.0)
+        worst = finite.max(axis=1, keepdims=True) if slopes.size else np.zeros((len(self.branch), 1))
+        self.slopes = SAFETY * np.where(np.isfinite(slopes), slopes, worst)  # (B, P)
+        self.evaluations = 0
+
+    def halved(self) -> CollisionColumns:
+        """The same with half the sampling spacing (the check run's)."""
+        return CollisionColumns(self.margin, self.prescan, 0.5 * self.spacing, self.root_tol)
+
+    def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        base = np.ascontiguousarray(base, dtype=float)
+        M, B, W = len(base), len(self.branch), len(self.margin.watched)
+        T = B + W + 2
+        klen, kerr, _kends, ksig, _ = self.union(base, axis, z0, z1)
+        length, err = np.zeros((M, T)), np.zeros((M, T))
+        ends = np.zeros((M, T), np.int64)
+        sig = ksig.astype(np.uint64)
+        zbox = np.empty((M, 2))
+        zbox[:, 0], zbox[:, 1] = np.inf, -np.inf
+        length[:, B], err[:, B] = klen[:, B], kerr[:, B]
+        pieces = [self._branch_pieces(b, base, axis, z0, z1) for b in range(B)]
+        for t in [*range(B), *range(B + 1, T)]:
+            f = 0 if t < B or t == T - 1 else t - B
+            chosen = [pieces[t]] if t < B else pieces
+            col = np.concatenate([p[0] for p in chosen])
+            a = np.concatenate([p[1][f] for p in chosen])
+            e = np.concatenate([p[2][f] for p in chosen])
+            ca = np.concatenate([p[3][f] for p in chosen])
+            ce = np.concatenate([p[4][f] for p in chosen])
+            kin_err = sum(p[5] for p in chosen)
+            keep = e > a
+            order = np.lexsort((a[keep], col[keep]))
+            _union(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
+                   t == T - 1, self.root_tol, length, err, ends, sig, zbox)
+            err[:, t] += kin_err
+        out_sig = (sig >> np.uint64(1)).astype(np.int64)
+        zbox[~np.isfinite(zbox)] = np.nan
+        return length, err, ends, out_sig, zbox
+
+    # -- one branch ----------------------------------------------------------------------------
+    def _branch_pieces(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float) -> tuple[Any, ...]:
+        """Branch b's collision-free pieces per function (0: every pair, 1 + w: watched pair w
+        alone): col (K,), starts (F, K), ends (F, K), start codes and end codes (F, K) (binding
+        pair + 1 at a collision end, else 0), and the kinematic ends' errors (M,)."""
+        M = len(base)
+        F = 1 + len(self.margin.watched)
+        col, a, e, kerr = self._intervals(b, base, ax, z0, z1)
+        lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
+        cells = _close_rows(self.prescan, b, base, ax)
+        sc, su, sv, checked = _split_close(col, a, e, cells, lo, g)
+        free_col, free_a, free_e = sc[~checked], su[~checked], sv[~checked]
+        n_free = len(free_col)
+        pc, pa, pe, pca, pce = self._checked_pieces(b, base, ax, sc[checked], su[checked], sv[checked])
+        colf = np.concatenate([free_col, pc])
+        starts = np.concatenate([np.repeat(free_a[None], F, 0), pa], axis=1)
+        stops = np.concatenate([np.repeat(free_e[None], F, 0), pe], axis=1)
+        zero = np.zeros((F, n_free), np.int64)
+        return (colf, starts, stops, np.concatenate([zero, pca], axis=1), np.concatenate([zero, pce], axis=1),
+                np.bincount(col, weights=kerr, minlength=M))
+
+    def _intervals(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Branch b's kinematic intervals: column (K,), start, end [m], the ends' error [m]."""
+        out: list[tuple[np.ndarray, ...]] = []
+        todo = [(np.arange(len(base)), z0, z1, 0)]
+        while todo:
+            idx, lo, hi, depth = todo.pop()
+            ln, er, en, _, zb = self.branch[b](base[idx], ax, lo, hi)
+            one = (en[:, 0] == 2) | ((en[:, 0] > 2) & (depth >= MAX_SPLITS))
+            # past MAX_SPLITS (two intervals touching): the extent, its excess charged as error
+            out.append((idx[one], zb[one, 0], zb[one, 1], er[one, 0] + (zb[one, 1] - zb[one, 0] - ln[one, 0])))
+            many = (en[:, 0] > 2) & (depth < MAX_SPLITS)
+            if many.any():
+                mid = 0.5 * (lo + hi)
+                todo += [(idx[many], lo, mid, depth + 1), (idx[many], mid, hi, depth + 1)]
+        col, a, e, err = (np.concatenate(x) for x in zip(*out, strict=True))
+        return col.astype(np.int64), a, e, np.abs(err)
+
+    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
+        the points of columns `col` at `z` in branch b."""
+        others = [k for k in range(3) if k != ax]
+        pts = np.empty((len(z), 3))
+        pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
+        self.evaluations += len(z)
+        m = self.margin
+        q = configurations(m.mech, m.robot, pts, m.branches[b])
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():  # rounding at a reach end: no configuration; the kinematic end decides
+            d = np.full((len(z), len(m.distances.kinds)), np.inf)
+            if (~bad).any():
+                d[~bad] = m.distances.distances(q[~bad], signs=True)
+            return d
+        return m.distances.distances(q, signs=True)
+
+    def _functions(self, d: np.ndarray) -> np.ndarray:
+        """(N, F): the smallest distance over the pairs, then each watched pair's."""
+        first = d.min(axis=1, initial=np.inf)[:, None]
+        return np.concatenate([first, d[:, self.margin.watched]], axis=1)
+
+    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
+                        ) -> tuple[np.ndarray, ...]:
+        """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
+        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
+        F = 1 + len(self.margin.watched)
+        if not len(col):
+            empty = np.zeros((F, 0))
+            return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
+        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
+        seg = np.repeat(np.arange(len(col)), n + 1)
+        k = np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
+        z = u[seg] + (v - u)[seg] * (k / n[seg])
+        z[np.cumsum(n + 1) - 1] = v
+        nudge = np.minimum(EDGE, (v - u) / 4)[seg]
+        d = self._evaluate(b, base, ax, col[seg], np.clip(z, u[seg] + nudge, v[seg] - nudge))
+        curv = _curvatures(d, k, n[seg], ((v - u) / n)[seg])
+        left = np.flatnonzero(k < n[seg])
+        gc, za, zb, da, db = col[seg[left]], z[left], z[left + 1], d[left], d[left + 1]
+        kk = SAFETY * np.maximum(curv[left], curv[left + 1])
+        s = self.slopes[b]
+        s_min = float(s.max(initial=0.0))
+        watched = self.margin.watched
+        done: list[tuple[np.ndarray, ...]] = []
+        for level in range(MAX_REFINE + 1):
+            w = zb - za
+            bend = kk * (w * w / 8.0)[:, None]  # (G, P): how far a pair can sag below its chord
+            fa, fb = self._functions(da), self._functions(db)
+            clear = (fa[:, 0] > 0) & (fb[:, 0] > 0)
+            low = np.minimum(da, db) - bend  # a lower bound of each pair on the gap (its curvature)
+            high = np.maximum(da, db) + bend  # an upper bound
+            slope_ok = (da + db) > s * w[:, None]
+            amb = np.where(clear, ~((low > 0) | slope_ok).all(axis=1),
+                           (fa[:, 0] < 0) & (fb[:, 0] < 0) & ~(high < 0).any(axis=1)
+                           & (-fa[:, 0] - fb[:, 0] <= s_min * w))
+            for j, p in enumerate(watched):
+                same = fa[:, 1 + j] * fb[:, 1 + j] > 0
+                sure = np.where(fa[:, 1 + j] > 0, low[:, p] > 0, high[:, p] < 0)
+                amb |= same & ~sure & (np.abs(fa[:, 1 + j]) + np.abs(fb[:, 1 + j]) <= s[p] * w)
+            if level == MAX_REFINE:
+                amb[:] = False
+            done.append((gc[~amb], za[~amb], zb[~amb], da[~amb], db[~amb]))
+            if not amb.any():
+                break
+            gc, za, zb, da, db, kk = gc[amb], za[amb], zb[amb], da[amb], db[amb], kk[amb]
+            zm = 0.5 * (za + zb)
+            dm = self._evaluate(b, base, ax, gc, zm)
+            gc, za, zb = np.concatenate([gc, gc]), np.concatenate([za, zm]), np.concatenate([zm, zb])
+            da, db, kk = np.concatenate([da, dm]), np.concatenate([dm, db]), np.concatenate([kk, kk])
+        gc, za, zb, da, db = (np.concatenate(x) for x in zip(*done, strict=True))
+        return self._pieces(b, base, ax, gc, za, zb, da, db)
+
+    def _pieces(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
+                da: np.ndarray, db: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Each final gap's free piece per function, its sign changes refined to roots."""
+        fa, fb = self._functions(da), self._functions(db)
+        F = fa.shape[1]
+        starts, stops = np.repeat(za[None], F, 0), np.repeat(zb[None], F, 0)
+        ca, ce = np.zeros((F, len(gc)), np.int64), np.zeros((F, len(gc)), np.int64)
+        pair_of = np.concatenate([[-1], self.margin.watched])
+        gi, fi = np.nonzero((fa >= 0) != (fb >= 0))
+        root, code = self._roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi], fi,
+                                 np.where(fa[gi, fi] < 0, da[gi].argmin(axis=1), db[gi].argmin(axis=1)))
+        code = np.where(pair_of[fi] >= 0, pair_of[fi], code) + 1
+        up = fa[gi, fi] < 0  # colliding below the root: the piece starts there
+        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up]
+        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up]
+        out = (fa < 0) & (fb < 0)
+        stops[out.T] = starts[out.T]  # empty pieces (dropped by the union)
+        return gc, starts, stops, ca, ce
+
+    def _roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
+               fa: np.ndarray, fb: np.ndarray, fi: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Roots [m] of function fi in brackets (za, zb) (values fa, fb of opposite signs) to
+        `root_tol`, and the smallest pair at each bracket's colliding end."""
+        za, zb, fa, fb, pair = za.copy(), zb.copy(), fa.copy(), fb.copy(), pair.copy()
+        side = np.zeros(len(za), np.int64)
+        rows = np.arange(len(za))
+        for step in range(ROOT_STEPS):
+            live = rows[zb[rows] - za[rows] > self.root_tol]
+            if not len(live):
+                break
+            rows = live
+            a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
+            tol = 0.25 * self.root_tol
+            if step < 8:
+                x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol)
+            else:
+                x = 0.5 * (a + c)
+            d = self._evaluate(b, base, ax, col[rows], x)
+            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            below = (y >= 0) == (ya >= 0)  # the root is above x
+            # Illinois: halve the value kept at the end that stays twice in a row
+            fb[rows[below & (side[rows] == 1)]] *= 0.5
+            fa[rows[~below & (side[rows] == -1)]] *= 0.5
+            za[rows[below]], fa[rows[below]] = x[below], y[below]
+            zb[rows[~below]], fb[rows[~below]] = x[~below], y[~below]
+            side[rows] = np.where(below, 1, -1)
+            neg = y < 0
+            pair[rows[neg]] = d[neg].argmin(axis=1)
+        return 0.5 * (za + zb), pair
+
+
+def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
+    its neighbour's), the samples k = 0..n of each sub-interval in order, spacing h."""
+    inner = np.flatnonzero((k > 0) & (k < n))
+    out = np.zeros_like(d)
+    with np.errstate(invalid="ignore"):
+        out[inner] = np.abs(d[inner - 1] - 2.0 * d[inner] + d[inner + 1]) / (h[inner] ** 2)[:, None]
+    first, last = np.flatnonzero(k == 0), np.flatnonzero(k == n)
+    out[first], out[last] = out[first + 1], out[last - 1]
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
+    """(M, cells - 1) the pre-scan's close cells of branch b along each column."""
+    others = [k for k in range(3) if k != ax]
+    idx = []
+    for n, k in enumerate(others):
+        i = np.floor((base[:, n] - prescan.lo[k]) / prescan.spacing[k]).astype(np.int64)
+        idx.append(np.clip(i, 0, prescan.cells - 2))
+    close = np.moveaxis(prescan.close[b], ax, -1)
+    return np.ascontiguousarray(close[idx[0], idx[1]])
+
+
+@njit(cache=True)
+def _split_close(col, a, e, cells, lo, g):  # pragma: no cover - compiled
+    """The intervals [a, e] of columns col cut at the pre-scan cells' faces into runs of close
+    (checked) and clear cells: col, start, end, checked."""
+    n_cells = cells.shape[1]
+    cap = len(col) * (n_cells + 2)
+    oc = np.empty(cap, np.int64)
+    ou = np.empty(cap)
+    ov = np.empty(cap)
+    ok = np.empty(cap, np.bool_)
+    n = 0
+    for i in range(len(col)):
+        c = col[i]
+        start = a[i]
+        k = min(max(int(np.floor((start - lo) / g)), 0), n_cells - 1)
+        state = cells[c, k]
+        while True:
+            face = lo + (k + 1) * g
+            if k >= n_cells - 1 or face >= e[i]:
+                break
+            nxt = cells[c, k + 1]
+            if nxt != state:
+                oc[n], ou[n], ov[n], ok[n] = c, start, face, state
+                n += 1
+                start, state = face, nxt
+            k += 1
+        oc[n], ou[n], ov[n], ok[n] = c, start, e[i], state
+        n += 1
+    return oc[:n], ou[:n], ov[:n], ok[:n]
+
+
+@njit(cache=True)
+def _union(col, a, e, ca, ce, t, last, root_tol, length, err, ends, sig, zbox):  # pragma: no cover - compiled
+    """Target t's union of the pieces (sorted by column, then start): its length, ends, the
+    collision ends' errors (root_tol each), and their binding pairs hashed into the signature;
+    the extent for the last target."""
+    n = len(col)
+    i = 0
+    while i < n:
+        c = col[i]
+        rank = 0
+        cur_a, cur_e, code_a, code_e = a[i], e[i], ca[i], ce[i]
+        j = i + 1
+        while True:
+            if j < n and col[j] == c and a[j] <= cur_e:
+                if e[j] > cur_e:
+                    cur_e, code_e = e[j], ce[j]
+                j += 1
+                continue
+            length[c, t] += cur_e - cur_a
+            ends[c, t] += 2
+            for code in (code_a, code_e):
+                if code > 0:
+                    err[c, t] += root_tol
+                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + code)) * _PRIME
+                rank += 1
+            if last:
+                zbox[c, 0] = min(zbox[c, 0], cur_a)
+                zbox[c, 1] = max(zbox[c, 1], cur_e)
+            if j < n and col[j] == c:
+                cur_a, cur_e, code_a, code_e = a[j], e[j], ca[j], ce[j]
+                j += 1
+                continue
+            break
+        i = j
+
+
+class ExactCollisionMargin(CollisionMargin):
+    """A `CollisionMargin` with exact columns (`CollisionColumns`), for the column engine; the
+    check run (`for_check`) samples the collision margin at half the spacing."""
+
+    def __init__(self, margin: CollisionMargin, prescan: Prescan, spacing: float, root_tol: float,
+                 columns: CollisionColumns | None = None) -> None:
+        super().__init__(margin.mech, margin.robot, margin.distances, margin.branches, margin.limits,
+                         margin.watched, prescan)
+        self.exact_columns = columns or CollisionColumns(self, prescan, spacing, root_tol)
+
+    def for_check(self) -> ExactCollisionMargin:
+        cols = self.exact_columns.halved()
+        return ExactCollisionMargin(self, cols.prescan, cols.spacing, cols.root_tol, cols)
+
+
+def has_exact_columns(margin: CollisionMargin) -> bool:
+    """Whether the mechanism's kinematic margin has exact columns (3D closed-form families)."""
+    return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
+
+
+def kernels() -> tuple[Any, ...]:
+    """The compiled kernels of this module (for `kinematics.jit`)."""
+    return (_split_close, _union)
+
+
+__all__ = ["EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+           "has_exact_columns"]
