@@ -40,6 +40,12 @@ from numba import njit
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 
+SPACING = 1.0
+"""The collision margin's first samples along a column are SPACING x the column step apart."""
+
+SIGNATURE_PAIRS = True
+"""Whether a collision end's binding pair enters the column's signature (else only its rank)."""
+
 EDGE = 1e-10
 """[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
 
@@ -81,14 +87,16 @@ class CollisionColumns:
         base = np.ascontiguousarray(base, dtype=float)
         M, B, W = len(base), len(self.branch), len(self.margin.watched)
         T = B + W + 2
-        klen, kerr, _kends, ksig, _ = self.union(base, axis, z0, z1)
+        kin = self.union(base, axis, z0, z1)
+        klen, kerr, _kends, ksig, _ = kin
         length, err = np.zeros((M, T)), np.zeros((M, T))
         ends = np.zeros((M, T), np.int64)
         sig = ksig.astype(np.uint64)
         zbox = np.empty((M, 2))
         zbox[:, 0], zbox[:, 1] = np.inf, -np.inf
         length[:, B], err[:, B] = klen[:, B], kerr[:, B]
-        pieces = [self._branch_pieces(b, base, axis, z0, z1) for b in range(B)]
+        # one branch: its own columns are the union's (targets: the branch, the union)
+        pieces = [self._branch_pieces(b, base, axis, z0, z1, kin if B == 1 else None) for b in range(B)]
         for t in [*range(B), *range(B + 1, T)]:
             f = 0 if t < B or t == T - 1 else t - B
             chosen = [pieces[t]] if t < B else pieces
@@ -101,20 +109,21 @@ class CollisionColumns:
             keep = e > a
             order = np.lexsort((a[keep], col[keep]))
             _union(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
-                   t == T - 1, self.root_tol, length, err, ends, sig, zbox)
+                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, length, err, ends, sig, zbox)
             err[:, t] += kin_err
         out_sig = (sig >> np.uint64(1)).astype(np.int64)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, err, ends, out_sig, zbox
 
     # -- one branch ----------------------------------------------------------------------------
-    def _branch_pieces(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float) -> tuple[Any, ...]:
+    def _branch_pieces(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float,
+                       first: tuple[np.ndarray, ...] | None = None) -> tuple[Any, ...]:
         """Branch b's collision-free pieces per function (0: every pair, 1 + w: watched pair w
         alone): col (K,), starts (F, K), ends (F, K), start codes and end codes (F, K) (binding
         pair + 1 at a collision end, else 0), and the kinematic ends' errors (M,)."""
         M = len(base)
         F = 1 + len(self.margin.watched)
-        col, a, e, kerr = self._intervals(b, base, ax, z0, z1)
+        col, a, e, kerr = self._intervals(b, base, ax, z0, z1, first)
         lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
         cells = _close_rows(self.prescan, b, base, ax)
         sc, su, sv, checked = _split_close(col, a, e, cells, lo, g)
@@ -128,14 +137,16 @@ class CollisionColumns:
         return (colf, starts, stops, np.concatenate([zero, pca], axis=1), np.concatenate([zero, pce], axis=1),
                 np.bincount(col, weights=kerr, minlength=M))
 
-    def _intervals(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Branch b's kinematic intervals: column (K,), start, end [m], the ends' error [m]."""
+    def _intervals(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float,
+                   first: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Branch b's kinematic intervals: column (K,), start, end [m], the ends' error [m]
+        (`first`: its exact columns' outputs over [z0, z1] when already known)."""
         out: list[tuple[np.ndarray, ...]] = []
         todo = [(np.arange(len(base)), z0, z1, 0)]
         while todo:
             idx, lo, hi, depth = todo.pop()
-            ln, er, en, _, zb = self.branch[b](base[idx], ax, lo, hi)
+            ln, er, en, _, zb = first if first is not None else self.branch[b](base[idx], ax, lo, hi)
+            first = None
             one = (en[:, 0] == 2) | ((en[:, 0] > 2) & (depth >= MAX_SPLITS))
             # past MAX_SPLITS (two intervals touching): the extent, its excess charged as error
             out.append((idx[one], zb[one, 0], zb[one, 1], er[one, 0] + (zb[one, 1] - zb[one, 0] - ln[one, 0])))
@@ -185,51 +196,44 @@ class CollisionColumns:
         d = self._evaluate(b, base, ax, col[seg], np.clip(z, u[seg] + nudge, v[seg] - nudge))
         curv = _curvatures(d, k, n[seg], ((v - u) / n)[seg])
         left = np.flatnonzero(k < n[seg])
-        gc, za, zb, da, db = col[seg[left]], z[left], z[left + 1], d[left], d[left + 1]
-        kk = SAFETY * np.maximum(curv[left], curv[left + 1])
+        gc, za, zb, ia, ib = col[seg[left]], z[left], z[left + 1], left, left + 1
         s = self.slopes[b]
         s_min = float(s.max(initial=0.0))
-        watched = self.margin.watched
+        watched = np.ascontiguousarray(self.margin.watched, dtype=np.int64)
         done: list[tuple[np.ndarray, ...]] = []
         for level in range(MAX_REFINE + 1):
-            w = zb - za
-            bend = kk * (w * w / 8.0)[:, None]  # (G, P): how far a pair can sag below its chord
-            fa, fb = self._functions(da), self._functions(db)
-            clear = (fa[:, 0] > 0) & (fb[:, 0] > 0)
-            low = np.minimum(da, db) - bend  # a lower bound of each pair on the gap (its curvature)
-            high = np.maximum(da, db) + bend  # an upper bound
-            slope_ok = (da + db) > s * w[:, None]
-            amb = np.where(clear, ~((low > 0) | slope_ok).all(axis=1),
-                           (fa[:, 0] < 0) & (fb[:, 0] < 0) & ~(high < 0).any(axis=1)
-                           & (-fa[:, 0] - fb[:, 0] <= s_min * w))
-            for j, p in enumerate(watched):
-                same = fa[:, 1 + j] * fb[:, 1 + j] > 0
-                sure = np.where(fa[:, 1 + j] > 0, low[:, p] > 0, high[:, p] < 0)
-                amb |= same & ~sure & (np.abs(fa[:, 1 + j]) + np.abs(fb[:, 1 + j]) <= s[p] * w)
-            if level == MAX_REFINE:
-                amb[:] = False
-            done.append((gc[~amb], za[~amb], zb[~amb], da[~amb], db[~amb]))
+            amb = np.zeros(len(gc), np.bool_)
+            if level < MAX_REFINE:
+                _ambiguous(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
+            fn, arg = self._functions(d), d.argmin(axis=1)
+            keep = ~amb
+            done.append((gc[keep], za[keep], zb[keep], fn[ia[keep]], fn[ib[keep]], arg[ia[keep]], arg[ib[keep]]))
             if not amb.any():
                 break
-            gc, za, zb, da, db, kk = gc[amb], za[amb], zb[amb], da[amb], db[amb], kk[amb]
+            # each gap to halve gets its own three samples (a, b, midpoint), its parent's curvature bound
+            m = int(amb.sum())
+            gc, za, zb = gc[amb], za[amb], zb[amb]
             zm = 0.5 * (za + zb)
-            dm = self._evaluate(b, base, ax, gc, zm)
+            kk = SAFETY * np.maximum(curv[ia[amb]], curv[ib[amb]])
+            d = np.concatenate([d[ia[amb]], d[ib[amb]], self._evaluate(b, base, ax, gc, zm)])
+            curv = np.concatenate([kk, kk, kk]) / SAFETY
+            r = np.arange(m)
             gc, za, zb = np.concatenate([gc, gc]), np.concatenate([za, zm]), np.concatenate([zm, zb])
-            da, db, kk = np.concatenate([da, dm]), np.concatenate([dm, db]), np.concatenate([kk, kk])
-        gc, za, zb, da, db = (np.concatenate(x) for x in zip(*done, strict=True))
-        return self._pieces(b, base, ax, gc, za, zb, da, db)
+            ia, ib = np.concatenate([r, r + 2 * m]), np.concatenate([r + 2 * m, r + m])
+        gc, za, zb, fa, fb, pa, pb = (np.concatenate(x) for x in zip(*done, strict=True))
+        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb)
 
     def _pieces(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
-                da: np.ndarray, db: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Each final gap's free piece per function, its sign changes refined to roots."""
-        fa, fb = self._functions(da), self._functions(db)
+                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Each final gap's free piece per function (values fa, fb (G, F) at its ends, smallest
+        pairs pa, pb there), its sign changes refined to roots."""
         F = fa.shape[1]
         starts, stops = np.repeat(za[None], F, 0), np.repeat(zb[None], F, 0)
         ca, ce = np.zeros((F, len(gc)), np.int64), np.zeros((F, len(gc)), np.int64)
         pair_of = np.concatenate([[-1], self.margin.watched])
         gi, fi = np.nonzero((fa >= 0) != (fb >= 0))
         root, code = self._roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi], fi,
-                                 np.where(fa[gi, fi] < 0, da[gi].argmin(axis=1), db[gi].argmin(axis=1)))
+                                 np.where(fa[gi, fi] < 0, pa[gi], pb[gi]))
         code = np.where(pair_of[fi] >= 0, pair_of[fi], code) + 1
         up = fa[gi, fi] < 0  # colliding below the root: the piece starts there
         starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up]
@@ -272,14 +276,67 @@ class CollisionColumns:
 
 def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
     """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
-    its neighbour's), the samples k = 0..n of each sub-interval in order, spacing h."""
-    inner = np.flatnonzero((k > 0) & (k < n))
-    out = np.zeros_like(d)
-    with np.errstate(invalid="ignore"):
-        out[inner] = np.abs(d[inner - 1] - 2.0 * d[inner] + d[inner + 1]) / (h[inner] ** 2)[:, None]
-    first, last = np.flatnonzero(k == 0), np.flatnonzero(k == n)
-    out[first], out[last] = out[first + 1], out[last - 1]
-    return np.where(np.isfinite(out), out, np.inf)
+    its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
+    spacing h."""
+    out = np.empty_like(d)
+    _curvature_kernel(d, k, n, h, out)
+    return out
+
+
+@njit(cache=True)
+def _curvature_kernel(d, k, n, h, out):  # pragma: no cover - compiled
+    N, P = d.shape
+    for i in range(N):
+        j = i + 1 if k[i] == 0 else (i - 1 if k[i] == n[i] else i)
+        for p in range(P):
+            c = abs(d[j - 1, p] - 2.0 * d[j, p] + d[j + 1, p]) / (h[j] * h[j])
+            out[i, p] = c if np.isfinite(c) else np.inf
+
+
+@njit(cache=True)
+def _ambiguous(d, curv, ia, ib, safety, w, s, s_min, watched, out):  # pragma: no cover - compiled
+    """Per gap g (its ends' pair distances d[ia[g]], d[ib[g]] (P,), width w [m], the pairs'
+    curvature bound safety x the larger of curv's at its ends): whether it may hold a root of
+    the smallest distance or of a watched pair's that its ends do not show. A pair stays on one
+    side of zero over the gap when its curvature bound kk says so (it sags at most kk w^2 / 8
+    from its chord) or its slope s_p does (|d(a)| + |d(b)| > s_p w); the smallest distance,
+    negative at both ends, stays negative when some pair provably does, or by the largest slope."""
+    G, P = len(ia), d.shape[1]
+    kk = np.empty(P)
+    for g in range(G):
+        da, db = d[ia[g]], d[ib[g]]
+        for p in range(P):
+            kk[p] = safety * max(curv[ia[g], p], curv[ib[g], p])
+        wg = w[g]
+        sag = wg * wg / 8.0
+        fa, fb = np.inf, np.inf
+        for p in range(P):
+            fa = min(fa, da[p])
+            fb = min(fb, db[p])
+        amb = False
+        if fa > 0.0 and fb > 0.0:
+            for p in range(P):
+                a, b = da[p], db[p]
+                if min(a, b) - kk[p] * sag > 0.0 or a + b > s[p] * wg:
+                    continue
+                amb = True
+                break
+        elif fa < 0.0 and fb < 0.0 and -fa - fb <= s_min * wg:
+            amb = True
+            for p in range(P):
+                if max(da[p], db[p]) + kk[p] * sag < 0.0:
+                    amb = False
+                    break
+        for j in range(len(watched)):
+            if amb:
+                break
+            p = watched[j]
+            a, b = da[p], db[p]
+            if a * b <= 0.0:
+                continue
+            sure = (min(a, b) - kk[p] * sag > 0.0) if a > 0.0 else (max(a, b) + kk[p] * sag < 0.0)
+            amb = not sure and abs(a) + abs(b) <= s[p] * wg
+        out[g] = amb
 
 
 def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
@@ -325,7 +382,7 @@ def _split_close(col, a, e, cells, lo, g):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _union(col, a, e, ca, ce, t, last, root_tol, length, err, ends, sig, zbox):  # pragma: no cover - compiled
+def _union(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, ends, sig, zbox):  # pragma: no cover - compiled
     """Target t's union of the pieces (sorted by column, then start): its length, ends, the
     collision ends' errors (root_tol each), and their binding pairs hashed into the signature;
     the extent for the last target."""
@@ -347,7 +404,7 @@ def _union(col, a, e, ca, ce, t, last, root_tol, length, err, ends, sig, zbox): 
             for code in (code_a, code_e):
                 if code > 0:
                     err[c, t] += root_tol
-                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + code)) * _PRIME
+                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
                 rank += 1
             if last:
                 zbox[c, 0] = min(zbox[c, 0], cur_a)
@@ -382,7 +439,7 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels of this module (for `kinematics.jit`)."""
-    return (_split_close, _union)
+    return (_ambiguous, _curvature_kernel, _split_close, _union)
 
 
 __all__ = ["EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",

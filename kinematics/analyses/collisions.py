@@ -359,10 +359,10 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
     else:
         if exact:
-            from kinematics.analyses.collision_columns import ExactCollisionMargin, has_exact_columns
+            from kinematics.analyses.collision_columns import SPACING, ExactCollisionMargin, has_exact_columns
 
             if has_exact_columns(margin):
-                margin = ExactCollisionMargin(margin, scan, step, root_tolerance(rtol, step))
+                margin = ExactCollisionMargin(margin, scan, SPACING * step, root_tolerance(rtol, step))
         res = run(margin)
         kin, kin_err = float(res.estimate[B]), float(res.error[B])
         removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]
