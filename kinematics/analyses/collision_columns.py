@@ -70,8 +70,8 @@ class CollisionColumns:
         self.margin, self.prescan = margin, prescan
         self.spacing, self.root_tol = float(spacing), float(root_tol)
         mech = margin.mech
-        self.union = margin.kinematic.exact_columns
-        self.branch = [mech.margin([b], margin.limits).exact_columns for b in margin.branches]
+        self.union = _exact_of(margin.kinematic)
+        self.branch = [_exact_of(mech.margin([b], margin.limits)) for b in margin.branches]
         slopes = np.array(prescan.slopes, dtype=float)
         finite = np.where(np.isfinite(slopes), slopes, 0.0)
         worst = finite.max(axis=1, keepdims=True) if slopes.size else np.zeros((len(self.branch), 1))
@@ -256,10 +256,7 @@ class CollisionColumns:
             rows = live
             a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
             tol = 0.25 * self.root_tol
-            if step < 8:
-                x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol)
-            else:
-                x = 0.5 * (a + c)
+            x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol) if step < 8 else 0.5 * (a + c)
             d = self._evaluate(b, base, ax, col[rows], x)
             y = self._functions(d)[np.arange(len(rows)), fi[rows]]
             below = (y >= 0) == (ya >= 0)  # the root is above x
@@ -424,12 +421,17 @@ class ExactCollisionMargin(CollisionMargin):
     def __init__(self, margin: CollisionMargin, prescan: Prescan, spacing: float, root_tol: float,
                  columns: CollisionColumns | None = None) -> None:
         super().__init__(margin.mech, margin.robot, margin.distances, margin.branches, margin.limits,
-                         margin.watched, prescan)
+                         [int(w) for w in margin.watched], prescan)
         self.exact_columns = columns or CollisionColumns(self, prescan, spacing, root_tol)
 
     def for_check(self) -> ExactCollisionMargin:
         cols = self.exact_columns.halved()
         return ExactCollisionMargin(self, cols.prescan, cols.spacing, cols.root_tol, cols)
+
+
+def _exact_of(margin: Any) -> Any:
+    """A kinematic margin's exact columns (`ExactColumnsFn`)."""
+    return margin.exact_columns
 
 
 def has_exact_columns(margin: CollisionMargin) -> bool:
