@@ -354,7 +354,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     B, W = len(chosen), len(watched)
     run = partial(column_volume, lo=lo, hi=hi, step=step, rtol=rtol, check=check, progress=progress,
                   floor=BRANCH_FLOOR, root_tol=root_tolerance(rtol, step), max_points=budget)
-    if not scan.close.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
+    if not scan.near.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
         res = run(margin.kinematic)
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
     else:
