@@ -26,7 +26,7 @@ def p2us_results():
     return mech, robot, dist, lo, hi, scan, watched, ExactCollisionMargin(margin, scan, 0.01, 1e-10)
 
 
-def test_columns_match_the_margin_sampled_densely(p2us_results, rng):
+def test_columns_match_the_margin_sampled_densely(p2us_results, rng, monkeypatch):
     """p2us-results (mode ---, self-collisions, three watched pairs): on 40 random columns the
     lengths of every target (the branch, the kinematic union, each watched pair alone, the union)
     match the fraction of 40001 equally spaced points where the joined margin (`CollisionMargin`,
@@ -49,6 +49,11 @@ def test_columns_match_the_margin_sampled_densely(p2us_results, rng):
     assert np.abs(ref - length).max() <= 8 * dz
     assert (length[:, 1] - length[:, -1]).max() > 0.05  # the kinematic union less the collision-free one
     assert np.all(err >= 0) and err.max() < 1e-6
+    import kinematics.analyses.collision_columns as cc
+
+    monkeypatch.setattr(cc, "CHUNK_COLUMNS", 16)  # in batches of 16 columns: the same columns
+    chunked = margin.exact_columns(base, ax, lo[ax], hi[ax])
+    assert np.array_equal(chunked[0], length) and np.array_equal(chunked[1], err)
 
 
 @pytest.mark.slow

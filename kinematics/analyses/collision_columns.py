@@ -46,6 +46,9 @@ SPACING = 1.0
 SIGNATURE_PAIRS = True
 """Whether a collision end's binding pair enters the column's signature (else only its rank)."""
 
+CHUNK_COLUMNS = 8192
+"""Most columns per batch (about 20 samples of every pair per column)."""
+
 EDGE = 1e-10
 """[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
 
@@ -85,6 +88,14 @@ class CollisionColumns:
     def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
+        if len(base) > CHUNK_COLUMNS:  # bounded memory: the samples' distances are (N, P)
+            parts = [self._batch(base[k:k + CHUNK_COLUMNS], axis, z0, z1) for k in range(0, len(base), CHUNK_COLUMNS)]
+            length, err, ends, sig, zbox = (np.concatenate(x) for x in zip(*parts, strict=True))
+            return length, err, ends, sig, zbox
+        return self._batch(base, axis, z0, z1)
+
+    def _batch(self, base: np.ndarray, axis: int, z0: float, z1: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         M, B, W = len(base), len(self.branch), len(self.margin.watched)
         T = B + W + 2
         kin = self.union(base, axis, z0, z1)
@@ -444,5 +455,5 @@ def kernels() -> tuple[Any, ...]:
     return (_ambiguous, _curvature_kernel, _split_close, _union)
 
 
-__all__ = ["EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]
