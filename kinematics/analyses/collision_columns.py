@@ -35,8 +35,13 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from kinematics.analyses.collision_column_kernels import (
+    ambiguous_gaps,
+    curvature_kernel,
+    split_close,
+    union_pieces,
+)
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 
@@ -60,9 +65,6 @@ MAX_SPLITS = 40
 
 ROOT_STEPS = 80
 """Most steps of the root refinement (each halves the bracket from the 8th on)."""
-
-_PRIME = np.uint64(1099511628211)
-
 
 class CollisionColumns:
     """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
@@ -119,7 +121,7 @@ class CollisionColumns:
             kin_err = sum(p[5] for p in chosen)
             keep = e > a
             order = np.lexsort((a[keep], col[keep]))
-            _union(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
+            union_pieces(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
                    t == T - 1, self.root_tol, SIGNATURE_PAIRS, length, err, ends, sig, zbox)
             err[:, t] += kin_err
         out_sig = (sig >> np.uint64(1)).astype(np.int64)
@@ -137,7 +139,7 @@ class CollisionColumns:
         col, a, e, kerr = self._intervals(b, base, ax, z0, z1, first)
         lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
         cells = _close_rows(self.prescan, b, base, ax)
-        sc, su, sv, checked = _split_close(col, a, e, cells, lo, g)
+        sc, su, sv, checked = split_close(col, a, e, cells, lo, g)
         free_col, free_a, free_e = sc[~checked], su[~checked], sv[~checked]
         n_free = len(free_col)
         pc, pa, pe, pca, pce = self._checked_pieces(b, base, ax, sc[checked], su[checked], sv[checked])
@@ -215,7 +217,7 @@ class CollisionColumns:
         for level in range(MAX_REFINE + 1):
             amb = np.zeros(len(gc), np.bool_)
             if level < MAX_REFINE:
-                _ambiguous(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
+                ambiguous_gaps(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
             fn, arg = self._functions(d), d.argmin(axis=1)
             keep = ~amb
             done.append((gc[keep], za[keep], zb[keep], fn[ia[keep]], fn[ib[keep]], arg[ia[keep]], arg[ib[keep]]))
@@ -287,64 +289,8 @@ def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> n
     its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
     spacing h."""
     out = np.empty_like(d)
-    _curvature_kernel(d, k, n, h, out)
+    curvature_kernel(d, k, n, h, out)
     return out
-
-
-@njit(cache=True)
-def _curvature_kernel(d, k, n, h, out):  # pragma: no cover - compiled
-    N, P = d.shape
-    for i in range(N):
-        j = i + 1 if k[i] == 0 else (i - 1 if k[i] == n[i] else i)
-        for p in range(P):
-            c = abs(d[j - 1, p] - 2.0 * d[j, p] + d[j + 1, p]) / (h[j] * h[j])
-            out[i, p] = c if np.isfinite(c) else np.inf
-
-
-@njit(cache=True)
-def _ambiguous(d, curv, ia, ib, safety, w, s, s_min, watched, out):  # pragma: no cover - compiled
-    """Per gap g (its ends' pair distances d[ia[g]], d[ib[g]] (P,), width w [m], the pairs'
-    curvature bound safety x the larger of curv's at its ends): whether it may hold a root of
-    the smallest distance or of a watched pair's that its ends do not show. A pair stays on one
-    side of zero over the gap when its curvature bound kk says so (it sags at most kk w^2 / 8
-    from its chord) or its slope s_p does (|d(a)| + |d(b)| > s_p w); the smallest distance,
-    negative at both ends, stays negative when some pair provably does, or by the largest slope."""
-    G, P = len(ia), d.shape[1]
-    kk = np.empty(P)
-    for g in range(G):
-        da, db = d[ia[g]], d[ib[g]]
-        for p in range(P):
-            kk[p] = safety * max(curv[ia[g], p], curv[ib[g], p])
-        wg = w[g]
-        sag = wg * wg / 8.0
-        fa, fb = np.inf, np.inf
-        for p in range(P):
-            fa = min(fa, da[p])
-            fb = min(fb, db[p])
-        amb = False
-        if fa > 0.0 and fb > 0.0:
-            for p in range(P):
-                a, b = da[p], db[p]
-                if min(a, b) - kk[p] * sag > 0.0 or a + b > s[p] * wg:
-                    continue
-                amb = True
-                break
-        elif fa < 0.0 and fb < 0.0 and -fa - fb <= s_min * wg:
-            amb = True
-            for p in range(P):
-                if max(da[p], db[p]) + kk[p] * sag < 0.0:
-                    amb = False
-                    break
-        for j in range(len(watched)):
-            if amb:
-                break
-            p = watched[j]
-            a, b = da[p], db[p]
-            if a * b <= 0.0:
-                continue
-            sure = (min(a, b) - kk[p] * sag > 0.0) if a > 0.0 else (max(a, b) + kk[p] * sag < 0.0)
-            amb = not sure and abs(a) + abs(b) <= s[p] * wg
-        out[g] = amb
 
 
 def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
@@ -356,73 +302,6 @@ def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarr
         idx.append(np.clip(i, 0, prescan.cells - 2))
     close = np.moveaxis(prescan.close[b], ax, -1)
     return np.ascontiguousarray(close[idx[0], idx[1]])
-
-
-@njit(cache=True)
-def _split_close(col, a, e, cells, lo, g):  # pragma: no cover - compiled
-    """The intervals [a, e] of columns col cut at the pre-scan cells' faces into runs of close
-    (checked) and clear cells: col, start, end, checked."""
-    n_cells = cells.shape[1]
-    cap = len(col) * (n_cells + 2)
-    oc = np.empty(cap, np.int64)
-    ou = np.empty(cap)
-    ov = np.empty(cap)
-    ok = np.empty(cap, np.bool_)
-    n = 0
-    for i in range(len(col)):
-        c = col[i]
-        start = a[i]
-        k = min(max(int(np.floor((start - lo) / g)), 0), n_cells - 1)
-        state = cells[c, k]
-        while True:
-            face = lo + (k + 1) * g
-            if k >= n_cells - 1 or face >= e[i]:
-                break
-            nxt = cells[c, k + 1]
-            if nxt != state:
-                oc[n], ou[n], ov[n], ok[n] = c, start, face, state
-                n += 1
-                start, state = face, nxt
-            k += 1
-        oc[n], ou[n], ov[n], ok[n] = c, start, e[i], state
-        n += 1
-    return oc[:n], ou[:n], ov[:n], ok[:n]
-
-
-@njit(cache=True)
-def _union(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, ends, sig, zbox):  # pragma: no cover - compiled
-    """Target t's union of the pieces (sorted by column, then start): its length, ends, the
-    collision ends' errors (root_tol each), and their binding pairs hashed into the signature;
-    the extent for the last target."""
-    n = len(col)
-    i = 0
-    while i < n:
-        c = col[i]
-        rank = 0
-        cur_a, cur_e, code_a, code_e = a[i], e[i], ca[i], ce[i]
-        j = i + 1
-        while True:
-            if j < n and col[j] == c and a[j] <= cur_e:
-                if e[j] > cur_e:
-                    cur_e, code_e = e[j], ce[j]
-                j += 1
-                continue
-            length[c, t] += cur_e - cur_a
-            ends[c, t] += 2
-            for code in (code_a, code_e):
-                if code > 0:
-                    err[c, t] += root_tol
-                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
-                rank += 1
-            if last:
-                zbox[c, 0] = min(zbox[c, 0], cur_a)
-                zbox[c, 1] = max(zbox[c, 1], cur_e)
-            if j < n and col[j] == c:
-                cur_a, cur_e, code_a, code_e = a[j], e[j], ca[j], ce[j]
-                j += 1
-                continue
-            break
-        i = j
 
 
 class ExactCollisionMargin(CollisionMargin):
@@ -448,11 +327,6 @@ def _exact_of(margin: Any) -> Any:
 def has_exact_columns(margin: CollisionMargin) -> bool:
     """Whether the mechanism's kinematic margin has exact columns (3D closed-form families)."""
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
-
-
-def kernels() -> tuple[Any, ...]:
-    """The compiled kernels of this module (for `kinematics.jit`)."""
-    return (_ambiguous, _curvature_kernel, _split_close, _union)
 
 
 __all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
