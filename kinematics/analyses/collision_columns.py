@@ -10,11 +10,13 @@ every pair's signed distance d_p. The collision margin is checked only in the pr
 cells (`kinematics.analyses.collision_prescan`; elsewhere no pair comes near contact and the whole
 interval is free):
 
-* samples every `spacing` [m] (at least both ends, nudged EDGE inside), then, per gap of width w
-  between two samples, the pre-scan's observed slopes s_p (times SAFETY) decide whether it can hold
-  a root: a gap whose ends are both clear cannot when every pair has d_p(a) + d_p(b) > s_p w; one
-  colliding at both ends cannot when |m(a)| + |m(b)| > max_p s_p w (m = min_p d_p). Gaps that can
-  are halved, at most MAX_REFINE times;
+* samples every `spacing` [m] (at least three, the ends nudged EDGE inside), then, per gap of
+  width w between two samples, whether it can hold a root: a pair clear at both ends stays clear
+  when d_p(a) + d_p(b) > s_p w (s_p the pre-scan's observed slope times SAFETY) or when
+  min(d_p(a), d_p(b)) > k_p w^2 / 8 (k_p SAFETY times the largest |second difference| / spacing^2
+  of the samples at the gap's ends: the sag below its chord); the smallest distance m = min_p d_p,
+  negative at both ends, stays negative when some pair provably does or |m(a)| + |m(b)| >
+  max_p s_p w. Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
 * every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
   8th step on); the binding pair at a root is the smallest pair at its colliding side;
 * the collision-free pieces of every branch, and their unions over the branches, give the
@@ -25,8 +27,9 @@ Errors: the kinematic ends' (the exact columns') plus `root_tol` per collision e
 is the kinematic one combined with, per target, the binding pair of each collision end in order,
 so the column engine locates where a collision end appears, vanishes or changes pair as it does a
 kinematic one. What it can miss, beside the exact columns' caveats: the slopes are observed on the
-pre-scan's grid, not bounded (a pair closing in faster, as near a reach boundary where the joints
-turn fast, can dip below zero between two samples), and a dip narrower than spacing / 2^MAX_REFINE;
+pre-scan's grid and the curvatures on the samples, not bounded (a pair closing in faster, as near a
+reach boundary where the joints turn fast, can dip below zero between two samples), and a dip
+narrower than spacing / 2^MAX_REFINE;
 the check run halves the spacing (`for_check`).
 """
 
