@@ -2,9 +2,10 @@
 
 For each robot: `workspace-volume` as the CLI measures it (`measure_workspace`, with its check
 run) and with `--collisions` (`analyses.collisions.measure_collision_workspace`: the pre-scan for
-binding pairs, then the sampled columns with the kinematic union and each binding pair's removal
-as extra targets, with the check run), at the same step and rtol; the time ratio (goal <= 5 x),
-the volume the collisions remove and the pairs that bind most.
+binding pairs, then the collision-free exact columns of p2us and delta, elsewhere sampled columns,
+with the kinematic union and each binding pair's removal as extra targets, with the check run), at
+the same step and rtol; wall and CPU seconds, the time ratio (goal <= 5 x), the volume the
+collisions remove and the pairs that bind most.
 
 Run: python benchmarks/bench_collisions.py [--rtol 1e-3] [--step 0.01] [--modes ---] [--watch 8] [--quick] [--json]
 The JSON holds JSON_KEYS: `rows`, one per robot with ROW_KEYS, and `machine`.
@@ -24,7 +25,8 @@ from kinematics.model.robot import load_robot
 
 JSON_KEYS = ("rows", "machine")
 ROW_KEYS = ("robot", "modes", "rtol", "step", "kinematic_volume", "kinematic_error", "kinematic_seconds",
-            "collision_volume", "collision_error", "collision_seconds", "time_ratio", "removed", "binding_pairs",
+            "collision_volume", "collision_error", "collision_seconds", "time_ratio", "kinematic_cpu_seconds",
+            "collision_cpu_seconds", "removed", "binding_pairs",
             "converged", "points_evaluated")
 
 
@@ -35,17 +37,18 @@ def measure(robot_name: str, rtol: float, step: float, modes: list[str] | None, 
     branches = mech.check_branches(modes or None)
     measure_collision_workspace(mech, robot, step=0.2, rtol=0.2, branches=branches[:1], check=False, watch=0,
                                 max_points=10_000)  # compile
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     kin = measure_workspace(mech, step=step, rtol=rtol, branches=branches, check=True)
-    kin_s = time.perf_counter() - t
-    t = time.perf_counter()
+    kin_s, kin_c = time.perf_counter() - t, time.process_time() - c
+    t, c = time.perf_counter(), time.process_time()
     cw = measure_collision_workspace(mech, robot, step=step, rtol=rtol, branches=branches, watch=watch,
                                      max_points=max_points)
-    col_s = time.perf_counter() - t
+    col_s, col_c = time.perf_counter() - t, time.process_time() - c
     return {"robot": robot_name, "modes": list(branches), "rtol": rtol, "step": step,
             "kinematic_volume": kin.total, "kinematic_error": kin.error, "kinematic_seconds": kin_s,
             "collision_volume": cw.workspace.total, "collision_error": cw.workspace.error, "collision_seconds": col_s,
-            "time_ratio": col_s / kin_s, "removed": cw.removed,
+            "time_ratio": col_s / kin_s, "kinematic_cpu_seconds": kin_c, "collision_cpu_seconds": col_c,
+            "removed": cw.removed,
             "binding_pairs": [{"links": list(p.links), "removed": p.removed} for p in cw.pairs[:4]],
             "converged": bool(cw.workspace.result.converged), "points_evaluated": cw.workspace.result.points_evaluated}
 
@@ -70,8 +73,9 @@ def main() -> None:
     for r in rows:
         pairs = ", ".join(f"{a}-{b} {p['removed']:.3g}" for p in r["binding_pairs"] for a, b in [p["links"]])
         print(f"{r['robot']} ({', '.join(r['modes'])}), rtol {r['rtol']:g}, step {r['step']:g} m: kinematic "
-              f"{r['kinematic_volume']:.6g} m^3 in {r['kinematic_seconds']:.2f} s; collision-free "
-              f"{r['collision_volume']:.6g} +/- {r['collision_error']:.2g} m^3 in {r['collision_seconds']:.2f} s "
+              f"{r['kinematic_volume']:.6g} m^3 in {r['kinematic_seconds']:.2f} s ({r['kinematic_cpu_seconds']:.2f} s CPU); "
+              f"collision-free {r['collision_volume']:.6g} +/- {r['collision_error']:.2g} m^3 in "
+              f"{r['collision_seconds']:.2f} s ({r['collision_cpu_seconds']:.2f} s CPU) "
               f"({r['time_ratio']:.1f} x); removed {r['removed']:.4g} m^3; binding: {pairs or 'none'}")
 
 

@@ -14,13 +14,15 @@ estimates its slope s_bp (including the steep parts next to the reach boundary, 
 inverse kinematics turn fast). A point is *close* when some pair has d_p < SAFETY s_bp |g|
 (twice that on the workspace's boundary, a point with an outside neighbour): a pair that far from
 contact at every corner of a cell, at its observed slope, cannot reach contact inside it. The cells
-with a close corner, grown by one cell on every side, are where the distances are evaluated; a
-pair close nowhere, in no branch, never binds in the box.
+with a close corner, grown by one cell on every side, and the cells with no corner inside the
+kinematic workspace (not seen: a part of the workspace thinner than the grid can cross them; the
+distances are only ever evaluated inside the kinematic workspace, so these cost nothing where it
+is absent), are where the distances are evaluated; a pair close nowhere, in no branch, never
+binds in the box.
 
 What this adds to the column engine's own caveats (`kinematics.analyses.columns`): the slopes are
 observed on the grid, not bounded, so a pair that plunges into contact faster between two grid
-points than anywhere the grid sees, or a colliding region in a part of the workspace thinner than
-the grid spacing (no grid point inside), can be missed.
+points than anywhere the grid sees can be missed.
 """
 
 from __future__ import annotations
@@ -44,7 +46,9 @@ class Prescan:
         counts: (P,) grid points where each pair is negative inside some branch's kinematic workspace.
         inside: (B,) grid points inside each branch's kinematic workspace.
         close: (B, cells - 1, ...) per branch, the cells where collisions are looked for.
+        near: (B, cells - 1, ...) the part of `close` where some pair comes near contact (grown).
         active: (P,) the pairs close somewhere.
+        slopes: (B, P) each pair's observed slope per branch [m/m] (+inf: nothing observed).
     """
 
     def __init__(self, margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int) -> None:
@@ -59,7 +63,9 @@ class Prescan:
         self.counts = np.zeros(P, dtype=np.int64)
         self.inside = np.zeros(B, dtype=np.int64)
         self.close = np.zeros((B,) + (cells - 1,) * d, dtype=bool)
+        self.near = np.zeros_like(self.close)
         self.active = np.zeros(P, dtype=bool)
+        self.slopes = np.full((B, P), np.inf)
         diagonal = float(np.linalg.norm(self.spacing))
         for b in range(B):
             inside = kin[:, b] > 0
@@ -73,12 +79,15 @@ class Prescan:
             if not P:
                 continue
             grid = np.where(inside[:, None], dist, np.nan).reshape(*shape, P)
-            slope = _slopes(grid, self.spacing)
+            slope = self.slopes[b] = _slopes(grid, self.spacing)
             threshold = SAFETY * slope * diagonal  # (P,)
             boundary = _on_boundary(inside.reshape(shape))
             near = grid < np.where(boundary[..., None], 2.0 * threshold, threshold)
             self.active |= near.reshape(-1, P).any(axis=0)
-            self.close[b] = _grow(_cells_with(np.asarray(near.any(axis=-1))))
+            # a cell with no corner inside the workspace was not seen: a part of the workspace
+            # thinner than the grid (p2us-results' sliver above the base) can pass through it
+            self.near[b] = _grow(_cells_with(np.asarray(near.any(axis=-1))))
+            self.close[b] = self.near[b] | ~_cells_with(inside.reshape(shape))
 
     def cell_index(self, points: np.ndarray) -> tuple[np.ndarray, ...]:
         """Index arrays of the grid cell holding each point (N, d) (clipped to the grid)."""

@@ -11,10 +11,12 @@ a capsule beside a plate but clear of its slab keeps the slab's distance, a posi
 so every term has the true distance's sign and the min's zero set is the true one).
 Where k_b <= 0 the point is outside whatever the distances, so m_b = k_b there (no configuration
 exists); this keeps the sign of the min everywhere, and every sign change of m_b is one of the
-min's. The union's margin is max_b m_b. Both are continuous where they change sign, so
-`column_volume`'s sampled columns integrate them with the error estimate they give any margin
-(same caveats: a feature thinner than the column step can be missed; the check run at half the
-step looks for it).
+min's. The union's margin is max_b m_b. For the closed-form families (p2us, delta) the column
+engine integrates them by collision-free exact columns (`kinematics.analyses.collision_columns`:
+the kinematic intervals exact, the collision ends found inside them); for any other mechanism
+`column_volume`'s sampled columns do, with the error estimate they give any margin (same caveats:
+a feature thinner than the column step can be missed; the check run at half the step looks for
+it).
 
 A pre-scan on a grid (`kinematics.analyses.collision_prescan`) finds the pairs with a negative
 distance somewhere inside the kinematic workspace and the cells where some pair comes near
@@ -316,14 +318,17 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 collision_model: CollisionModel | None = None,
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
                                 max_points: int | None = None, watch: int = MAX_WATCHED,
-                                obstacles: Obstacles | None = None, self_collisions: bool = True) -> CollisionWorkspace:
+                                obstacles: Obstacles | None = None, self_collisions: bool = True,
+                                exact: bool = True) -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
     A pre-scan (`kinematics.analyses.collision_prescan.Prescan`) finds the pairs that bind and the
     cells where some pair comes near contact; where none does, the measurement is the kinematic
-    one (the mechanism's exact columns where it has them), else one sampled run of the joined
-    margin (`CollisionMargin`, distances evaluated in the close cells only).
+    one (the mechanism's exact columns where it has them), else one run of the joined margin
+    (`CollisionMargin`, distances evaluated in the close cells only): by collision-free exact
+    columns for the closed-form families (`collision_columns.ExactCollisionMargin`), else by
+    sampled columns.
 
     Args:
         collision_model: the pairs to check (default: `CollisionModel.from_robot(robot)`: the
@@ -333,6 +338,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         watch: how many binding pairs get their own target (each costs its roots' refinement).
         obstacles: fixed bodies the robot must not touch (`load_obstacles`), with the default model.
         self_collisions: with the default model, check the robot's own pairs (False: obstacles only).
+        exact: use the collision-free exact columns where the mechanism has exact columns (False:
+            sampled columns, the route of any other mechanism).
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
@@ -353,10 +360,15 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     B, W = len(chosen), len(watched)
     run = partial(column_volume, lo=lo, hi=hi, step=step, rtol=rtol, check=check, progress=progress,
                   floor=BRANCH_FLOOR, root_tol=root_tolerance(rtol, step), max_points=budget)
-    if not scan.close.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
+    if not scan.near.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
         res = run(margin.kinematic)
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
     else:
+        if exact:
+            from kinematics.analyses.collision_columns import SPACING, ExactCollisionMargin, has_exact_columns
+
+            if has_exact_columns(margin):
+                margin = ExactCollisionMargin(margin, scan, SPACING * step, root_tolerance(rtol, step))
         res = run(margin)
         kin, kin_err = float(res.estimate[B]), float(res.error[B])
         removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]

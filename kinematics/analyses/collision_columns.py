@@ -1,0 +1,338 @@
+"""Collision-free exact columns: the collision margin along the kinematic intervals of the
+closed-form mechanisms' exact columns (3-[P2(US)], Delta).
+
+Along an axis-parallel column each working mode's kinematic inside set is a union of intervals with
+algebraic ends (`kinematics.mechanisms.p2us.exact`, `kinematics.mechanisms.delta.exact`); they come
+from the mode's own exact columns, one call per batch of columns: where a column has more than one
+interval in a z range (more than two ends), the range is halved for those columns until each part
+holds one. Inside an interval the configuration is a smooth closed-form function of z, and so is
+every pair's signed distance d_p. The collision margin is checked only in the pre-scan's close
+cells (`kinematics.analyses.collision_prescan`; elsewhere no pair comes near contact and the whole
+interval is free):
+
+* samples every `spacing` [m] (at least three, the ends nudged EDGE inside), then, per gap of
+  width w between two samples, whether it can hold a root: a pair clear at both ends stays clear
+  when d_p(a) + d_p(b) > s_p w (s_p the pre-scan's observed slope times SAFETY) or when
+  min(d_p(a), d_p(b)) > k_p w^2 / 8 (k_p SAFETY times the largest |second difference| / spacing^2
+  of the samples at the gap's ends: the sag below its chord); the smallest distance m = min_p d_p,
+  negative at both ends, stays negative when some pair provably does or |m(a)| + |m(b)| >
+  max_p s_p w. Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
+* every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
+  8th step on); the binding pair at a root is the smallest pair at its colliding side;
+* the collision-free pieces of every branch, and their unions over the branches, give the
+  targets' lengths: each branch's, the kinematic union (the exact columns' own), the union with
+  each watched pair alone, the union with every pair.
+
+Errors: the kinematic ends' (the exact columns') plus `root_tol` per collision end. The signature
+is the kinematic one combined with, per target, the binding pair of each collision end in order,
+so the column engine locates where a collision end appears, vanishes or changes pair as it does a
+kinematic one. What it can miss, beside the exact columns' caveats: the slopes are observed on the
+pre-scan's grid and the curvatures on the samples, not bounded (a pair closing in faster, as near a
+reach boundary where the joints turn fast, can dip below zero between two samples), and a dip
+narrower than spacing / 2^MAX_REFINE;
+the check run halves the spacing (`for_check`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kinematics.analyses.collision_column_kernels import (
+    ambiguous_gaps,
+    curvature_kernel,
+    split_close,
+    union_pieces,
+)
+from kinematics.analyses.collision_prescan import SAFETY, Prescan
+from kinematics.analyses.collisions import CollisionMargin, configurations
+
+SPACING = 2.0
+"""The collision margin's first samples along a column are SPACING x the column step apart (the gap
+tests refine where a root may hide; at 1 x p2us-results took 1.5 x the CPU time for the same
+volume to 5e-9 m^3 at rtol 1e-3)."""
+
+SIGNATURE_PAIRS = True
+"""Whether a collision end's binding pair enters the column's signature (else only its rank)."""
+
+CHUNK_COLUMNS = 8192
+"""Most columns per batch (about 20 samples of every pair per column)."""
+
+EDGE = 1e-10
+"""[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
+
+MAX_REFINE = 10
+"""Most halvings of a gap between two samples that the slopes say may hold a root."""
+
+MAX_SPLITS = 40
+"""Most halvings of a z range while separating a column's kinematic intervals."""
+
+ROOT_STEPS = 80
+"""Most steps of the root refinement (each halves the bracket from the 8th on)."""
+
+class CollisionColumns:
+    """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
+    margin included (module docstring): each branch, the kinematic union, the union with each
+    watched pair alone, the union."""
+
+    def __init__(self, margin: CollisionMargin, prescan: Prescan, spacing: float, root_tol: float) -> None:
+        self.margin, self.prescan = margin, prescan
+        self.spacing, self.root_tol = float(spacing), float(root_tol)
+        mech = margin.mech
+        self.union = _exact_of(margin.kinematic)
+        self.branch = [_exact_of(mech.margin([b], margin.limits)) for b in margin.branches]
+        slopes = np.array(prescan.slopes, dtype=float)
+        finite = np.where(np.isfinite(slopes), slopes, 0.0)
+        worst = finite.max(axis=1, keepdims=True) if slopes.size else np.zeros((len(self.branch), 1))
+        self.slopes = SAFETY * np.where(np.isfinite(slopes), slopes, worst)  # (B, P)
+        self.evaluations = 0
+
+    def halved(self) -> CollisionColumns:
+        """The same with half the sampling spacing (the check run's)."""
+        return CollisionColumns(self.margin, self.prescan, 0.5 * self.spacing, self.root_tol)
+
+    def __call__(self, base: np.ndarray, axis: int, z0: float, z1: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        base = np.ascontiguousarray(base, dtype=float)
+        if len(base) > CHUNK_COLUMNS:  # bounded memory: the samples' distances are (N, P)
+            parts = [self._batch(base[k:k + CHUNK_COLUMNS], axis, z0, z1) for k in range(0, len(base), CHUNK_COLUMNS)]
+            length, err, ends, sig, zbox = (np.concatenate(x) for x in zip(*parts, strict=True))
+            return length, err, ends, sig, zbox
+        return self._batch(base, axis, z0, z1)
+
+    def _batch(self, base: np.ndarray, axis: int, z0: float, z1: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        M, B, W = len(base), len(self.branch), len(self.margin.watched)
+        T = B + W + 2
+        kin = self.union(base, axis, z0, z1)
+        klen, kerr, _kends, ksig, _ = kin
+        length, err = np.zeros((M, T)), np.zeros((M, T))
+        ends = np.zeros((M, T), np.int64)
+        sig = ksig.astype(np.uint64)
+        zbox = np.empty((M, 2))
+        zbox[:, 0], zbox[:, 1] = np.inf, -np.inf
+        length[:, B], err[:, B] = klen[:, B], kerr[:, B]
+        # one branch: its own columns are the union's (targets: the branch, the union)
+        pieces = [self._branch_pieces(b, base, axis, z0, z1, kin if B == 1 else None) for b in range(B)]
+        for t in [*range(B), *range(B + 1, T)]:
+            f = 0 if t < B or t == T - 1 else t - B
+            chosen = [pieces[t]] if t < B else pieces
+            col = np.concatenate([p[0] for p in chosen])
+            a = np.concatenate([p[1][f] for p in chosen])
+            e = np.concatenate([p[2][f] for p in chosen])
+            ca = np.concatenate([p[3][f] for p in chosen])
+            ce = np.concatenate([p[4][f] for p in chosen])
+            kin_err = sum(p[5] for p in chosen)
+            keep = e > a
+            order = np.lexsort((a[keep], col[keep]))
+            union_pieces(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
+                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, length, err, ends, sig, zbox)
+            err[:, t] += kin_err
+        out_sig = (sig >> np.uint64(1)).astype(np.int64)
+        zbox[~np.isfinite(zbox)] = np.nan
+        return length, err, ends, out_sig, zbox
+
+    # -- one branch ----------------------------------------------------------------------------
+    def _branch_pieces(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float,
+                       first: tuple[np.ndarray, ...] | None = None) -> tuple[Any, ...]:
+        """Branch b's collision-free pieces per function (0: every pair, 1 + w: watched pair w
+        alone): col (K,), starts (F, K), ends (F, K), start codes and end codes (F, K) (binding
+        pair + 1 at a collision end, else 0), and the kinematic ends' errors (M,)."""
+        M = len(base)
+        F = 1 + len(self.margin.watched)
+        col, a, e, kerr = self._intervals(b, base, ax, z0, z1, first)
+        lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
+        cells = _close_rows(self.prescan, b, base, ax)
+        sc, su, sv, checked = split_close(col, a, e, cells, lo, g)
+        free_col, free_a, free_e = sc[~checked], su[~checked], sv[~checked]
+        n_free = len(free_col)
+        pc, pa, pe, pca, pce = self._checked_pieces(b, base, ax, sc[checked], su[checked], sv[checked])
+        colf = np.concatenate([free_col, pc])
+        starts = np.concatenate([np.repeat(free_a[None], F, 0), pa], axis=1)
+        stops = np.concatenate([np.repeat(free_e[None], F, 0), pe], axis=1)
+        zero = np.zeros((F, n_free), np.int64)
+        return (colf, starts, stops, np.concatenate([zero, pca], axis=1), np.concatenate([zero, pce], axis=1),
+                np.bincount(col, weights=kerr, minlength=M))
+
+    def _intervals(self, b: int, base: np.ndarray, ax: int, z0: float, z1: float,
+                   first: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Branch b's kinematic intervals: column (K,), start, end [m], the ends' error [m]
+        (`first`: its exact columns' outputs over [z0, z1] when already known)."""
+        out: list[tuple[np.ndarray, ...]] = []
+        todo = [(np.arange(len(base)), z0, z1, 0)]
+        while todo:
+            idx, lo, hi, depth = todo.pop()
+            ln, er, en, _, zb = first if first is not None else self.branch[b](base[idx], ax, lo, hi)
+            first = None
+            one = (en[:, 0] == 2) | ((en[:, 0] > 2) & (depth >= MAX_SPLITS))
+            # past MAX_SPLITS (two intervals touching): the extent, its excess charged as error
+            out.append((idx[one], zb[one, 0], zb[one, 1], er[one, 0] + (zb[one, 1] - zb[one, 0] - ln[one, 0])))
+            many = (en[:, 0] > 2) & (depth < MAX_SPLITS)
+            if many.any():
+                mid = 0.5 * (lo + hi)
+                todo += [(idx[many], lo, mid, depth + 1), (idx[many], mid, hi, depth + 1)]
+        col, a, e, err = (np.concatenate(x) for x in zip(*out, strict=True))
+        return col.astype(np.int64), a, e, np.abs(err)
+
+    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
+        the points of columns `col` at `z` in branch b."""
+        others = [k for k in range(3) if k != ax]
+        pts = np.empty((len(z), 3))
+        pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
+        self.evaluations += len(z)
+        m = self.margin
+        q = configurations(m.mech, m.robot, pts, m.branches[b])
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():  # rounding at a reach end: no configuration; the kinematic end decides
+            d = np.full((len(z), len(m.distances.kinds)), np.inf)
+            if (~bad).any():
+                d[~bad] = m.distances.distances(q[~bad], signs=True)
+            return d
+        return m.distances.distances(q, signs=True)
+
+    def _functions(self, d: np.ndarray) -> np.ndarray:
+        """(N, F): the smallest distance over the pairs, then each watched pair's."""
+        first = d.min(axis=1, initial=np.inf)[:, None]
+        return np.concatenate([first, d[:, self.margin.watched]], axis=1)
+
+    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
+                        ) -> tuple[np.ndarray, ...]:
+        """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
+        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
+        F = 1 + len(self.margin.watched)
+        if not len(col):
+            empty = np.zeros((F, 0))
+            return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
+        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
+        seg = np.repeat(np.arange(len(col)), n + 1)
+        k = np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
+        z = u[seg] + (v - u)[seg] * (k / n[seg])
+        z[np.cumsum(n + 1) - 1] = v
+        nudge = np.minimum(EDGE, (v - u) / 4)[seg]
+        d = self._evaluate(b, base, ax, col[seg], np.clip(z, u[seg] + nudge, v[seg] - nudge))
+        curv = _curvatures(d, k, n[seg], ((v - u) / n)[seg])
+        left = np.flatnonzero(k < n[seg])
+        gc, za, zb, ia, ib = col[seg[left]], z[left], z[left + 1], left, left + 1
+        s = self.slopes[b]
+        s_min = float(s.max(initial=0.0))
+        watched = np.ascontiguousarray(self.margin.watched, dtype=np.int64)
+        done: list[tuple[np.ndarray, ...]] = []
+        for level in range(MAX_REFINE + 1):
+            amb = np.zeros(len(gc), np.bool_)
+            if level < MAX_REFINE:
+                ambiguous_gaps(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
+            fn, arg = self._functions(d), d.argmin(axis=1)
+            keep = ~amb
+            done.append((gc[keep], za[keep], zb[keep], fn[ia[keep]], fn[ib[keep]], arg[ia[keep]], arg[ib[keep]]))
+            if not amb.any():
+                break
+            # each gap to halve gets its own three samples (a, b, midpoint), its parent's curvature bound
+            m = int(amb.sum())
+            gc, za, zb = gc[amb], za[amb], zb[amb]
+            zm = 0.5 * (za + zb)
+            kk = SAFETY * np.maximum(curv[ia[amb]], curv[ib[amb]])
+            d = np.concatenate([d[ia[amb]], d[ib[amb]], self._evaluate(b, base, ax, gc, zm)])
+            curv = np.concatenate([kk, kk, kk]) / SAFETY
+            r = np.arange(m)
+            gc, za, zb = np.concatenate([gc, gc]), np.concatenate([za, zm]), np.concatenate([zm, zb])
+            ia, ib = np.concatenate([r, r + 2 * m]), np.concatenate([r + 2 * m, r + m])
+        gc, za, zb, fa, fb, pa, pb = (np.concatenate(x) for x in zip(*done, strict=True))
+        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb)
+
+    def _pieces(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
+                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Each final gap's free piece per function (values fa, fb (G, F) at its ends, smallest
+        pairs pa, pb there), its sign changes refined to roots."""
+        F = fa.shape[1]
+        starts, stops = np.repeat(za[None], F, 0), np.repeat(zb[None], F, 0)
+        ca, ce = np.zeros((F, len(gc)), np.int64), np.zeros((F, len(gc)), np.int64)
+        pair_of = np.concatenate([[-1], self.margin.watched])
+        gi, fi = np.nonzero((fa >= 0) != (fb >= 0))
+        root, code = self._roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi], fi,
+                                 np.where(fa[gi, fi] < 0, pa[gi], pb[gi]))
+        code = np.where(pair_of[fi] >= 0, pair_of[fi], code) + 1
+        up = fa[gi, fi] < 0  # colliding below the root: the piece starts there
+        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up]
+        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up]
+        out = (fa < 0) & (fb < 0)
+        stops[out.T] = starts[out.T]  # empty pieces (dropped by the union)
+        return gc, starts, stops, ca, ce
+
+    def _roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
+               fa: np.ndarray, fb: np.ndarray, fi: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Roots [m] of function fi in brackets (za, zb) (values fa, fb of opposite signs) to
+        `root_tol`, and the smallest pair at each bracket's colliding end."""
+        za, zb, fa, fb, pair = za.copy(), zb.copy(), fa.copy(), fb.copy(), pair.copy()
+        side = np.zeros(len(za), np.int64)
+        rows = np.arange(len(za))
+        for step in range(ROOT_STEPS):
+            live = rows[zb[rows] - za[rows] > self.root_tol]
+            if not len(live):
+                break
+            rows = live
+            a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
+            tol = 0.25 * self.root_tol
+            x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol) if step < 8 else 0.5 * (a + c)
+            d = self._evaluate(b, base, ax, col[rows], x)
+            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            below = (y >= 0) == (ya >= 0)  # the root is above x
+            # Illinois: halve the value kept at the end that stays twice in a row
+            fb[rows[below & (side[rows] == 1)]] *= 0.5
+            fa[rows[~below & (side[rows] == -1)]] *= 0.5
+            za[rows[below]], fa[rows[below]] = x[below], y[below]
+            zb[rows[~below]], fb[rows[~below]] = x[~below], y[~below]
+            side[rows] = np.where(below, 1, -1)
+            neg = y < 0
+            pair[rows[neg]] = d[neg].argmin(axis=1)
+        return 0.5 * (za + zb), pair
+
+
+def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
+    its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
+    spacing h."""
+    out = np.empty_like(d)
+    curvature_kernel(d, k, n, h, out)
+    return out
+
+
+def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
+    """(M, cells - 1) the pre-scan's close cells of branch b along each column."""
+    others = [k for k in range(3) if k != ax]
+    idx = []
+    for n, k in enumerate(others):
+        i = np.floor((base[:, n] - prescan.lo[k]) / prescan.spacing[k]).astype(np.int64)
+        idx.append(np.clip(i, 0, prescan.cells - 2))
+    close = np.moveaxis(prescan.close[b], ax, -1)
+    return np.ascontiguousarray(close[idx[0], idx[1]])
+
+
+class ExactCollisionMargin(CollisionMargin):
+    """A `CollisionMargin` with exact columns (`CollisionColumns`), for the column engine; the
+    check run (`for_check`) samples the collision margin at half the spacing."""
+
+    def __init__(self, margin: CollisionMargin, prescan: Prescan, spacing: float, root_tol: float,
+                 columns: CollisionColumns | None = None) -> None:
+        super().__init__(margin.mech, margin.robot, margin.distances, margin.branches, margin.limits,
+                         [int(w) for w in margin.watched], prescan)
+        self.exact_columns = columns or CollisionColumns(self, prescan, spacing, root_tol)
+
+    def for_check(self) -> ExactCollisionMargin:
+        cols = self.exact_columns.halved()
+        return ExactCollisionMargin(self, cols.prescan, cols.spacing, cols.root_tol, cols)
+
+
+def _exact_of(margin: Any) -> Any:
+    """A kinematic margin's exact columns (`ExactColumnsFn`)."""
+    return margin.exact_columns
+
+
+def has_exact_columns(margin: CollisionMargin) -> bool:
+    """Whether the mechanism's kinematic margin has exact columns (3D closed-form families)."""
+    return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
+
+
+__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+           "has_exact_columns"]
