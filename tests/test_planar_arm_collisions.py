@@ -69,3 +69,36 @@ def test_workspace_view_draws_where_both_elbows_hit_the_wall(arm, tmp_path):  # 
                                       for x in labels) if m]
     assert sum(drawn) == int(hits.sum()) and free == [int((~hits).sum())]
     assert "obstacle wall" in labels
+
+
+def test_plot_counts_the_collision_free_elbows_by_hand(arm, tmp_path, capsys):  # noqa: F811
+    # workspace-volume --plot with obstacles: the figure's map counts, per grid point, the elbows
+    # whose arm clears the wall (P and that elbow at x < WALL - R, as above)
+    from kinematics.analyses.collisions import margin_builder
+    from kinematics.views import plots
+
+    obstacles = _obstacles(tmp_path, HALF)
+    cm = collision_model_of(arm, obstacles, self_collisions=False)
+    mech = mechanism_of(arm)
+    step = 0.023
+    plots.headless()
+    fig = plots.spatial_workspace(mech, "all", 2 * step, branch_margin=margin_builder(mech, arm, cm)(mech.branches),
+                                  what="collision-free")
+    drawn = np.ma.filled(fig.axes[0].collections[0].get_array(), 0).ravel()
+    lo, hi = mech.bounding_box("all")
+    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    rho, phi = np.hypot(pts[:, 0], pts[:, 1]), np.arctan2(pts[:, 1], pts[:, 0])
+    inside = (rho > L1 - L2) & (rho < L1 + L2)
+    gamma = np.arccos(np.clip((L1 * L1 + rho * rho - L2 * L2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
+    c = WALL - R
+    elbow_x = L1 * np.cos(np.stack([phi - gamma, phi + gamma]))
+    want = np.where(inside, ((pts[:, 0] < c) & (elbow_x < c)).sum(axis=0), 0)
+    near = np.minimum.reduce([np.abs(pts[:, 0] - c), np.abs(elbow_x - c).min(axis=0), np.abs(rho - (L1 - L2)),
+                              np.abs(rho - (L1 + L2))])
+    ok = near > 1e-9
+    assert ok.mean() > 0.99 and (want[ok] == 1).any() and (want[ok] == 2).any()
+    assert np.array_equal(drawn[ok], want[ok])
+    code, _, err = run_json(capsys, "workspace-volume", str(tmp_path / "arm2r.urdf"), "--obstacles",
+                            str(tmp_path / "wall.yaml"), "--rtol", "1e-2", "--plot", str(tmp_path / "w.png"))
+    assert code == 0 and (tmp_path / "w.png").stat().st_size > 10_000, err
