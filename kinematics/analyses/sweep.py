@@ -16,8 +16,9 @@ Per design, on the union of the working modes' workspaces (every limit applied):
   conditioning index, in [0, 1].
 
 With collisions (`run(collisions=...)`), each design's URDF is generated with the given collision
-sizes and the union's collision-free volume is measured too (`analyses.collisions`, sampled
-columns): collision_free_volume_m3 and its error estimate.
+sizes and the union's collision-free volume is measured too (`analyses.collisions`: the
+3-[P2(US)]'s collision-free exact columns, no check run): collision_free_volume_m3 and its error
+estimate.
 """
 
 from __future__ import annotations
