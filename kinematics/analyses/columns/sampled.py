@@ -100,7 +100,7 @@ def column_lengths(
                 counter.hi = np.maximum(counter.hi, p_in.max(axis=0))
         if len(c):
             root, width, evals = _refine(margin, b[c], zs[k], zs[k + 1], vals[c, k, t], vals[c, k + 1, t], t, others, ax,
-                                         tol=root_tol)
+                                         tol=root_tol, group=c * n + k)
             if counter is not None:
                 counter.points += evals
             left_in = inside[c, k, t]
@@ -116,7 +116,8 @@ def column_lengths(
 
 def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.ndarray, b: np.ndarray,
             fa: np.ndarray, fb: np.ndarray, target: np.ndarray, others: list[int], ax: int,
-            max_iter: int = 200, tol: float = ROOT_TOL) -> tuple[np.ndarray, np.ndarray, int]:
+            max_iter: int = 200, tol: float = ROOT_TOL, group: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, int]:
     """Roots of target columns of the margin in the brackets [a, b] (f(a), f(b) of opposite signs).
 
     Illinois false position; a point closer than the tolerance to an end is nudged to the
@@ -129,6 +130,14 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
     estimate is within tol / 2: on a residual linear in the distance, the first estimate); a step
     that lands nowhere useful (the bracket did not halve in two steps) is a bisection, as is every
     step before two outside points are known.
+
+    Brackets of several targets in one interval of one column (the same `group`) share their
+    evaluations while they coincide: each step, brackets with the same group and the same ends
+    are probed at the first one's point (the lowest target's), which lies inside each of them, and
+    each moves by its own target's sign there. Targets that share a root (a union and the branch
+    that bounds it, the branches of one reach) are refined for the price of one; where their signs
+    at a probe differ, their brackets part and go on separately. Every bracket still ends narrower
+    than `tol` around a sign change of its own target.
     Returns (root, final bracket width, margin evaluations).
     """
     lo, hi = a.copy(), b.copy()
@@ -164,12 +173,14 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         nudge = 0.45 * tol
         x = np.where(x - L < nudge, L + nudge, x)
         x = np.where(H - x < nudge, H - nudge, x)
-        pts = np.empty((len(active), d))
-        pts[:, others] = base[active]
-        pts[:, ax] = x
-        vals = check_margin(margin(pts), len(active))
-        evals += len(active)
-        fx = vals[np.arange(len(active)), target[active]]
+        lead, inv = _leaders(None if group is None else group[active], L, H)
+        x = x[lead][inv]
+        pts = np.empty((len(lead), d))
+        pts[:, others] = base[active[lead]]
+        pts[:, ax] = x[lead]
+        vals = check_margin(margin(pts), len(lead))
+        evals += len(lead)
+        fx = vals[inv, target[active]]
         out = fx < 0
         ox0[active] = np.where(out, ox1[active], ox0[active])
         of0[active] = np.where(out, of1[active], of0[active])
@@ -192,3 +203,14 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         side[active] = np.where(same_lo, -1, 1)
     return 0.5 * (lo + hi), hi - lo, evals
 
+
+
+def _leaders(group: np.ndarray | None, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Brackets that coincide (the same group and ends): (the first index of each distinct one,
+    each bracket's position in that list), so that bracket i is probed at leader lead[inv[i]]."""
+    if group is None:
+        idx = np.arange(len(lo))
+        return idx, idx
+    _, lead, inv = np.unique(np.stack([group.astype(float), lo, hi], axis=1), axis=0, return_index=True,
+                             return_inverse=True)
+    return lead, np.ravel(inv)
