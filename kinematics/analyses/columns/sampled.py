@@ -16,6 +16,10 @@ ROOT_TOL = 1e-12
 CHUNK_POINTS = 1 << 19
 """Margin evaluations per batch (bounds memory to ~ this many x targets doubles)."""
 
+SECANT_TRIES = 8
+"""A jump bracket's secant probes taken even where the bracket did not halve (`_refine`), before
+a stalled bracket is bisected again."""
+
 
 class Counter:
     """Columns and margin evaluations spent, and the inside points' extent, over a measurement."""
@@ -122,14 +126,19 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
 
     Illinois false position; a point closer than the tolerance to an end is nudged to the
     tolerance (Brent), and a bracket that did not halve in two steps is bisected, so every bracket
-    ends narrower than `tol`. A bracket that stalls a second time is taken for a jump of the margin
-    (a closed loop's falls from its slack inside to minus a small least-squares residual outside,
+    ends narrower than `tol`. A bracket that stalls (from the second step on: the first false
+    position step of a jump barely moves its outside end) is taken for a jump of the margin (a
+    closed loop's falls from its slack inside to minus a small least-squares residual outside,
     which goes to zero at the reach boundary): from then on the secant through the last two
     outside points (f < 0) estimates the root, and the point evaluated is that estimate moved
     0.45 tol towards the bracket's farther end (two such steps close the bracket once the
-    estimate is within tol / 2: on a residual linear in the distance, the first estimate); a step
-    that lands nowhere useful (the bracket did not halve in two steps) is a bisection, as is every
-    step before two outside points are known.
+    estimate is within tol / 2: on a residual linear in the distance, the first estimate). A
+    probe that lands outside adds an outside point, so the next estimate is better though the
+    bracket barely shrank: the first SECANT_TRIES probes are taken whether or not the bracket
+    halved; after them a stalled bracket is bisected, as is every step before two outside points
+    are known (at most SECANT_TRIES evaluations beyond bisection's count). On the Gepetto
+    five-bar: 11.3 evaluations a bracket with the secant after a second stall and never on a
+    stalled bracket, 7.8 this way.
 
     Brackets of several targets in one interval of one column (the same `group`) share their
     evaluations while they coincide: each step, brackets with the same group and the same ends
@@ -146,6 +155,7 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
     width_two_ago = hi - lo
     width_prev = hi - lo
     stalls = np.zeros(len(lo), np.int8)
+    secants = np.zeros(len(lo), np.int64)
     # the last two outside points and their raw margins (Illinois halves flo / fhi), the newest last
     neg = fa < 0
     ox1, of1 = np.where(neg, a, b), np.where(neg, fa, fb)
@@ -161,14 +171,15 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         x = L - FL * W / (FH - FL)
         x = np.where(np.isfinite(x), x, 0.5 * (L + H))
         stalled = 0.5 * width_two_ago[active] < W
-        if it >= 2:
+        if it >= 1:
             stalls[active] += stalled
-            jump = stalls[active] >= 2
+            jump = stalls[active] >= 1
             x1, f1, x0, f0 = ox1[active], of1[active], ox0[active], of0[active]
             with np.errstate(divide="ignore", invalid="ignore"):
                 est = x1 - f1 * (x1 - x0) / (f1 - f0)
             probe = est + np.where(H - est > est - L, 0.45, -0.45) * tol  # towards the farther end
-            use = jump & ~stalled & np.isfinite(probe) & (probe > L) & (probe < H)
+            use = jump & (~stalled | (secants[active] < SECANT_TRIES)) & np.isfinite(probe) & (probe > L) & (probe < H)
+            secants[active] += use
             x = np.where(use, probe, np.where(stalled | jump, 0.5 * (L + H), x))
         nudge = 0.45 * tol
         x = np.where(x - L < nudge, L + nudge, x)
