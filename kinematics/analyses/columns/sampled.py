@@ -16,6 +16,10 @@ ROOT_TOL = 1e-12
 CHUNK_POINTS = 1 << 19
 """Margin evaluations per batch (bounds memory to ~ this many x targets doubles)."""
 
+SECANT_TRIES = 8
+"""A jump bracket's secant probes taken even where the bracket did not halve (`_refine`), before
+a stalled bracket is bisected again."""
+
 
 class Counter:
     """Columns and margin evaluations spent, and the inside points' extent, over a measurement."""
@@ -100,7 +104,7 @@ def column_lengths(
                 counter.hi = np.maximum(counter.hi, p_in.max(axis=0))
         if len(c):
             root, width, evals = _refine(margin, b[c], zs[k], zs[k + 1], vals[c, k, t], vals[c, k + 1, t], t, others, ax,
-                                         tol=root_tol)
+                                         tol=root_tol, group=c * n + k)
             if counter is not None:
                 counter.points += evals
             left_in = inside[c, k, t]
@@ -116,19 +120,33 @@ def column_lengths(
 
 def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.ndarray, b: np.ndarray,
             fa: np.ndarray, fb: np.ndarray, target: np.ndarray, others: list[int], ax: int,
-            max_iter: int = 200, tol: float = ROOT_TOL) -> tuple[np.ndarray, np.ndarray, int]:
+            max_iter: int = 200, tol: float = ROOT_TOL, group: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, int]:
     """Roots of target columns of the margin in the brackets [a, b] (f(a), f(b) of opposite signs).
 
     Illinois false position; a point closer than the tolerance to an end is nudged to the
     tolerance (Brent), and a bracket that did not halve in two steps is bisected, so every bracket
-    ends narrower than `tol`. A bracket that stalls a second time is taken for a jump of the margin
-    (a closed loop's falls from its slack inside to minus a small least-squares residual outside,
+    ends narrower than `tol`. A bracket that stalls (from the second step on: the first false
+    position step of a jump barely moves its outside end) is taken for a jump of the margin (a
+    closed loop's falls from its slack inside to minus a small least-squares residual outside,
     which goes to zero at the reach boundary): from then on the secant through the last two
     outside points (f < 0) estimates the root, and the point evaluated is that estimate moved
     0.45 tol towards the bracket's farther end (two such steps close the bracket once the
-    estimate is within tol / 2: on a residual linear in the distance, the first estimate); a step
-    that lands nowhere useful (the bracket did not halve in two steps) is a bisection, as is every
-    step before two outside points are known.
+    estimate is within tol / 2: on a residual linear in the distance, the first estimate). A
+    probe that lands outside adds an outside point, so the next estimate is better though the
+    bracket barely shrank: the first SECANT_TRIES probes are taken whether or not the bracket
+    halved; after them a stalled bracket is bisected, as is every step before two outside points
+    are known (at most SECANT_TRIES evaluations beyond bisection's count). On the Gepetto
+    five-bar: 11.3 evaluations a bracket with the secant after a second stall and never on a
+    stalled bracket, 7.8 this way.
+
+    Brackets of several targets in one interval of one column (the same `group`) share their
+    evaluations while they coincide: each step, brackets with the same group and the same ends
+    are probed at the first one's point (the lowest target's), which lies inside each of them, and
+    each moves by its own target's sign there. Targets that share a root (a union and the branch
+    that bounds it, the branches of one reach) are refined for the price of one; where their signs
+    at a probe differ, their brackets part and go on separately. Every bracket still ends narrower
+    than `tol` around a sign change of its own target.
     Returns (root, final bracket width, margin evaluations).
     """
     lo, hi = a.copy(), b.copy()
@@ -137,6 +155,7 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
     width_two_ago = hi - lo
     width_prev = hi - lo
     stalls = np.zeros(len(lo), np.int8)
+    secants = np.zeros(len(lo), np.int64)
     # the last two outside points and their raw margins (Illinois halves flo / fhi), the newest last
     neg = fa < 0
     ox1, of1 = np.where(neg, a, b), np.where(neg, fa, fb)
@@ -152,24 +171,27 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         x = L - FL * W / (FH - FL)
         x = np.where(np.isfinite(x), x, 0.5 * (L + H))
         stalled = 0.5 * width_two_ago[active] < W
-        if it >= 2:
+        if it >= 1:
             stalls[active] += stalled
-            jump = stalls[active] >= 2
+            jump = stalls[active] >= 1
             x1, f1, x0, f0 = ox1[active], of1[active], ox0[active], of0[active]
             with np.errstate(divide="ignore", invalid="ignore"):
                 est = x1 - f1 * (x1 - x0) / (f1 - f0)
             probe = est + np.where(H - est > est - L, 0.45, -0.45) * tol  # towards the farther end
-            use = jump & ~stalled & np.isfinite(probe) & (probe > L) & (probe < H)
+            use = jump & (~stalled | (secants[active] < SECANT_TRIES)) & np.isfinite(probe) & (probe > L) & (probe < H)
+            secants[active] += use
             x = np.where(use, probe, np.where(stalled | jump, 0.5 * (L + H), x))
         nudge = 0.45 * tol
         x = np.where(x - L < nudge, L + nudge, x)
         x = np.where(H - x < nudge, H - nudge, x)
-        pts = np.empty((len(active), d))
-        pts[:, others] = base[active]
-        pts[:, ax] = x
-        vals = check_margin(margin(pts), len(active))
-        evals += len(active)
-        fx = vals[np.arange(len(active)), target[active]]
+        lead, inv = _leaders(None if group is None else group[active], L, H)
+        x = x[lead][inv]
+        pts = np.empty((len(lead), d))
+        pts[:, others] = base[active[lead]]
+        pts[:, ax] = x[lead]
+        vals = check_margin(margin(pts), len(lead))
+        evals += len(lead)
+        fx = vals[inv, target[active]]
         out = fx < 0
         ox0[active] = np.where(out, ox1[active], ox0[active])
         of0[active] = np.where(out, of1[active], of0[active])
@@ -192,3 +214,14 @@ def _refine(margin: Callable[[np.ndarray], np.ndarray], base: np.ndarray, a: np.
         side[active] = np.where(same_lo, -1, 1)
     return 0.5 * (lo + hi), hi - lo, evals
 
+
+
+def _leaders(group: np.ndarray | None, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Brackets that coincide (the same group and ends): (the first index of each distinct one,
+    each bracket's position in that list), so that bracket i is probed at leader lead[inv[i]]."""
+    if group is None:
+        idx = np.arange(len(lo))
+        return idx, idx
+    _, lead, inv = np.unique(np.stack([group.astype(float), lo, hi], axis=1), axis=0, return_index=True,
+                             return_inverse=True)
+    return lead, np.ravel(inv)

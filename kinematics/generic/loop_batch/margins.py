@@ -56,7 +56,9 @@ def slack_kernel(x, lo, hi, use, unit, pairs, paired, centre, out):  # pragma: n
         out[r] = _slack_row(x[r], lo, hi, use, unit, pairs, paired, centre)
 
 
-@njit(cache=True, parallel=True)
+# serial: a few copies per branch and row, less than a parallel launch costs on the small batches of
+# root refinement (10 ms of a 2-thread launch where the machine is busy)
+@njit(cache=True)
 def assemble_kernel(order, end, found, res, bslot, cols, ncol, lo, hi, use, unit, pairs, paired, centre,
                      x_out, end_out, ok_out, res_out, margin_out):  # pragma: no cover - compiled
     """The block solver's per-slot results combined into branches (`LoopBatch._ik_blocks`):
@@ -66,7 +68,7 @@ def assemble_kernel(order, end, found, res, bslot, cols, ncol, lo, hi, use, unit
     N = end.shape[0]
     B, K = bslot.shape
     n = x_out.shape[2]
-    for row in prange(N):
+    for row in range(N):
         i = order[row]
         for b in range(B):
             ok = True

@@ -44,16 +44,19 @@ class WarmCache:
             self.points = np.empty((CACHE_POINTS + RECENT_POINTS, p.shape[1]))
             self.ends = np.empty((CACHE_POINTS + RECENT_POINTS,) + self.shape)
         size = len(self.points)
-        for c in range(0, len(p), RECENT_POINTS):
-            piece = slice(c, c + RECENT_POINTS)
-            m = len(p[piece])
-            if self.fresh + m > RECENT_POINTS:
-                self._rebuild()
-            rows = (self.head + np.arange(m)) % size
-            self.points[rows], self.ends[rows] = p[piece], end[piece]
-            self.head = (self.head + m) % size
-            self.fresh += m
-            self.count = min(self.count + m, size)
+        p, end = p[-size:], end[-size:]
+        m = len(p)
+        if self.fresh + m > RECENT_POINTS:
+            # a batch past the fresh rows' room is written whole and the tree rebuilt once after it
+            # (the rows it overwrites may be in the old tree, which nothing queries in between)
+            self.tree = None
+        rows = (self.head + np.arange(m)) % size
+        self.points[rows], self.ends[rows] = p, end
+        self.head = (self.head + m) % size
+        self.fresh += m
+        self.count = min(self.count + m, size)
+        if self.tree is None and self.fresh > RECENT_POINTS:
+            self._rebuild()
 
     def _rebuild(self) -> None:
         from scipy.spatial import cKDTree
