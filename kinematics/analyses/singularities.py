@@ -182,7 +182,9 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
         cur = {"margin": fields.margin, "det": fields.det, "disc": fields.limb}
         ids = k0 * P + np.arange(K * P)
         signs = np.concatenate([cur["disc"] >= 0, cur["det"] > 0], axis=1)
-        code = signs @ (1 << np.arange(signs.shape[1], dtype=np.int64))  # every sign of a point in one integer
+        code = np.zeros(len(signs), dtype=np.int64)  # every sign of a point in one integer
+        for j in range(signs.shape[1]):
+            code |= signs[:, j].astype(np.int64) << j
         shift = (np.arange(K) * P)[:, None]
         edges = [((ea[None] + shift).ravel(), (eb[None] + shift).ravel()) for ea, eb in in_plane]
         edges.append((np.arange((K - 1) * P), np.arange(P, K * P)))  # between this call's planes
@@ -202,12 +204,12 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
             bar.update(K)
     if bar is not None:
         bar.close()
-    locus = _assemble(found, mech.branches)
+    locus = _assemble(found, mech.branches, int(np.prod(dims)))
     return SingularityScan(locus, step, limits, chosen, int(np.prod(dims)), time.perf_counter() - t0,
                            (lo.tolist(), hi.tolist()))
 
 
-def _assemble(found: list[tuple], branches: tuple[str, ...]) -> SingularLocus:
+def _assemble(found: list[tuple], branches: tuple[str, ...], grid_size: int) -> SingularLocus:
     if not found:
         e = np.empty(0)
         return SingularLocus(np.empty((0, 3)), e.astype(int), e.astype(int), e.astype(bool), branches)
@@ -217,7 +219,9 @@ def _assemble(found: list[tuple], branches: tuple[str, ...]) -> SingularLocus:
     inside = np.concatenate([f[3] for f in found])
     ends_a = np.concatenate([f[4] for f in found])
     ends_b = np.concatenate([f[5] for f in found])
-    type1_vertices = np.union1d(ends_a[kind == 1], ends_b[kind == 1])
-    near = np.isin(ends_a, type1_vertices) | np.isin(ends_b, type1_vertices)
+    type1 = np.zeros(grid_size, dtype=bool)  # the grid points at an end of a type I edge
+    type1[ends_a[kind == 1]] = True
+    type1[ends_b[kind == 1]] = True
+    near = type1[ends_a] | type1[ends_b]
     kind = np.where((kind == 2) & near, 3, kind)
     return SingularLocus(points, kind, which, inside, branches)
