@@ -189,9 +189,6 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
         margin = _plane_unions(margin, len(chosen), [idx for _, idx in planes])
     t0 = time.perf_counter()
     res = _measure(margin, lo, hi, step, rtol, engine, progress, max_points, check)
-    finish = getattr(margin, "finish", None)
-    if finish is not None and isinstance(res, ColumnVolume):  # targets that make one measure (a serial
-        res = finish(res)                                      # arm's partial base turn: its `ReachMargin`)
     names = tuple(name for name, _ in planes)
     if planes:
         res = _sum_planes(res, len(chosen), len(planes))  # type: ignore[arg-type]

@@ -65,9 +65,6 @@ millimetres of any reached point, so a target that far is outside; the restarts 
 the sign is at stake, near the boundary."""
 
 
-COVER_SAMPLES = 10_000
-"""Profile points of the Monte-Carlo count of a partial turn's uncovered circles (`ReachMargin.finish`)."""
-
 SERIAL_BELOW = 512
 """Fewer targets than this are searched on one thread: starting a parallel region costs
 milliseconds on a loaded machine (4-8 ms against 0.1 ms on one thread for 20 targets, load ~6 on
@@ -99,6 +96,9 @@ class Profile:
     axis: int
     origin: np.ndarray
     direction: np.ndarray
+    turn: Any = None
+    """A partial base turn's circle measure (`kinematics.mechanisms.serial.turn.TurnExtent`): the
+    volume is then (L / 2 pi) x the solid's plus its integral over the profile; None: a full turn."""
 
     def weight(self, base: np.ndarray) -> np.ndarray:
         """2 pi rho [m] for columns at base (M, 1) = rho."""
@@ -162,6 +162,9 @@ class Reach:
             slack = self.turn[1] - self.turn[0] - math.pi
             self.lo_free[0], self.hi_free[0] = -np.inf, np.inf
             self.lo_cover[0], self.hi_cover[0] = -slack, slack
+        # W0: the set the rest of the chain reaches with the base held at 0 (`turn`)
+        self.lo_base0, self.hi_base0 = lo.copy(), hi.copy()
+        self.lo_base0[0] = self.hi_base0[0] = 0.0
         self.args = (kin.kind, kin.axis, kin.rotation, kin.translation, kin.frame_translation)
         if orientation is None:
             self.vec, self.dirs, self.scale = np.zeros((0, 3)), np.zeros((0, 3)), 0.0
@@ -175,6 +178,11 @@ class Reach:
             e1 /= np.linalg.norm(e1)
             self.basis = np.stack([e1, np.cross(d, e1), d])  # rows e1, e2, axis (right-handed)
             self.origin = np.asarray(s.axis_origin, dtype=float)
+
+    @cached_property
+    def checker(self) -> Reach:
+        """The check run's search (`with_effort(2)`), built once."""
+        return self.with_effort(2)
 
     def with_effort(self, factor: int) -> Reach:
         """The same search with `factor` x the samples and restarts."""
@@ -233,10 +241,11 @@ class Reach:
         return self.chain_fk(0.5 * (lo + hi)[None])[0]
 
     # -- search ---------------------------------------------------------------------------------
-    def distance(self, targets: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def distance(self, targets: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None = None,
+                 first_seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Margins (N,) [m] (see the module docstring) and best chain values (N, n) at world targets
-        (N, 3), within the chain bounds `bounds` (default: the joint limits)."""
+        (N, 3), within the chain bounds `bounds` (default: the joint limits); `first_seed` (N, n):
+        a seed tried before the samples' (after the warm start)."""
         targets = np.ascontiguousarray(targets, dtype=float)
         lo, hi = (self.lo, self.hi) if bounds is None else bounds
         # beyond the reach ball nothing is reached: its signed distance (<= minus the true
@@ -247,9 +256,12 @@ class Reach:
             m = -gap
             q = np.full((len(targets), len(self.lo)), np.nan)
             if (~far).any():
-                m[~far], q[~far] = self.distance(targets[~far], (lo, hi))
+                near = None if first_seed is None else first_seed[~far]
+                m[~far], q[~far] = self.distance(targets[~far], (lo, hi), near)
             return m, q
         seeds = self._seeds(targets, lo, hi)
+        if first_seed is not None:
+            seeds = np.ascontiguousarray(np.concatenate([np.asarray(first_seed, float)[:, None, :], seeds], axis=1))
         with _threads(1 if len(targets) < SERIAL_BELOW else None):
             return kernels.search(targets, seeds, lo, hi, *self.args, self.vec, self.dirs, self.scale, REACH_TOL,
                                   ITERATIONS, kernels.CHUNK, FAR)
@@ -373,44 +385,19 @@ class ReachMargin:
         self.profile: Profile | None = None
         if s.mode == "revolved" and not on_profile:
             R = s.reach
+            turn = None
+            if reach.turn is not None:
+                from kinematics.mechanisms.serial.turn import TurnExtent
+
+                turn = TurnExtent(reach)
             self.profile = Profile(ReachMargin(reach, True), np.array([0.0, -R]), np.array([R, R]), 1,
-                                   reach.origin, reach.basis[2])
+                                   reach.origin, reach.basis[2], turn)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return self.reach.profile_margin(points) if self.on_profile else self.reach.margin(points)
 
     def for_check(self) -> ReachMargin:
-        return ReachMargin(self.reach.with_effort(2), self.on_profile)
-
-    def finish(self, res: Any) -> Any:
-        """A partial base turn's volume from the free turn's, V_P (the engine's `res`, a
-        `ColumnVolume`, returned unchanged for any other margin): each circle of the profile P lies
-        in W for an arc of at least L (the base's range) and wholly where the cover test succeeds
-        (`Reach.cover`), so with D the measure of the rest (P outside C, weight 2 pi rho) and
-        k = (1 - L / 2 pi) / 2, V_P - 2 k D <= V <= V_P: the result is V_P - k D within k D. D is
-        small (the cover test fails in thin bands) and enters only times k, so a Monte-Carlo count
-        of COVER_SAMPLES profile points, weighted by rho, estimates it (with twice its standard
-        error added to the bound)."""
-        import dataclasses
-
-        reach = self.reach
-        if reach.turn is None or reach.setup.mode != "revolved" or len(res.estimate) != 1:
-            return res
-        R, lo = reach.setup.reach, reach.turn[0]
-        rng = np.random.default_rng(reach.seed)
-        pts = np.column_stack([R * np.sqrt(rng.random(COVER_SAMPLES)), rng.uniform(-R, R, COVER_SAMPLES)])
-        pts = pts[np.lexsort((pts[:, 1], np.round(pts[:, 0], 2)))]  # neighbours in turn: warm starts
-        m, q = reach.profile_search(pts)
-        uncovered = (m >= 0) & (reach.cover(pts, m, q) < 0)
-        f = float(uncovered.mean())
-        box = 2 * math.pi * R * R * R  # the weighted measure of the sampled profile box
-        D, sd = box * f, box * math.sqrt(max(f * (1 - f), 1.0 / COVER_SAMPLES) / COVER_SAMPLES)
-        k = 0.5 * (1.0 - (reach.turn[1] - lo) / (2 * math.pi))
-        volume = res.estimate - k * D
-        error = res.error + k * (D + 4 * sd)
-        ok = res.target_converged & (error <= res.rtol * np.abs(volume) * (1.0 + 1e-12))
-        return dataclasses.replace(res, estimate=volume, error=error, converged=bool(res.converged and ok.all()),
-                                   target_converged=ok, fixed_error=np.full_like(error, k * (D + 4 * sd)))
+        return ReachMargin(self.reach.checker, self.on_profile)
 
 
 def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
