@@ -18,45 +18,80 @@ import numpy as np
 
 from .quadrature import adaptive_1d
 
-Integrand = Callable[[np.ndarray, float, float], tuple[np.ndarray, np.ndarray, np.ndarray, int]]
-"""(profile points (N, 2) = (r, z), step [m], root tolerance [m]) -> values (N,) [m rad], their
-errors (N,), signatures (N,) int, searches spent (`kinematics.mechanisms.serial.turn.TurnExtent`)."""
+SPAN = 8
+"""The outer integral's starting intervals along r are SPAN x step wide (the engine's sampled columns' 8 x step)."""
 
-SPAN = 32
-"""The integral's starting intervals are SPAN x step wide (the engine's sampled columns start from
-8 x step, where a column's length jumps; this integrand is continuous but where a circle's
-measure jumps, and the quadrature refines there on its variation bound)."""
+BISECTIONS = 60
+"""Most bisections of a column's root bracket (from the step down to the root tolerance: ~20)."""
 
 
-def integrate_turn(g: Integrand, lo: np.ndarray, hi: np.ndarray, step: float, cell: float, atol: float, rtol: float,
+def _intervals(margin: Callable[[np.ndarray], np.ndarray], r: np.ndarray, z0: float, z1: float, step: float,
+               root_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The inside intervals of the profile margin along the columns at r (M,) over [z0, z1]: their
+    columns (K,), ends (K,), (K,) [m], the ends' bracket widths (K,) [m] (0 on the box's faces) and
+    the evaluations spent. Sampled every `step`, each sign change bisected to `root_tol`."""
+    n = max(1, math.ceil((z1 - z0) / step - 1e-9))
+    zs = np.linspace(z0, z1, n + 1)
+    M = len(r)
+    vals = np.asarray(margin(np.column_stack([np.repeat(r, n + 1), np.tile(zs, M)])), float).reshape(M, n + 1)
+    ins = vals >= 0
+    spent = M * (n + 1)
+    c, k = np.nonzero(ins[:, :-1] != ins[:, 1:])
+    a, b = zs[k], zs[k + 1]  # a: the inside end
+    flip = ~ins[c, k]
+    a, b = np.where(flip, b, a), np.where(flip, a, b)
+    for _ in range(BISECTIONS):
+        act = np.flatnonzero(np.abs(b - a) > root_tol)
+        if not len(act):
+            break
+        mid = 0.5 * (a[act] + b[act])
+        ok = np.asarray(margin(np.column_stack([r[c[act]], mid])), float).reshape(-1) >= 0
+        spent += len(act)
+        a[act], b[act] = np.where(ok, mid, a[act]), np.where(ok, b[act], mid)
+    cols = np.concatenate([c, np.flatnonzero(ins[:, 0]), np.flatnonzero(ins[:, -1])])
+    ends = np.concatenate([0.5 * (a + b), np.full(int(ins[:, 0].sum()), z0), np.full(int(ins[:, -1].sum()), z1)])
+    width = np.concatenate([np.abs(b - a), np.zeros(int(ins[:, 0].sum() + ins[:, -1].sum()))])
+    order = np.lexsort((ends, cols))
+    cols, ends, width = cols[order].reshape(-1, 2), ends[order].reshape(-1, 2), width[order].reshape(-1, 2)
+    return cols[:, 0], ends[:, 0], ends[:, 1], width.sum(axis=1), spent
+
+
+def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: float, atol: float, rtol: float,
                    root_tol: float, max_points: int, order: int = 4) -> tuple[float, float, bool, int, int]:
-    """X = integral of g (sampled every `step` [m]) over the profile box [lo, hi] (2,) [m] from
-    intervals `cell` [m] wide, to max(rtol |X|, atol): the value [m^3], its error estimate,
-    converged, integrand evaluations and searches spent."""
+    """X = integral of g over the profile box [lo, hi] (2,) [m] to max(rtol |X|, atol): columns
+    along z at the nodes of an adaptive rule over r (starting intervals `cell` [m] wide), each
+    column's inside intervals of the profile (`g.margin`, sampled every `step` [m], ends bisected to
+    `root_tol`) integrated by an adaptive rule of their own (g is continuous inside the profile, and
+    falls to 0 at its boundary only where the arc sets shrink to points), the ends' brackets times
+    the integrand's bound r w in the error. Returns the value [m^3], its error estimate,
+    converged, columns and searches spent."""
     spent = [0, 0]
-
-    def pieces(k: int) -> int:
-        return max(1, math.ceil((hi[k] - lo[k]) / cell))
-
-    def values(r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        v, e, s, n = g(np.column_stack([r, z]), step, root_tol)
-        spent[0] += len(r)
-        spent[1] += n
-        return v[:, None], e[:, None], s[:, None]
-
-    # slices' errors add up to <= atol / 4 over the r range
-    atol_in = 0.25 * atol / (hi[0] - lo[0])
+    atol_in = 0.25 * atol / (hi[0] - lo[0])  # the columns' errors add up to <= atol / 4 over r
     conv_in = [True]
 
-    def slice_area(_: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        P = len(r)
-        a, ea, c, _n = adaptive_1d(lambda p, z: values(r[p], z), np.full(P, lo[1]), np.full(P, hi[1]), 0.25 * rtol,
-                                   atol_in, order=order, pieces=pieces(1), max_evals=max_points)
-        conv_in[0] &= bool(c.all())
-        return a, ea, (a > 0).astype(np.int64)
+    def column(_: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        M = len(r)
+        c, za, zb, width, n = _intervals(g.margin, r, lo[1], hi[1], step, root_tol)
+        spent[0] += M
+        spent[1] += n
+        value, error = np.zeros(M), np.zeros(M)
+        if len(c):
+            def f(p: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                v, e, sig, used = g(np.column_stack([r[c[p]], z]), step, root_tol)
+                spent[1] += used
+                return v[:, None], e[:, None], sig[:, None]
 
-    q, e, conv, _ = adaptive_1d(slice_area, lo[:1], hi[:1], rtol, atol, order=order, pieces=pieces(0),
-                                max_evals=max_points)
+            # a column's intervals share its tolerance (group)
+            q, e, ok, _n = adaptive_1d(f, za, zb, 0.25 * rtol, atol_in, order=order, pieces=1,
+                                       max_evals=max_points, group=c)
+            conv_in[0] &= bool(ok[np.unique(c)].all())
+            G = len(q)
+            value[:G] += q[:, 0]
+            error[:G] += e[:, 0] + np.bincount(c, width * r[c] * g.w, minlength=G)[:G]
+        return value[:, None], error[:, None], np.bincount(c, minlength=M)[:, None].astype(np.int64)
+
+    q, e, conv, _ = adaptive_1d(column, lo[:1], hi[:1], rtol, atol, order=order,
+                                pieces=max(1, math.ceil((hi[0] - lo[0]) / cell)), max_evals=max_points)
     ok = bool(conv.all()) and conv_in[0] and spent[1] <= max_points
     return float(q[0, 0]), float(e[0, 0]), ok, spent[0], spent[1]
 
@@ -66,7 +101,8 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     """The partial turn's volume from the full turn's `res` (a `ColumnVolume` of one target, the
     solid |W_P|): (L / 2 pi) |W_P| + X, the error (L / 2 pi) res.error + X's; with `check`, X also at
     half the step through `turn.for_check()`, their difference in the error and their agreement in
-    `converged`. `turn`: `.range` L [rad] and the integrand (`Integrand`)."""
+    `converged`. `turn`: `.range` L [rad], `.w` = 2 pi - L, `.margin` the profile's margin and the integrand
+    (`kinematics.mechanisms.serial.turn.TurnExtent`)."""
     f = turn.range / (2 * math.pi)
     base = f * float(res.estimate[-1])
     # X's share of the tolerance: a quarter of the volume's (|W| >= f |W_P|)

@@ -366,6 +366,21 @@ class Reach:
             out[hit] = self.distance(world, (self.lo_cover, self.hi_cover))[0]
         return out
 
+    def task_rank(self, probes: int = 64) -> int:
+        """The largest rank (singular values above 1e-9 x the largest, or 1e-12) of the task
+        Jacobian over the searched joints at `probes` of the seed table's configurations (on the
+        fixed orientation's set with one): the number of freedoms the task point has. Below the
+        task's dimension the reachable set has measure zero (the image of a map of lower rank
+        everywhere, Sard); a probe of an analytic map sees the generic rank."""
+        Q = self._table[1]
+        Q = Q[np.linspace(0, len(Q) - 1, min(probes, len(Q))).astype(int)]
+        J = self.task_jacobians(Q)[:, list(self.setup.rows) if self.setup.mode == "planar" else [0, 1, 2]]
+        J = J[:, :, self.searched]
+        if J.shape[2] == 0:
+            return 0
+        sv = np.linalg.svd(J, compute_uv=False)
+        return int((sv > np.maximum(1e-9 * sv[:, :1], 1e-12)).sum(axis=1).max())
+
     def box(self) -> tuple[np.ndarray, np.ndarray]:
         """A task box [m] holding every reached point: the reach ball |p - p_1| <= R_1 (planar: its
         disc in the plane), with p_1 the first joint's origin and R_1 the distal lengths' sum."""

@@ -48,9 +48,6 @@ import numpy as np
 if TYPE_CHECKING:
     from kinematics.mechanisms.serial.reach import Reach
 
-MIN_ARC_SAMPLES = 4
-"""Near-arc samples on each side of phi_0 at least, whatever the step."""
-
 OUTSIDE, PARTIAL, WHOLE = 0, 1, 2
 """The integrand's signature: outside P, an arc of the circle, the whole circle (the quadrature
 bounds its error by the variation where the signature changes among an interval's nodes)."""
@@ -64,6 +61,10 @@ class TurnExtent:
         self.reach = reach
         self.range = float(reach.turn[1] - reach.turn[0])
         self.w = 2 * math.pi - self.range
+
+    def margin(self, points: np.ndarray) -> np.ndarray:
+        """(N,) the free turn's margins [m] at profile points (N, 2) (`Reach.profile_margin`): >= 0 on P."""
+        return self.reach.profile_margin(points)[:, 0]
 
     def for_check(self) -> TurnExtent:
         """The same integrand through the check run's search (`Reach.checker`)."""
@@ -90,48 +91,57 @@ class TurnExtent:
         value[whole], sig[whole] = pts[whole, 0] * w, WHOLE
         arc = inside[cover < 0]
         if len(arc):
-            e, de, full, n = self._near_arc(pts[arc], q[arc], step, root_tol)
+            e, de, full, n = self._circle(pts[arc], q[arc], step, root_tol)
             spent += n
             r = pts[arc, 0]
-            value[arc] = r * np.minimum(w, e)
-            error[arc] = np.where(full, 0.0, r * de)
-            sig[arc] = np.where(full | (e >= w), WHOLE, PARTIAL)
+            value[arc], error[arc] = r * e, r * de
+            sig[arc] = np.where(full, WHOLE, PARTIAL)
         return value, error, sig, spent
 
-    def _near_arc(self, pts: np.ndarray, q: np.ndarray, step: float, root_tol: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """Extents E (M,) [rad] of S on the near arcs phi_0 +- w at profile points (M, 2) whose free
-        turn's solutions are q (M, n), their errors (M,) [rad], whether an arc's end is inside
-        (M,) (then E >= w), and the searches spent."""
-        w = self.w
+    def _circle(self, pts: np.ndarray, q: np.ndarray, step: float, root_tol: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """min(w, E) (M,) [rad] on the circles through profile points (M, 2) whose free turn's
+        solutions are q (M, n), from S sampled round each circle from phi_0: w minus the excess
+        over L of the largest gap between inside samples, its ends bisected (0 when that gap,
+        even at its widest, is <= L); their errors (M,) [rad]; whether the circle is whole (M,);
+        the searches spent."""
+        w, L = self.w, self.range
         M = len(pts)
         r, z = pts[:, 0], pts[:, 1]
-        k = np.maximum(MIN_ARC_SAMPLES, np.ceil(w * r / step)).astype(np.int64)  # samples a side: every step of arc
-        n = 2 * k + 1
+        n = np.maximum(8, np.ceil(2 * math.pi * r / step)).astype(np.int64)  # a sample every step of arc
         start = np.concatenate([[0], np.cumsum(n)[:-1]])
         row = np.repeat(np.arange(M), n)
-        j = np.arange(int(n.sum())) - np.repeat(start, n) - k[row]  # -k .. k about phi_0
-        h = w / k  # the arc's sample spacing [rad]
+        j = np.arange(int(n.sum())) - np.repeat(start, n)
+        h = 2 * math.pi / n  # [rad]
         phi0 = -q[:, 0]
         seed = q.copy()
         seed[:, 0] = 0.0  # the free turn's configuration with the base at 0 reaches phi_0's point
         m = self._w0_margin(r[row], phi0[row] + j * h[row], z[row], seed[row])
         ins = (m >= 0) | (j == 0)  # phi_0 itself is in S (reached by the seed)
         spent = len(m)
-        hi_j = np.maximum.reduceat(np.where(ins, j, -1), start)  # the outermost inside samples
-        lo_j = np.minimum.reduceat(np.where(ins, j, 1), start)
-        full = (hi_j == k) | (lo_j == -k)
-        E = np.full(M, w)
-        dE = np.zeros(M)
-        todo = np.flatnonzero(~full)
+        # the largest gap between consecutive inside samples (round the circle), in samples
+        idx = np.flatnonzero(ins)
+        nxt = np.concatenate([idx[1:], [0]])
+        same = np.concatenate([row[idx[1:]] == row[idx[:-1]], [False]])
+        first = idx[np.searchsorted(row[idx], row[idx], side="left")]  # each row's first inside (j = 0)
+        gap = np.where(same, nxt - idx, n[row[idx]] - (idx - first))
+        best = np.full(M, -1)
+        np.maximum.at(best, row[idx], gap)
+        at = np.full(M, -1)
+        np.maximum.at(at, row[idx], np.where(gap == best[row[idx]], idx - start[row[idx]], -1))
+        value, err = np.full(M, w), np.zeros(M)
+        todo = np.flatnonzero(best * h > L)
         if len(todo):
             t = todo
-            a_hi, n1 = self._bisect(r[t], z[t], phi0[t] + hi_j[t] * h[t], h[t], seed[t], root_tol)
-            a_lo, n2 = self._bisect(r[t], z[t], phi0[t] + lo_j[t] * h[t], -h[t], seed[t], root_tol)
+            a0 = phi0[t] + at[t] * h[t]  # the gap's first end: inside, then outside at + h
+            a1 = phi0[t] + (at[t] + best[t]) * h[t]  # its last end: inside, then outside at - h
+            lo_b, n1 = self._bisect(r[t], z[t], a0, h[t], seed[t], root_tol)
+            hi_b, n2 = self._bisect(r[t], z[t], a1, -h[t], seed[t], root_tol)
             spent += n1 + n2
-            E[t] = (a_hi[0] + a_hi[1]) / 2 - (a_lo[0] + a_lo[1]) / 2
-            dE[t] = np.abs(a_hi[1] - a_hi[0]) + np.abs(a_lo[1] - a_lo[0])
-        return E, dE, full, spent
+            G = (hi_b[0] + hi_b[1]) / 2 - (lo_b[0] + lo_b[1]) / 2
+            value[t] = w - np.maximum(G - L, 0.0)
+            err[t] = np.abs(lo_b[1] - lo_b[0]) + np.abs(hi_b[1] - hi_b[0])
+        return value, err, value >= w, spent
 
     def _w0_margin(self, r: np.ndarray, phi: np.ndarray, z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
         """The margins (size of r) of W0 (the base held at 0) at cylindrical points (r, phi, z)."""
