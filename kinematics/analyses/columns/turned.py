@@ -109,16 +109,16 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     atol = 0.25 * res.rtol * max(base, 1e-300)
     x1, e1, c1, n1, s1 = integrate_turn(turn, lo, hi, step, SPAN * step, atol, res.rtol, root_tol, max_points)
     x, err, conv, agrees, diff = x1, e1, c1, True, math.nan
-    points = s1
+    points, columns = s1, n1
     if check:
-        x2, e2, c2, _n2, s2 = integrate_turn(turn.for_check(), lo, hi, step / 2, SPAN * step, atol, res.rtol, root_tol, max_points)
+        x2, e2, c2, n2, s2 = integrate_turn(turn.for_check(), lo, hi, step / 2, SPAN * step, atol, res.rtol, root_tol, max_points)
         diff = abs(x1 - x2)
         agrees = diff <= e1 + e2
-        x, err, conv, points = x2, max(e2, diff), c1 and c2, s1 + s2
+        x, err, conv, points, columns = x2, max(e2, diff), c1 and c2, s1 + s2, n1 + n2
     estimate = np.array([base + x])
     error = np.array([f * float(res.error[-1]) + err])
     ok = bool(res.target_converged[-1]) and conv and agrees and bool(error[0] <= res.rtol * estimate[0] * (1 + 1e-12))
     return replace(res, estimate=estimate, error=error, converged=bool(res.converged) and ok,
                    target_converged=np.array([ok]), check_agrees=np.array([bool(res.check_agrees[-1]) and agrees]),
                    check_difference=np.array([f * float(res.check_difference[-1]) + diff]),
-                   points_evaluated=res.points_evaluated + points)
+                   points_evaluated=res.points_evaluated + points, columns=res.columns + columns)
