@@ -76,8 +76,8 @@ class Workspace:
             if not r.check_agrees[k]:
                 return "the run at half the step disagreed beyond the error estimates"
             if fixed[k]:
-                return (f"a bound no finer step reduces ({bound[k]:.2g} m^3 of the error estimate: a partial "
-                        "base turn whose circles the cover test cannot prove whole) exceeds the tolerance")
+                return (f"a bound no finer step reduces ({bound[k]:.2g} of the error estimate) exceeds the "
+                        "tolerance")
             return "error estimate above the tolerance"
 
         return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}

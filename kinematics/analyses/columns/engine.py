@@ -63,8 +63,8 @@ class ColumnVolume:
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
         root_tol: sampled columns: the width [m] every root was bracketed to.
-        fixed_error: (T,) the part of `error` that no finer step reduces (a bound a margin's own
-            `finish` adds, e.g. a serial arm's partial base turn), or None.
+        fixed_error: (T,) the part of `error` that no finer step reduces, or None (no path sets it
+            since a partial base turn is integrated rather than bounded; kept for its readers).
     """
 
     estimate: np.ndarray

@@ -355,7 +355,7 @@ class Reach:
         by -(q_0 + pi) about the axis with the base within +-(L - pi); elsewhere m. Where it is >= 0
         the arm with its base at 0 reaches two azimuths alpha, alpha' of the circle through the
         point with |alpha - alpha'| in [2 pi - L, pi], so the base's range turns them over the whole
-        circle (`ReachMargin.finish`)."""
+        circle (`kinematics.mechanisms.serial.turn`: where it succeeds no circle sampling is needed)."""
         out = m.copy()
         hit = np.flatnonzero(m >= 0)
         if len(hit):

@@ -5,37 +5,33 @@ chain reaches with the base at 0, the reachable set is W = union over theta in [
 Rot(theta) W0, so on the circle of radius r at height z about the axis (cylindrical (r, phi, z)),
 with S = {phi : (r, phi, z) in W0} its arc set, W holds exactly S + [a, b] (a dilation on the
 circle). Its length is 2 pi minus the sum of (g - L)+ over the gaps g of S (an angle phi is missed
-iff the arc phi - [a, b] of length L lies in a gap). As L >= pi, only the gap through the
-antipode of a point phi_0 in S can exceed L, so
+iff the arc phi - [a, b] of length L lies in a gap); as L >= pi only the largest gap G can exceed
+L, so
 
-    |S + [a, b]| = L + min(w, E),  w = 2 pi - L,
+    |S + [a, b]| = L + c,  c = w - (G - L)+ in [0, w],  w = 2 pi - L,
 
-E the angular extent of S seen from phi_0 (the arc from its first to its last point, going
-through phi_0) when S has no point at an angular distance in [w, pi] from phi_0, and then
-min(w, E) = w when it has one (S + [a, b] is the whole circle: two points of S between w and pi
-apart leave no gap longer than L). Neither depends on which phi_0 of S is used. So
+and |W| = (L / 2 pi) |W_P| + X, X = integral over the profile P of r c(r, z) dr dz, |W_P| the
+full turn's solid of revolution (Pappus, measured on the profile P = {(r, z) : S not empty}).
+X is integrated by `kinematics.analyses.columns.turned` (columns along z, P's ends bracketed: c
+jumps there wherever S is an arc).
 
-    |W| = (L / 2 pi) |W_P| + X,   X = integral over the profile P of r min(w, E(r, z)) dr dz,
+`TurnExtent` gives the integrand r c at profile points (r, z):
 
-|W_P| the full turn's solid of revolution (Pappus, measured on the profile P = {(r, z) : S not
-empty}) and X an integral whose integrand falls to 0 at the boundary of P (S shrinks to a point
-there), integrated by the same adaptive quadrature (`kinematics.analyses.columns.turned`).
+1. the free turn's search (`Reach.profile_search`): outside P it is 0; inside, its base angle
+   theta_0 gives phi_0 = -theta_0, a point of S;
+2. the cover test (`Reach.cover`): a search for a point of S between w and pi from phi_0 (the base
+   held within pi -/+ (L - pi) of it); where it succeeds the circle is whole: r w (two points of S
+   that far apart leave no gap longer than L);
+3. otherwise the circle sampled every `step` [m] of arc from phi_0 (the search with the base held
+   at 0, the configuration found at phi_0 its first seed, warm starts along the circle): when the
+   largest gap between inside samples, at its widest, is <= L the circle is whole; else its two
+   ends are bisected to `root_tol` [m] and c = w - (G - L)+, the brackets' widths its error. (Two
+   sample gaps above L, possible only when L < pi + 2 steps of angle, would count the largest.)
 
-`TurnExtent` gives the integrand at profile points (r, z):
-
-1. the free turn's search (`Reach.profile_search`): outside P the integrand is 0; inside, its base
-   angle theta_0 gives phi_0 = -theta_0, a point of S;
-2. the cover test (`Reach.cover`): a search of the far arc (distance w .. pi from phi_0) with the
-   base held within pi -/+ (L - pi) of it; where it succeeds the circle is whole: r w;
-3. otherwise the near arc phi_0 +- w sampled every `step` [m] of arc (the search with the base
-   held at 0, the configuration found at phi_0 its first seed, warm starts along the arc), the
-   outermost sign change on each side bracketed by bisection to `root_tol` [m]: r min(w, E),
-   the brackets' widths (times r: arc lengths) its error; an inside sample at either end of the
-   arc makes E >= w.
-
-What it can miss (as the engine's sampled columns): a component of S shorter than the step
-beyond the outermost one found on the near arc, and a far-arc point the cover search does not
-reach (the check run repeats both with another search and half the step).
+What it can miss (as the engine's sampled columns): a component of S shorter than the step (it
+widens a gap), a search miss at a sample (a gap of two steps, far below L). The cover test only
+saves work: a circle it fails to prove whole is sampled. The check run repeats the integral with
+another search at half the step.
 """
 
 from __future__ import annotations
@@ -54,7 +50,7 @@ bounds its error by the variation where the signature changes among an interval'
 
 
 class TurnExtent:
-    """The integrand r min(w, E(r, z)) of a partial base turn's volume (module docstring)."""
+    """The integrand r c(r, z) of a partial base turn's volume (module docstring)."""
 
     def __init__(self, reach: Reach) -> None:
         assert reach.turn is not None
@@ -72,7 +68,7 @@ class TurnExtent:
 
     def __call__(self, points: np.ndarray, step: float, root_tol: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """At profile points (N, 2) = (r, z) [m]: the integrand r min(w, E) (N,) [m rad], its error
+        """At profile points (N, 2) = (r, z) [m]: the integrand r c (N,) [m rad], its error
         (N,) from the root brackets, the signature (N,) (OUTSIDE, PARTIAL, WHOLE) and the number
         of searches spent."""
         reach, w = self.reach, self.w
@@ -100,7 +96,7 @@ class TurnExtent:
 
     def _circle(self, pts: np.ndarray, q: np.ndarray, step: float, root_tol: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """min(w, E) (M,) [rad] on the circles through profile points (M, 2) whose free turn's
+        """c (M,) [rad] on the circles through profile points (M, 2) whose free turn's
         solutions are q (M, n), from S sampled round each circle from phi_0: w minus the excess
         over L of the largest gap between inside samples, its ends bisected (0 when that gap,
         even at its widest, is <= L); their errors (M,) [rad]; whether the circle is whole (M,);
