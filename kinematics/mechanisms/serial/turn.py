@@ -25,8 +25,8 @@ jumps there wherever S is an arc).
 3. otherwise the circle sampled every `step` [m] of arc from phi_0 (the search with the base held
    at 0, the configuration found at phi_0 its first seed, warm starts along the circle): when the
    largest gap between inside samples, at its widest, is <= L the circle is whole; else its two
-   ends are bisected to `root_tol` [m] and c = w - (G - L)+, the brackets' widths its error. (Two
-   sample gaps above L, possible only when L < pi + 2 steps of angle, would count the largest.)
+   ends are bisected to `root_tol` [m] and c = w - (G - L)+, the brackets' widths its error (every
+   sample gap that may exceed L is measured: the sum over the gaps holds for any L).
 
 What it can miss (as the engine's sampled columns): a component of S shorter than the step (it
 widens a gap), a search miss at a sample (a gap of two steps, far below L). The cover test only
@@ -97,10 +97,9 @@ class TurnExtent:
     def _circle(self, pts: np.ndarray, q: np.ndarray, step: float, root_tol: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """c (M,) [rad] on the circles through profile points (M, 2) whose free turn's
-        solutions are q (M, n), from S sampled round each circle from phi_0: w minus the excess
-        over L of the largest gap between inside samples, its ends bisected (0 when that gap,
-        even at its widest, is <= L); their errors (M,) [rad]; whether the circle is whole (M,);
-        the searches spent."""
+        solutions are q (M, n), from S sampled round each circle from phi_0: w minus the excesses
+        over L of the gaps between inside samples that may exceed L even at their widest, their
+        ends bisected; their errors (M,) [rad]; whether the circle is whole (M,); the searches spent."""
         w, L = self.w, self.range
         M = len(pts)
         r, z = pts[:, 0], pts[:, 1]
@@ -115,28 +114,24 @@ class TurnExtent:
         m = self._w0_margin(r[row], phi0[row] + j * h[row], z[row], seed[row])
         ins = (m >= 0) | (j == 0)  # phi_0 itself is in S (reached by the seed)
         spent = len(m)
-        # the largest gap between consecutive inside samples (round the circle), in samples
+        # the gaps between consecutive inside samples (round the circle), in samples
         idx = np.flatnonzero(ins)
         nxt = np.concatenate([idx[1:], [0]])
         same = np.concatenate([row[idx[1:]] == row[idx[:-1]], [False]])
         first = idx[np.searchsorted(row[idx], row[idx], side="left")]  # each row's first inside (j = 0)
         gap = np.where(same, nxt - idx, n[row[idx]] - (idx - first))
-        best = np.full(M, -1)
-        np.maximum.at(best, row[idx], gap)
-        at = np.full(M, -1)
-        np.maximum.at(at, row[idx], np.where(gap == best[row[idx]], idx - start[row[idx]], -1))
         value, err = np.full(M, w), np.zeros(M)
-        todo = np.flatnonzero(best * h > L)
-        if len(todo):
-            t = todo
-            a0 = phi0[t] + at[t] * h[t]  # the gap's first end: inside, then outside at + h
-            a1 = phi0[t] + (at[t] + best[t]) * h[t]  # its last end: inside, then outside at - h
+        wide = np.flatnonzero(gap * h[row[idx]] > L)  # the gaps that may exceed L even at their widest
+        if len(wide):
+            t = row[idx[wide]]
+            a0 = phi0[t] + (idx[wide] - start[t]) * h[t]  # a gap's first end: inside, then outside at + h
+            a1 = a0 + gap[wide] * h[t]  # its last end: inside, then outside at - h
             lo_b, n1 = self._bisect(r[t], z[t], a0, h[t], seed[t], root_tol)
             hi_b, n2 = self._bisect(r[t], z[t], a1, -h[t], seed[t], root_tol)
             spent += n1 + n2
             G = (hi_b[0] + hi_b[1]) / 2 - (lo_b[0] + lo_b[1]) / 2
-            value[t] = w - np.maximum(G - L, 0.0)
-            err[t] = np.abs(lo_b[1] - lo_b[0]) + np.abs(hi_b[1] - hi_b[0])
+            value -= np.bincount(t, np.maximum(G - L, 0.0), minlength=M)
+            err += np.bincount(t, np.abs(lo_b[1] - lo_b[0]) + np.abs(hi_b[1] - hi_b[0]), minlength=M)
         return value, err, value >= w, spent
 
     def _w0_margin(self, r: np.ndarray, phi: np.ndarray, z: np.ndarray, seeds: np.ndarray) -> np.ndarray:
