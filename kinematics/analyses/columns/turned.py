@@ -21,6 +21,12 @@ from .quadrature import adaptive_1d
 SPAN = 8
 """The outer integral's starting intervals along r are SPAN x step wide (the engine's sampled columns' 8 x step)."""
 
+FINEST = 1 / 64
+"""No interval of either rule is halved below FINEST x step: the circles' measure jumps where a
+part of S appears, and whether a part shorter than the step is seen depends on the sampling and
+the search (the check run's business); below that scale the intervals are accepted with their
+estimates (the jump's variation over a width <= step / 64 counted), not refined without end."""
+
 BISECTIONS = 60
 """Most bisections of a column's root bracket (from the step down to the root tolerance: ~20)."""
 
@@ -66,6 +72,11 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
     the integrand's bound r w in the error. Returns the value [m^3], its error estimate,
     converged, columns and searches spent."""
     spent = [0, 0]
+
+    def depth(width: float) -> int:
+        """Halvings from `width` [m] down to FINEST x step."""
+        return max(1, math.ceil(math.log2(max(width, step) / (FINEST * step))))
+
     atol_in = 0.25 * atol / (hi[0] - lo[0])  # the columns' errors add up to <= atol / 4 over r
     conv_in = [True]
 
@@ -83,15 +94,16 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
 
             # a column's intervals share its tolerance (group)
             q, e, ok, _n = adaptive_1d(f, za, zb, 0.25 * rtol, atol_in, order=order, pieces=1,
-                                       max_evals=max_points, group=c)
+                                       max_evals=max_points, group=c, max_depth=depth(float((zb - za).max())))
             conv_in[0] &= bool(ok[np.unique(c)].all())
             G = len(q)
             value[:G] += q[:, 0]
             error[:G] += e[:, 0] + np.bincount(c, width * r[c] * g.w, minlength=G)[:G]
         return value[:, None], error[:, None], np.bincount(c, minlength=M)[:, None].astype(np.int64)
 
-    q, e, conv, _ = adaptive_1d(column, lo[:1], hi[:1], rtol, atol, order=order,
-                                pieces=max(1, math.ceil((hi[0] - lo[0]) / cell)), max_evals=max_points)
+    pieces = max(1, math.ceil((hi[0] - lo[0]) / cell))
+    q, e, conv, _ = adaptive_1d(column, lo[:1], hi[:1], rtol, atol, order=order, pieces=pieces, max_evals=max_points,
+                                max_depth=depth((hi[0] - lo[0]) / pieces))
     ok = bool(conv.all()) and conv_in[0] and spent[1] <= max_points
     return float(q[0, 0]), float(e[0, 0]), ok, spent[0], spent[1]
 
