@@ -229,6 +229,15 @@ class Reach:
         return cKDTree(self._key(P)), Q, az
 
     @cached_property
+    def _fixed_base_table(self) -> Any:
+        """A k-d tree over the seed table's frame positions in 3-D (revolved mode: the base at 0),
+        for searches with the base held at 0 (W0 of `kinematics.mechanisms.serial.turn`), whose
+        seeds must lie near the target itself, not only on its circle."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.chain_fk(self._table[1]))
+
+    @cached_property
     def reach_centre(self) -> np.ndarray:
         """The first chain joint's origin (3,) [m], fixed in the world: the reach ball's centre."""
         return np.asarray(self.kin.translation[0], dtype=float)
@@ -259,7 +268,12 @@ class Reach:
                 near = None if first_seed is None else first_seed[~far]
                 m[~far], q[~far] = self.distance(targets[~far], (lo, hi), near)
             return m, q
-        seeds = self._seeds(targets, lo, hi)
+        if first_seed is not None and self.setup.mode == "revolved" and lo[0] == hi[0] == 0.0:
+            k = min(self.restarts, self.samples)  # the base held at 0: the nearest samples in 3-D
+            _, idx = self._fixed_base_table.query(targets, k=k, workers=-1 if len(targets) > 20_000 else 1)
+            seeds = self._table[1][np.asarray(idx).reshape(len(targets), k)]
+        else:
+            seeds = self._seeds(targets, lo, hi)
         if first_seed is not None:
             seeds = np.ascontiguousarray(np.concatenate([np.asarray(first_seed, float)[:, None, :], seeds], axis=1))
         with _threads(1 if len(targets) < SERIAL_BELOW else None):
