@@ -82,7 +82,9 @@ def monte_carlo(robot_name: str, n: int, seed: int = 7, angles: int = 121) -> tu
     R, c = reach.setup.reach, reach.reach_centre
     rng = np.random.default_rng(seed)
     r, phi, z = R * np.sqrt(rng.random(n)), rng.uniform(-np.pi, np.pi, n), rng.uniform(-R, R, n)
-    mid = np.tile(np.where(np.isfinite(reach.lo_base0), 0.5 * (reach.lo_base0 + reach.hi_base0), 0.0), (n, 1))
+    finite = np.isfinite(reach.lo_base0) & np.isfinite(reach.hi_base0)
+    mid = np.tile(np.where(finite, 0.5 * (np.where(finite, reach.lo_base0, 0) + np.where(finite, reach.hi_base0, 0)), 0.0),
+                  (n, 1))
     hit = np.zeros(n, bool)
     for t in np.linspace(reach.turn[0], reach.turn[1], angles):
         p0 = c + np.column_stack([r * np.cos(phi - t), r * np.sin(phi - t), z]) @ reach.basis

@@ -65,6 +65,11 @@ millimetres of any reached point, so a target that far is outside; the restarts 
 the sign is at stake, near the boundary."""
 
 
+PARTIAL_TURN_MIN = math.pi
+"""A first revolute of at least this range [rad] (and less than a full turn) is measured as a
+partial turn on the profile (`kinematics.mechanisms.serial.turn`, whose circle measure holds for
+any range; the cover test that saves its work needs L >= pi); below it, in 3-D."""
+
 SERIAL_BELOW = 512
 """Fewer targets than this are searched on one thread: starting a parallel region costs
 milliseconds on a loaded machine (4-8 ms against 0.1 ms on one thread for 20 targets, load ~6 on
@@ -159,7 +164,7 @@ class Reach:
         self.lo_free, self.hi_free = lo.copy(), hi.copy()
         self.lo_cover, self.hi_cover = lo.copy(), hi.copy()
         if self.turn is not None:
-            slack = self.turn[1] - self.turn[0] - math.pi
+            slack = max(self.turn[1] - self.turn[0] - math.pi, 0.0)
             self.lo_free[0], self.hi_free[0] = -np.inf, np.inf
             self.lo_cover[0], self.hi_cover[0] = -slack, slack
         # W0: the set the rest of the chain reaches with the base held at 0 (`turn`)
@@ -447,7 +452,7 @@ def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation
         return s, None
     lo, hi = float(s.lo[0]), float(s.hi[0])
     direction = kin.rotation[0] @ kin.axis[0]
-    if hi - lo < math.pi or (orientation is not None and not orientation.invariant_about(direction)):
+    if hi - lo < PARTIAL_TURN_MIN or (orientation is not None and not orientation.invariant_about(direction)):
         return s, None
     return dataclasses.replace(s, mode="revolved", active=s.active[1:], lo=s.lo[1:], hi=s.hi[1:],
                                periodic=s.periodic[1:], axis_origin=kin.translation[0].copy(),

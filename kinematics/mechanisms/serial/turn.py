@@ -29,7 +29,10 @@ jumps there wherever S is an arc).
    sample gap that may exceed L is measured: the sum over the gaps holds for any L).
 
 What it can miss (as the engine's sampled columns): a component of S shorter than the step (it
-widens a gap), a search miss at a sample (a gap of two steps, far below L). The cover test only
+widens a gap), a search miss at a sample (a gap of two steps, far below L). Where W0 has no
+volume (the chain after the base has fewer than 3 freedoms for the point), S is a set of
+isolated azimuths: sampling finds none of them, only phi_0 and the cover test's far point count
+(exact for an arm whose postures lie in a plane through the axis, as the tests' 3R arm). The cover test only
 saves work: a circle it fails to prove whole is sampled. The check run repeats the integral with
 another search at half the step.
 """
@@ -81,8 +84,11 @@ class TurnExtent:
         inside = np.flatnonzero(m >= 0)
         if not len(inside):
             return value, error, sig, spent
-        cover = reach.cover(pts[inside], m[inside], q[inside])
-        spent += len(inside)
+        if self.range >= math.pi:  # (the cover test needs L >= pi)
+            cover = reach.cover(pts[inside], m[inside], q[inside])
+            spent += len(inside)
+        else:
+            cover = np.full(len(inside), -1.0)
         whole = inside[cover >= 0]
         value[whole], sig[whole] = pts[whole, 0] * w, WHOLE
         arc = inside[cover < 0]
