@@ -55,16 +55,13 @@ def test_covered_partial_turn_is_the_solid_of_revolution(tmp_path):
     assert ws.result.converged and abs(ws.total - exact) <= ws.error <= 2e-2 * exact
 
 
-def test_uncovered_partial_turn_is_its_sector(tmp_path):
-    """One azimuth per circle (the 2R arm moves in a plane through the axis): W is the sector of
-    angle L of the solid, V = (L / 2 pi) V_full = 0.75 V_full (the circles' integral X is 0:
-    each arc set is a point). The Monte-Carlo cover bound this replaced reported 0.875 V_full
-    +- 0.125 V_full here, not converged."""
+def test_partial_turn_needs_a_rest_with_volume(tmp_path):
+    """One azimuth per circle (the 2R arm moves in a plane through the axis): W0 has no volume, its
+    circles' azimuths are isolated points that sampling cannot find (finger_edu's second posture
+    in the near arc made the profile path 14 % low), so the arm is measured in space, not as a
+    partial turn; the world margin holds the base within its limits (the sector's membership)."""
     arm = SerialArm(load_robot(limited(tmp_path, False)))
-    full = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)
-    ws = measure_workspace(arm, step=0.02, rtol=1e-3, check=True)
-    assert ws.result.converged, ws.unconverged()
-    assert abs(ws.total - 0.75 * full) <= ws.error <= 1e-3 * ws.total
+    assert arm.reach.turn is None and arm.reach.setup.mode == "spatial"
     # the world margin holds the base within its limits: the sector's membership
     rng = np.random.default_rng(3)
     az = rng.uniform(-math.pi, math.pi, 400)

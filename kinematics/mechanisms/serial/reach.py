@@ -454,6 +454,29 @@ def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation
     direction = kin.rotation[0] @ kin.axis[0]
     if hi - lo < PARTIAL_TURN_MIN or (orientation is not None and not orientation.invariant_about(direction)):
         return s, None
+    if orientation is None and _rest_rank(robot, kin, s) < 3:
+        return s, None  # W0 has no volume: its circles' azimuths are isolated, which sampling cannot find
     return dataclasses.replace(s, mode="revolved", active=s.active[1:], lo=s.lo[1:], hi=s.hi[1:],
                                periodic=s.periodic[1:], axis_origin=kin.translation[0].copy(),
                                axis_direction=direction), (lo, hi)
+
+
+def _rest_rank(robot: Robot, kin: Any, s: Setup, probes: int = 32) -> int:
+    """The largest rank of the position Jacobian over the moving joints after the first at `probes`
+    seeded configurations of the joint box: below 3 the set W0 they reach has no volume."""
+    from kinematics.mechanisms.serial.joint_box import dof_of
+
+    chain = [dof_of(robot, int(v)) for v in kin.idx_v]
+    rest = [k for k, d in enumerate(chain) if d in set(s.active[1:].tolist())]
+    if len(rest) < 3:
+        return len(rest)
+    rng = np.random.default_rng(0)
+    Q = np.tile(s.base[chain].astype(float), (probes, 1))
+    pos = {int(d): i for i, d in enumerate(s.active)}
+    for k in rest:
+        i = pos[chain[k]]
+        Q[:, k] = s.lo[i] + (s.hi[i] - s.lo[i]) * rng.random(probes)
+    J = kernels.chain_jacobian_many(np.ascontiguousarray(Q), kin.kind, kin.axis, kin.rotation, kin.translation,
+                                    kin.frame_translation)[:, :, rest]
+    sv = np.linalg.svd(J, compute_uv=False)
+    return int((sv > np.maximum(1e-9 * sv[:, :1], 1e-12)).sum(axis=1).max())
