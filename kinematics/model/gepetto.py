@@ -24,8 +24,9 @@ that replace it are passive and get no range, like the format's free joints):
 
 Refused, each with a `GepettoFormatError` that names the key and what is wrong: the older
 name-pattern files (``name_mot: "mot"``, ``name_closedloop``, ``closed_loop_number``), unknown
-keys, closure types other than 3D/6D, lists of different lengths, unknown joint or frame names,
-a motor that is substituted, and joint types outside the list above. The end effector, which the
+keys, closure types other than 3D/6D, lists of different lengths, unknown motor or frame names,
+a motor that is substituted, and joint types outside the list above. A substitution of a joint the
+URDF lacks is left out with a `KinematicsWarning`, as Gepetto's loader skips it. The end effector, which the
 format does not name, is the `load_robot(..., tool_frame=...)` frame, else a frame named
 ``effector`` (the examples' convention), else the first frame of the first pair.
 """
