@@ -55,6 +55,16 @@ def grid_points(lo: Sequence[float] | np.ndarray, hi: Sequence[float] | np.ndarr
     return math.prod(math.ceil((b - a) / step) + 1 for a, b in zip(lo, hi, strict=True))
 
 
+def cell_centres(lo: Sequence[float] | np.ndarray, hi: Sequence[float] | np.ndarray, step: float) -> np.ndarray:
+    """Centres (N, d) of the cells of size `step` tiling the box [lo, hi] from `lo` (the last axis
+    fastest): the grid a points file, a view or a count samples; check its size first
+    (`check_points` with `grid_points`)."""
+    import numpy as np
+
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+
+
 def refinement_points(grid: float, boundary_cells: int, d: int, rtol: float) -> float:
     """Estimate of the points an adaptive volume refined to `rtol` evaluates in all, from its
     starting grid (`grid` corner points, `boundary_cells` of its cells on the boundary, dimension d).

@@ -175,13 +175,13 @@ def evaluate_design(design: dict[str, Any], step: float, rtol: float | None, sin
     from kinematics.analyses.workspace import measure_workspace
     from kinematics.mechanisms.p2us.closed_form import ik, jacobians
     from kinematics.mechanisms.p2us.mechanism import P2US
+    from kinematics.sizes import cell_centres
 
     params = to_params(design)
     ws = measure_workspace(P2US(params), step=step, rtol=rtol, progress=False, engine="cells")
     cells = cast("VolumeEstimate", ws.result)
     lo, hi = bounding_box(params)
-    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(3)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    pts = cell_centres(lo, hi, step)
     inside = scan(params, pts).margin.max(axis=1) >= 0
     p = pts[inside]
     free = 0

@@ -22,7 +22,7 @@ from kinematics.cli.args import (
 from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
 from kinematics.errors import InvalidInputError
 from kinematics.files import write_atomic
-from kinematics.sizes import MAX_LISTED_POINTS, check_points, grid_points
+from kinematics.sizes import MAX_LISTED_POINTS, cell_centres, check_points, grid_points
 
 if TYPE_CHECKING:
     import numpy as np
@@ -65,14 +65,12 @@ def _inside_points(mech: Mechanism, limits: str, step: float, branches: tuple[st
                    ) -> np.ndarray:
     """Grid points (cell centres at `step`) inside the union (of `margin`'s last column, default
     the mechanism's margin), for --points."""
-    import numpy as np
 
     lo, hi = mech.bounding_box(limits)
     margin = mech.margin(branches, limits) if margin is None else margin
     check_points("--points", grid_points(lo, hi, step), limit=MAX_LISTED_POINTS,
                  hint=f"{step:g} m is too fine a step to list the points")
-    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+    pts = cell_centres(lo, hi, step)
     return pts[margin(pts)[:, -1] >= 0]
 
 

@@ -131,7 +131,7 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
     best-conditioned branch) and the singular points by type, of any mechanism with a margin
     (and velocity; singular fields for the loci). With `collisions` (a `CollisionModel`) the
     points where every branch collides are drawn apart, by binding pair, and the obstacles."""
-    from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
+    from kinematics.sizes import MAX_VIEW_POINTS, cell_centres, check_points, grid_points
     from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
 
     if workspace:
@@ -139,8 +139,7 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
         lo, hi = mech.bounding_box(limits)
         check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS,
                      hint=f"{step:g} m is too fine a step for a view")
-        axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(len(lo))]
-        pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
+        pts = cell_centres(lo, hi, step)
         margin = mech.margin(None, limits)(pts)[:, :-1]
         pts = pts[(margin >= 0).any(axis=1)]
         if collisions is not None:

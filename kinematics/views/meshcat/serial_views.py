@@ -100,14 +100,13 @@ def _collision_workspace(scene: Scene, robot: Any, collisions: Any, step: float,
     colliding points by binding pair (`collision_views.colliding_overlay`), the free ones, the
     obstacles."""
     from kinematics.mechanisms import mechanism_of
-    from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
+    from kinematics.sizes import MAX_VIEW_POINTS, cell_centres, check_points, grid_points
     from kinematics.views.meshcat.collision_views import add_obstacles, colliding_overlay
 
     mech = mechanism_of(robot)
     lo, hi = mech.bounding_box("all")
     check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS, hint=f"{step:g} m is too fine a step for a view")
-    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(2)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    pts = cell_centres(lo, hi, step)
     pts = pts[(mech.margin(None, "all")(pts)[:, :-1] >= 0).any(axis=1)]
 
     def embed(p: np.ndarray) -> np.ndarray:
