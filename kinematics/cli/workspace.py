@@ -172,15 +172,15 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     checks = collision_checks(args, robot)
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
                                      progress=show_progress(args), collision_model=checks)
+    margin_of = margin_builder(mech, robot, checks, args.limits)
     if args.points:  # the collision-aware union: CollisionMargin's last column
-        pts = _inside_points(mech, args.limits, args.step, branches, margin_builder(mech, robot, checks, args.limits)(branches))
+        pts = _inside_points(mech, args.limits, args.step, branches, margin_of(branches))
         _write_points(args.points, pts, ",".join(mech.task_axes))
     if args.plot:  # every branch's collision-aware margin: CollisionMargin's first columns
         from kinematics.views import plots
 
         plots.headless()
-        every = margin_builder(mech, robot, checks, args.limits)(mech.branches)
-        plots.save(plots.spatial_workspace(mech, args.limits, max(args.step, 0.01), branch_margin=every,
+        plots.save(plots.spatial_workspace(mech, args.limits, max(args.step, 0.01), branch_margin=margin_of(mech.branches),
                                            what="collision-free"), args.plot)
     ws = cw.workspace
     payload = cw.as_dict()
