@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.analyses.cells import check_step
+from kinematics.analyses.singular_edges import edge_crossings
 from kinematics.mechanisms.base import Mechanism
 from kinematics.mechanisms.three_limb.closed_form import MODES
 from kinematics.sizes import check_points, grid_points
@@ -68,9 +69,8 @@ class SingularLocus:
     def as_list(self, interior_only: bool = True) -> list[dict[str, Any]]:
         """JSON-ready points: position, type, limb or mode, inside."""
         out = []
-        for p, k, w, ins in zip(self.points, self.kind, self.which, self.interior, strict=True):
-            if interior_only and not ins:
-                continue
+        keep = self.interior if interior_only else np.ones(len(self.kind), dtype=bool)
+        for p, k, w, ins in zip(self.points[keep], self.kind[keep], self.which[keep], self.interior[keep], strict=True):
             item: dict[str, Any] = {"position": p.tolist(), "type": "I" * int(k) if k < 3 else "III",
                                     "inside_workspace": bool(ins)}
             if k == 1:
@@ -112,29 +112,12 @@ PLANES_POINTS = 1 << 18
 """Grid points per `singular_fields` call (whole planes) for closed-form mechanisms."""
 
 
-def _edges(a: dict[str, np.ndarray], b: dict[str, np.ndarray], pa: np.ndarray, pb: np.ndarray,
-           ia: np.ndarray, ib: np.ndarray, mode_cols: list[int], out: list[tuple]) -> None:
-    """Sign changes along the edges a[k] -> b[k] (per-point arrays from `scan`)."""
-    reach_a = (a["disc"] >= 0).all(axis=1)
-    reach_b = (b["disc"] >= 0).all(axis=1)
-    in_a = a["margin"] >= 0
-    in_b = b["margin"] >= 0
-    for limb in range(a["disc"].shape[1]):
-        da, db = a["disc"][:, limb], b["disc"][:, limb]
-        # a NaN end (a field the mechanism cannot evaluate there) is no evidence of a crossing
-        hit = np.flatnonzero(((da >= 0) != (db >= 0)) & np.isfinite(da) & np.isfinite(db))
-        if len(hit):
-            t = da[hit] / (da[hit] - db[hit])
-            inner = np.where((da[hit] >= 0)[:, None], in_a[hit], in_b[hit])[:, mode_cols].any(axis=1)
-            out.append((1, limb, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
-    for m in mode_cols:
-        da, db = a["det"][:, m], b["det"][:, m]
-        hit = np.flatnonzero(((da > 0) != (db > 0)) & reach_a & reach_b & np.isfinite(da) & np.isfinite(db))
-        if len(hit):
-            t = da[hit] / (da[hit] - db[hit])
-            t = np.where(np.isfinite(t), t, 0.5)
-            inner = in_a[hit, m] & in_b[hit, m]
-            out.append((2, m, pa[hit] + t[:, None] * (pb[hit] - pa[hit]), inner, ia[hit], ib[hit]))
+def _crossings(fields: dict[str, np.ndarray], pts: np.ndarray, ids: np.ndarray, mode_cols: list[int], planes: int,
+               dims: np.ndarray, out: list[tuple], z_only: bool = False) -> None:
+    """The block's crossings (`singular_edges.edge_crossings`) placed on their edges, into out."""
+    kind, which, t, a, b, inner = edge_crossings(fields["disc"], fields["det"], fields["margin"], mode_cols, planes,
+                                                 int(dims[0]), int(dims[1]), z_only=z_only)
+    out.append((kind, which, pts[a] + t[:, None] * (pts[b] - pts[a]), inner, ids[a], ids[b]))
 
 
 def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
@@ -159,8 +142,6 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     t0 = time.perf_counter()
     ix, iy = (a.ravel() for a in np.meshgrid(np.arange(dims[0]), np.arange(dims[1]), indexing="ij"))
     P = len(ix)  # points per plane; a point's id is plane x P + its index in the plane
-    grid = np.arange(P).reshape(dims[0], dims[1])
-    in_plane = ((grid[:-1, :].ravel(), grid[1:, :].ravel()), (grid[:, :-1].ravel(), grid[:, 1:].ravel()))
     found: list[tuple] = []
     bar = None
     if progress:
@@ -179,27 +160,15 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
         zs = [np.repeat(lo[2] + step * ks, P)] if len(dims) == 3 else []
         pts = np.stack([np.tile(lo[0] + step * ix, K), np.tile(lo[1] + step * iy, K)] + zs, axis=1)
         fields = mech.singular_fields(pts, limits)
-        cur = {"margin": fields.margin, "det": fields.det, "disc": fields.limb}
+        cur = {"disc": fields.limb, "det": fields.det, "margin": fields.margin}
         ids = k0 * P + np.arange(K * P)
-        signs = np.concatenate([cur["disc"] >= 0, cur["det"] > 0], axis=1)
-        code = np.zeros(len(signs), dtype=np.int64)  # every sign of a point in one integer
-        for j in range(signs.shape[1]):
-            code |= signs[:, j].astype(np.int64) << j
-        shift = (np.arange(K) * P)[:, None]
-        edges = [((ea[None] + shift).ravel(), (eb[None] + shift).ravel()) for ea, eb in in_plane]
-        edges.append((np.arange((K - 1) * P), np.arange(P, K * P)))  # between this call's planes
-        for ea, eb in edges:
-            # only an edge whose ends differ in some sign can cross a locus
-            e = np.flatnonzero(code[ea] != code[eb])
-            sa, sb = ea[e], eb[e]
-            _edges({n: v[sa] for n, v in cur.items()}, {n: v[sb] for n, v in cur.items()},
-                   pts[sa], pts[sb], ids[sa], ids[sb], mode_cols, found)
+        _crossings(cur, pts, ids, mode_cols, K, dims, found)
         if prev is not None:  # the previous call's last plane to this call's first
-            e = np.flatnonzero(prev[3] != code[:P])
-            _edges({n: v[e] for n, v in prev[0].items()}, {n: v[e] for n, v in cur.items()}, prev[1][e], pts[e],
-                   prev[2][e], ids[e], mode_cols, found)
+            _crossings({n: np.concatenate([v, cur[n][:P]]) for n, v in prev[0].items()},
+                       np.concatenate([prev[1], pts[:P]]), np.concatenate([prev[2], ids[:P]]), mode_cols, 2, dims,
+                       found, z_only=True)
         last = slice((K - 1) * P, K * P)
-        prev = ({n: v[last] for n, v in cur.items()}, pts[last], ids[last], code[last])
+        prev = ({n: v[last] for n, v in cur.items()}, pts[last], ids[last])
         if bar is not None:
             bar.update(K)
     if bar is not None:
@@ -213,8 +182,8 @@ def _assemble(found: list[tuple], branches: tuple[str, ...], grid_size: int) -> 
     if not found:
         e = np.empty(0)
         return SingularLocus(np.empty((0, 3)), e.astype(int), e.astype(int), e.astype(bool), branches)
-    kind = np.concatenate([np.full(len(f[2]), f[0]) for f in found])
-    which = np.concatenate([np.full(len(f[2]), f[1]) for f in found])
+    kind = np.concatenate([f[0] for f in found])
+    which = np.concatenate([f[1] for f in found])
     points = np.concatenate([f[2] for f in found])
     inside = np.concatenate([f[3] for f in found])
     ends_a = np.concatenate([f[4] for f in found])
