@@ -90,6 +90,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
     kernels = mech.kernels()
+    if kernels and "singular_fields" in mech.capabilities:  # the singular-locus scan's edge pass
+        from kinematics.analyses import singular_edges
+
+        kernels += singular_edges.kernels()
     if kernels and show_progress(args):  # a terminal's notice, like the progress bars
         from kinematics import jit
 
