@@ -102,3 +102,35 @@ def test_plot_counts_the_collision_free_elbows_by_hand(arm, tmp_path, capsys):  
     code, _, err = run_json(capsys, "workspace-volume", str(tmp_path / "arm2r.urdf"), "--obstacles",
                             str(tmp_path / "wall.yaml"), "--rtol", "1e-2", "--plot", str(tmp_path / "w.png"))
     assert code == 0 and (tmp_path / "w.png").stat().st_size > 10_000, err
+
+
+def test_plot_with_chosen_branches_counts_only_those(arm, tmp_path):  # noqa: F811
+    # --plot with --modes: each elbow's map on its own is one of the two by-hand elbow maps of the
+    # test above, and the two add up to the map of both
+    from kinematics.analyses.collisions import margin_builder
+    from kinematics.views import plots
+
+    cm = collision_model_of(arm, _obstacles(tmp_path, HALF), self_collisions=False)
+    mech = mechanism_of(arm)
+    step = 0.023
+    plots.headless()
+    margin = margin_builder(mech, arm, cm)(mech.branches)
+    lo, hi = mech.bounding_box("all")
+    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    rho, phi = np.hypot(pts[:, 0], pts[:, 1]), np.arctan2(pts[:, 1], pts[:, 0])
+    inside = (rho > L1 - L2) & (rho < L1 + L2)
+    gamma = np.arccos(np.clip((L1 * L1 + rho * rho - L2 * L2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
+    c = WALL - R
+    elbows = [inside & (pts[:, 0] < c) & (L1 * np.cos(phi + s * gamma) < c) for s in (-1, 1)]
+    near = np.minimum.reduce([np.abs(pts[:, 0] - c), np.abs(L1 * np.cos(phi - gamma) - c),
+                              np.abs(L1 * np.cos(phi + gamma) - c), np.abs(rho - (L1 - L2)), np.abs(rho - (L1 + L2))])
+    ok = near > 1e-9
+    maps = []
+    for b in mech.branches:
+        fig = plots.spatial_workspace(mech, "all", 2 * step, branch_margin=margin, what="collision-free", branches=[b])
+        maps.append(np.ma.filled(fig.axes[0].collections[0].get_array(), 0).ravel())
+        assert b in fig.axes[1].get_ylabel()  # the colour bar says which branch it counts
+        assert any(np.array_equal(maps[-1][ok], e[ok].astype(int)) for e in elbows)
+    assert not np.array_equal(maps[0][ok], maps[1][ok])
+    assert np.array_equal((maps[0] + maps[1])[ok], (elbows[0].astype(int) + elbows[1])[ok])

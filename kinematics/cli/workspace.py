@@ -143,7 +143,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         plots.headless()
         fig = (plots.scara_workspace(mech.params, sing) if "joint_singularities" in mech.capabilities
                else plots.spatial_workspace(mech, args.limits, max(args.step, 0.01),
-                                            singular=sing.locus if sing is not None else None))
+                                            singular=sing.locus if sing is not None else None, branches=branches))
         plots.save(fig, args.plot)
     payload = ws.as_dict()
     payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
@@ -180,12 +180,12 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     if args.points:  # the collision-aware union: CollisionMargin's last column
         pts = _inside_points(mech, args.limits, args.step, branches, margin_of(branches))
         _write_points(args.points, pts, ",".join(mech.task_axes))
-    if args.plot:  # every branch's collision-aware margin: CollisionMargin's first columns
+    if args.plot:  # the chosen branches' collision-aware margins: CollisionMargin's first columns
         from kinematics.views import plots
 
         plots.headless()
         plots.save(plots.spatial_workspace(mech, args.limits, max(args.step, 0.01), branch_margin=margin_of(mech.branches),
-                                           what="collision-free"), args.plot)
+                                           what="collision-free", branches=branches), args.plot)
     ws = cw.workspace
     payload = cw.as_dict()
     payload.update(family=mech.family)

@@ -7,6 +7,7 @@ The figures use whatever backend is active (inline in Jupyter); the CLI calls `h
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -59,20 +60,22 @@ def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_
 
 
 def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices_z: int = 3,
-                      singular: Any = None, branch_margin: Any = None, what: str = "") -> Any:
+                      singular: Any = None, branch_margin: Any = None, what: str = "",
+                      branches: Sequence[str] | None = None) -> Any:
     """Horizontal slices of a spatial mechanism's union workspace (coloured by the number of
     branches, e.g. working modes, within limits there) and a 3D view of its sampled points, with
     type II / I singular points when given. A planar task space (x, y) gets `planar_workspace`.
     `branch_margin` (points (N, d) -> (N, branches)): each branch's margin in place of the
-    mechanism's (e.g. the collision-aware one), `what` its word in the titles ("collision-free")."""
+    mechanism's (e.g. the collision-aware one), `what` its word in the titles ("collision-free");
+    `branches`: the branches counted (default: every one)."""
     if mech.task_dim == 2:
-        return planar_workspace(mech, limits, step / 2, singular, branch_margin, what)
+        return planar_workspace(mech, limits, step / 2, singular, branch_margin, what, branches)
     lo, hi = mech.bounding_box(limits)
-    nb = len(mech.branches)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(3)]
     X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
     pts3 = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    margin = _branch_margins(mech, limits, branch_margin, pts3)
+    margin = _branch_margins(mech, limits, branch_margin, pts3, branches)
+    nb = margin.shape[1]
     count = (margin >= 0).sum(axis=1).reshape(len(axes[0]), len(axes[1]), len(axes[2]))
     filled = np.flatnonzero(count.reshape(-1, len(axes[2])).any(axis=0))
     picks = np.linspace(0.2, 0.8, slices_z) * (len(filled) - 1)
@@ -81,7 +84,7 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
     for a, z in zip(ax[:-1], zs, strict=True):
         im = _count_map(a, X, Y, count[:, :, int(np.argmin(np.abs(axes[2] - z)))], nb)
         a.set_title(f"z = {z:.3f} m")
-    fig.colorbar(im, ax=ax[:-1], shrink=0.8, label=f"{mech.branch_kind}s within limits{_also(what)}")
+    fig.colorbar(im, ax=ax[:-1], shrink=0.8, label=f"{_counted(mech, branches)} within limits{_also(what)}")
     inside = pts3[(margin >= 0).any(axis=1)]
     sub = inside[:: max(1, len(inside) // 20000)]
     # grey, and faint under singular points so that they show
@@ -100,18 +103,18 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
 
 
 def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singular: Any = None,
-                     branch_margin: Any = None, what: str = "") -> Any:
+                     branch_margin: Any = None, what: str = "", branches: Sequence[str] | None = None) -> Any:
     """A planar mechanism's union workspace over its (x, y) bounding box, coloured by the number of
     branches (e.g. working modes) within limits, with the singular points in (type II / III) or on
-    (type I) it when given; `branch_margin` and `what` as `spatial_workspace`'s."""
+    (type I) it when given; `branch_margin`, `what` and `branches` as `spatial_workspace`'s."""
     lo, hi = mech.bounding_box(limits)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
     X, Y = np.meshgrid(*axes, indexing="ij")
-    margin = _branch_margins(mech, limits, branch_margin, np.stack([X.ravel(), Y.ravel()], axis=1))
+    margin = _branch_margins(mech, limits, branch_margin, np.stack([X.ravel(), Y.ravel()], axis=1), branches)
     count = (margin >= 0).sum(axis=1).reshape(X.shape)
     fig, ax = _figure(1, (6.0, 5.0))
-    im = _count_map(ax[0], X, Y, count, len(mech.branches))
-    fig.colorbar(im, ax=ax[0], shrink=0.8, label=f"{mech.branch_kind}s within limits{_also(what)}")
+    im = _count_map(ax[0], X, Y, count, margin.shape[1])
+    fig.colorbar(im, ax=ax[0], shrink=0.8, label=f"{_counted(mech, branches)} within limits{_also(what)}")
     if singular is not None:
         _singular_scatter(ax[0], singular.points, singular.kind, singular.inside, 2, size=2.0, plane=(0, 1))
         ax[0].legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), fontsize=7, markerscale=2, ncols=3,
@@ -120,11 +123,20 @@ def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singul
     return fig
 
 
-def _branch_margins(mech: Any, limits: str, branch_margin: Any, points: np.ndarray) -> np.ndarray:
-    """(N, branches): `branch_margin(points)`, or the mechanism's own margin's branch columns."""
-    if branch_margin is not None:
-        return np.asarray(branch_margin(points))[:, :len(mech.branches)]
-    return mech.margin(None, limits)(points)[:, :-1]
+def _branch_margins(mech: Any, limits: str, branch_margin: Any, points: np.ndarray,
+                    branches: Sequence[str] | None) -> np.ndarray:
+    """(N, len(branches)): `branch_margin(points)`, or the mechanism's own margin's, branch columns
+    (`branches`, default every one)."""
+    cols = [mech.branches.index(b) for b in mech.check_branches(branches)] if branches else slice(len(mech.branches))
+    m = np.asarray(branch_margin(points)) if branch_margin is not None else mech.margin(None, limits)(points)
+    return m[:, cols]
+
+
+def _counted(mech: Any, branches: Sequence[str] | None) -> str:
+    """What a count map counts: a mechanism's branches, or the chosen ones."""
+    if not branches or len(branches) == len(mech.branches):
+        return f"{mech.branch_kind}s"
+    return f"{mech.branch_kind}s of {', '.join(branches)}"
 
 
 def _also(what: str) -> str:
