@@ -12,6 +12,7 @@ import pytest
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.batched import batched_fk, configurations
+from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 from kinematics.mechanisms.serial.orientation import ToolOrientation
 from kinematics.model.robot import load_robot
@@ -104,6 +105,9 @@ def test_orientation_parsing_and_bad_input(tmp_path):
             ToolOrientation.parse(bad)
     with pytest.raises(UnsupportedRobotError, match="loop"):
         with_fixed_orientation(load_robot("p2us"), o)
+    with pytest.raises(UnsupportedRobotError, match="loop"):  # the one dispatch says the same
+        mechanism_of(load_robot("p2us"), o)
+    assert mechanism_of(load_robot(MODELS / "planar3r.urdf"), o).orientation is o
 
 
 def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):

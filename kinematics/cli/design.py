@@ -205,10 +205,9 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.analyses.dexterity import dexterity as measure
     from kinematics.mechanisms import UNION, mechanism_of
     from kinematics.mechanisms.base import Mechanism
-    from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
     orientation = orientation_of(args)
-    mech: Mechanism = mechanism_of(robot) if orientation is None else with_fixed_orientation(robot, orientation)
+    mech: Mechanism = mechanism_of(robot, orientation)
     branches = None if args.mode in (None, UNION) else [args.mode]
     if args.cells_out and args.cells is None:
         from kinematics.errors import InvalidInputError

@@ -79,14 +79,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.cli.singular import joint_singular_points
     from kinematics.mechanisms import mechanism_of
 
-    mech = mechanism_of(robot)
     orientation = orientation_of(args)
-    if orientation is not None:
-        from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
-
-        if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
-            raise InvalidInputError("--collisions/--obstacles", "not available with a fixed tool orientation yet")
-        mech = with_fixed_orientation(robot, orientation)
+    if orientation is not None and (getattr(args, "collisions", False) or getattr(args, "obstacles", None)):
+        raise InvalidInputError("--collisions/--obstacles", "not available with a fixed tool orientation yet")
+    mech = mechanism_of(robot, orientation)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
     kernels = mech.kernels()

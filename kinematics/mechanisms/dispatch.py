@@ -7,7 +7,10 @@
 2. any other loop sidecar -> `GenericClosedLoop`;
 3. an open chain that is a planar 2R arm with joints about z (`ScaraParams.from_robot` accepts
    it) -> `Scara` (closed forms);
-4. any other open chain -> `SerialArm`.
+4. any other open chain -> `SerialArm`;
+
+and with a fixed tool `orientation` (the reachable set for that orientation) an open chain's
+`SerialArm` that asks for it (`with_fixed_orientation`), whatever the above says.
 
 `plane_of(robot)`: planar or spatial, decided once for every command (`info`, `fk`, `jacobian`,
 `show`, `mobility`, `workspace-volume`): the plane the end effector moves in with the loops closed
@@ -25,6 +28,7 @@ from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
     from kinematics.generic.motion_plane import MotionPlane
+    from kinematics.mechanisms.serial.orientation import ToolOrientation
 
 
 def _p2us(robot: Robot) -> Mechanism:
@@ -49,8 +53,13 @@ def families() -> dict[str, Callable[[Robot], Mechanism]]:
     return {P2US: _p2us, DELTA: _delta}
 
 
-def mechanism_of(robot: Robot) -> Mechanism:
-    """The robot as a `Mechanism` (see the module docstring)."""
+def mechanism_of(robot: Robot, orientation: ToolOrientation | None = None) -> Mechanism:
+    """The robot as a `Mechanism` (see the module docstring); with `orientation`, its reachable set
+    for that tool orientation (open chains only: UnsupportedRobotError otherwise)."""
+    if orientation is not None:
+        from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
+
+        return with_fixed_orientation(robot, orientation)
     if robot.loops is not None:
         build = families().get(robot.loops.mechanism or "")
         if build is not None:
