@@ -71,6 +71,24 @@ def test_workspace_view_draws_where_both_elbows_hit_the_wall(arm, tmp_path):  # 
     assert "obstacle wall" in labels
 
 
+def _elbows_clear_of_the_wall(mech, step):
+    """By hand, on the plot's grid at `step`: per elbow (2, N), whether the point is reached with
+    that elbow and both the point and the elbow lie at x < WALL - R; and the points (N,) farther
+    than 1e-9 m from every edge of those sets (where the grid's rounding cannot decide)."""
+    lo, hi = mech.bounding_box("all")
+    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    rho, phi = np.hypot(pts[:, 0], pts[:, 1]), np.arctan2(pts[:, 1], pts[:, 0])
+    inside = (rho > L1 - L2) & (rho < L1 + L2)
+    gamma = np.arccos(np.clip((L1 * L1 + rho * rho - L2 * L2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
+    c = WALL - R
+    elbow_x = L1 * np.cos(np.stack([phi - gamma, phi + gamma]))
+    elbows = inside & (pts[:, 0] < c) & (elbow_x < c)
+    near = np.minimum.reduce([np.abs(pts[:, 0] - c), np.abs(elbow_x - c).min(axis=0), np.abs(rho - (L1 - L2)),
+                              np.abs(rho - (L1 + L2))])
+    return elbows.astype(int), near > 1e-9
+
+
 def test_plot_counts_the_collision_free_elbows_by_hand(arm, tmp_path, capsys):  # noqa: F811
     # workspace-volume --plot with obstacles: the figure's map counts, per grid point, the elbows
     # whose arm clears the wall (P and that elbow at x < WALL - R, as above)
@@ -85,18 +103,8 @@ def test_plot_counts_the_collision_free_elbows_by_hand(arm, tmp_path, capsys):  
     fig = plots.spatial_workspace(mech, "all", 2 * step, branch_margin=margin_builder(mech, arm, cm)(mech.branches),
                                   what="collision-free")
     drawn = np.ma.filled(fig.axes[0].collections[0].get_array(), 0).ravel()
-    lo, hi = mech.bounding_box("all")
-    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-    rho, phi = np.hypot(pts[:, 0], pts[:, 1]), np.arctan2(pts[:, 1], pts[:, 0])
-    inside = (rho > L1 - L2) & (rho < L1 + L2)
-    gamma = np.arccos(np.clip((L1 * L1 + rho * rho - L2 * L2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
-    c = WALL - R
-    elbow_x = L1 * np.cos(np.stack([phi - gamma, phi + gamma]))
-    want = np.where(inside, ((pts[:, 0] < c) & (elbow_x < c)).sum(axis=0), 0)
-    near = np.minimum.reduce([np.abs(pts[:, 0] - c), np.abs(elbow_x - c).min(axis=0), np.abs(rho - (L1 - L2)),
-                              np.abs(rho - (L1 + L2))])
-    ok = near > 1e-9
+    elbows, ok = _elbows_clear_of_the_wall(mech, step)
+    want = elbows.sum(axis=0)
     assert ok.mean() > 0.99 and (want[ok] == 1).any() and (want[ok] == 2).any()
     assert np.array_equal(drawn[ok], want[ok])
     code, _, err = run_json(capsys, "workspace-volume", str(tmp_path / "arm2r.urdf"), "--obstacles",
@@ -115,17 +123,7 @@ def test_plot_with_chosen_branches_counts_only_those(arm, tmp_path):  # noqa: F8
     step = 0.023
     plots.headless()
     margin = margin_builder(mech, arm, cm)(mech.branches)
-    lo, hi = mech.bounding_box("all")
-    axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-    rho, phi = np.hypot(pts[:, 0], pts[:, 1]), np.arctan2(pts[:, 1], pts[:, 0])
-    inside = (rho > L1 - L2) & (rho < L1 + L2)
-    gamma = np.arccos(np.clip((L1 * L1 + rho * rho - L2 * L2) / (2 * L1 * np.maximum(rho, 1e-12)), -1, 1))
-    c = WALL - R
-    elbows = [inside & (pts[:, 0] < c) & (L1 * np.cos(phi + s * gamma) < c) for s in (-1, 1)]
-    near = np.minimum.reduce([np.abs(pts[:, 0] - c), np.abs(L1 * np.cos(phi - gamma) - c),
-                              np.abs(L1 * np.cos(phi + gamma) - c), np.abs(rho - (L1 - L2)), np.abs(rho - (L1 + L2))])
-    ok = near > 1e-9
+    elbows, ok = _elbows_clear_of_the_wall(mech, step)
     maps = []
     for b in mech.branches:
         fig = plots.spatial_workspace(mech, "all", 2 * step, branch_margin=margin, what="collision-free", branches=[b])
@@ -133,4 +131,4 @@ def test_plot_with_chosen_branches_counts_only_those(arm, tmp_path):  # noqa: F8
         assert b in fig.axes[1].get_ylabel()  # the colour bar says which branch it counts
         assert any(np.array_equal(maps[-1][ok], e[ok].astype(int)) for e in elbows)
     assert not np.array_equal(maps[0][ok], maps[1][ok])
-    assert np.array_equal((maps[0] + maps[1])[ok], (elbows[0].astype(int) + elbows[1])[ok])
+    assert np.array_equal((maps[0] + maps[1])[ok], elbows.sum(axis=0)[ok])
