@@ -192,6 +192,22 @@ class CollisionColumns:
             return d
         return m.distances.distances(q, signs=True)
 
+    def _pair_values(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray, pair: np.ndarray
+                     ) -> np.ndarray:
+        """(N,) the distance [m] of pair pair[n] alone (sign exact) at the point of column col[n]
+        at z[n] in branch b (+inf where rounding at a reach end leaves no configuration)."""
+        others = [k for k in range(3) if k != ax]
+        pts = np.empty((len(z), 3))
+        pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
+        self.evaluations += len(z)
+        m = self.margin
+        q = configurations(m.mech, m.robot, pts, m.branches[b])
+        good = np.isfinite(q).all(axis=1)
+        out = np.full(len(z), np.inf)
+        if good.any():
+            out[good] = m.distances.pair_distances(q[good], pair[good], signs=True)
+        return out
+
     def _functions(self, d: np.ndarray) -> np.ndarray:
         """(N, F): the smallest distance over the pairs, then each watched pair's."""
         first = d.min(axis=1, initial=np.inf)[:, None]
@@ -225,7 +241,10 @@ class CollisionColumns:
                 ambiguous_gaps(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
             fn, arg = self._functions(d), d.argmin(axis=1)
             keep = ~amb
-            done.append((gc[keep], za[keep], zb[keep], fn[ia[keep]], fn[ib[keep]], arg[ia[keep]], arg[ib[keep]]))
+            ka, kb = ia[keep], ib[keep]
+            # each end's smallest pair, and its distance at the other end (a root of the smallest
+            # distance is first sought as that pair's own)
+            done.append((gc[keep], za[keep], zb[keep], fn[ka], fn[kb], arg[ka], arg[kb], d[ka, arg[kb]], d[kb, arg[ka]]))
             if not amb.any():
                 break
             # each gap to halve gets its own three samples (a, b, midpoint), its parent's curvature bound
@@ -238,33 +257,90 @@ class CollisionColumns:
             r = np.arange(m)
             gc, za, zb = np.concatenate([gc, gc]), np.concatenate([za, zm]), np.concatenate([zm, zb])
             ia, ib = np.concatenate([r, r + 2 * m]), np.concatenate([r + 2 * m, r + m])
-        gc, za, zb, fa, fb, pa, pb = (np.concatenate(x) for x in zip(*done, strict=True))
-        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb)
+        gc, za, zb, fa, fb, pa, pb, xa, xb = (np.concatenate(x) for x in zip(*done, strict=True))
+        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb, xa, xb)
 
     def _pieces(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
-                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> tuple[np.ndarray, ...]:
+                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray, xa: np.ndarray, xb: np.ndarray
+                ) -> tuple[np.ndarray, ...]:
         """Each final gap's free piece per function (values fa, fb (G, F) at its ends, smallest
-        pairs pa, pb there), its sign changes refined to roots."""
+        pairs pa, pb there, pa's distance xb at the upper end and pb's xa at the lower), its sign
+        changes refined to roots."""
         F = fa.shape[1]
         starts, stops = np.repeat(za[None], F, 0), np.repeat(zb[None], F, 0)
         ca, ce = np.zeros((F, len(gc)), np.int64), np.zeros((F, len(gc)), np.int64)
-        pair_of = np.concatenate([[-1], self.margin.watched])
         gi, fi = np.nonzero((fa >= 0) != (fb >= 0))
-        root, code = self._roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi], fi,
-                                 np.where(fa[gi, fi] < 0, pa[gi], pb[gi]))
-        code = np.where(pair_of[fi] >= 0, pair_of[fi], code) + 1
+        root, code = self._roots(b, base, ax, gc, za, zb, fa, fb, pa, pb, xa, xb, gi, fi)
         up = fa[gi, fi] < 0  # colliding below the root: the piece starts there
-        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up]
-        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up]
+        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up] + 1
+        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up] + 1
         out = (fa < 0) & (fb < 0)
         stops[out.T] = starts[out.T]  # empty pieces (dropped by the union)
         return gc, starts, stops, ca, ce
 
-    def _roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
-               fa: np.ndarray, fb: np.ndarray, fi: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Roots [m] of function fi in brackets (za, zb) (values fa, fb of opposite signs) to
-        `root_tol`, and the smallest pair at each bracket's colliding end."""
-        za, zb, fa, fb, pair = za.copy(), zb.copy(), fa.copy(), fb.copy(), pair.copy()
+    def _roots(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
+               fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray, xa: np.ndarray, xb: np.ndarray,
+               gi: np.ndarray, fi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The root [m] of function fi[r] in gap gi[r] (its values change sign there) to
+        `root_tol`, and the pair that binds there.
+
+        Each is first sought as one pair's own root (`AnalyticDistances.pair_distances`: that
+        pair's two shapes alone, about a third of a full evaluation): a watched pair's, or, for
+        the smallest distance, the pair smallest at the gap's colliding end; a gap and pair
+        shared by several functions is refined once. The smallest distance's root is that
+        pair's when every pair is clear at the final bracket's free end (one full evaluation
+        there); where one is not (another pair takes over inside the gap), the smallest
+        distance itself is refined over the gap."""
+        n_pairs = len(self.margin.distances.kinds)
+        lower = fa[gi, fi] < 0  # colliding at the gap's lower end
+        pair_of = np.concatenate([[0], self.margin.watched]).astype(np.int64)
+        pair = np.where(fi > 0, pair_of[fi], np.where(lower, pa[gi], pb[gi]))
+        va = np.where(fi > 0, fa[gi, fi], np.where(lower, fa[gi, 0], xa[gi]))
+        vb = np.where(fi > 0, fb[gi, fi], np.where(lower, xb[gi], fb[gi, 0]))
+        _, first, task = np.unique(gi * n_pairs + pair, return_index=True, return_inverse=True)
+        g, k = gi[first], pair[first]
+
+        def one_pair(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+            return self._pair_values(b, base, ax, gc[g[rows]], x, k[rows])
+
+        lo, hi, ylo, _ = self._illinois(one_pair, za[g], zb[g], va[first], vb[first])
+        root, code = 0.5 * (lo + hi), k.copy()
+        root, code = root[task], code[task]
+        smallest = np.flatnonzero(fi == 0)
+        if len(smallest):  # every pair clear at the free end: the smallest distance's root too
+            t = task[smallest]
+            free = np.where(ylo[t] >= 0, lo[t], hi[t])
+            clear = self._evaluate(b, base, ax, gc[gi[smallest]], free).min(axis=1, initial=np.inf) >= 0
+            again = smallest[~clear]
+            if len(again):
+                root[again], code[again] = self._smallest_roots(b, base, ax, gc[gi[again]], za[gi[again]],
+                                                                zb[gi[again]], fa[gi[again], 0], fb[gi[again], 0],
+                                                                pair[again])
+        return root, code
+
+    def _smallest_roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
+                        fa: np.ndarray, fb: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Roots [m] of the smallest distance in brackets (za, zb) (values fa, fb of opposite
+        signs) to `root_tol`, and the smallest pair at each bracket's colliding end (`pair`: at
+        the gap's)."""
+        pair = pair.copy()
+
+        def smallest(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+            d = self._evaluate(b, base, ax, col[rows], x)
+            y = d.min(axis=1, initial=np.inf)
+            neg = y < 0
+            pair[rows[neg]] = d[neg].argmin(axis=1)
+            return y
+
+        lo, hi, _, _ = self._illinois(smallest, za, zb, fa, fb)
+        return 0.5 * (lo + hi), pair
+
+    def _illinois(self, evaluate: Any, za: np.ndarray, zb: np.ndarray, fa: np.ndarray, fb: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Brackets (za, zb) of roots (values fa, fb of opposite signs; `evaluate(rows, z)` the
+        values at z of brackets `rows`) narrowed to `root_tol` (Illinois false position, bisection
+        from the 8th step on): the final brackets and their values."""
+        za, zb, fa, fb = za.copy(), zb.copy(), fa.copy(), fb.copy()
         side = np.zeros(len(za), np.int64)
         rows = np.arange(len(za))
         for step in range(ROOT_STEPS):
@@ -275,8 +351,7 @@ class CollisionColumns:
             a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
             tol = 0.25 * self.root_tol
             x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol) if step < 8 else 0.5 * (a + c)
-            d = self._evaluate(b, base, ax, col[rows], x)
-            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            y = evaluate(rows, x)
             below = (y >= 0) == (ya >= 0)  # the root is above x
             # Illinois: halve the value kept at the end that stays twice in a row
             fb[rows[below & (side[rows] == 1)]] *= 0.5
@@ -284,9 +359,7 @@ class CollisionColumns:
             za[rows[below]], fa[rows[below]] = x[below], y[below]
             zb[rows[~below]], fb[rows[~below]] = x[~below], y[~below]
             side[rows] = np.where(below, 1, -1)
-            neg = y < 0
-            pair[rows[neg]] = d[neg].argmin(axis=1)
-        return 0.5 * (za + zb), pair
+        return za, zb, fa, fb
 
 
 def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
