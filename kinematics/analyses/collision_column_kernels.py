@@ -103,7 +103,7 @@ def split_close(col, a, e, cells, lo, g):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def union_pieces(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, ends, sig, zbox):  # pragma: no cover - compiled
+def union_pieces(col, a, e, ca, ce, t, last, root_tol, by_pair, hashed, length, err, ends, sig, zbox):  # pragma: no cover - compiled
     """Target t's union of the pieces (sorted by column, then start): its length, ends, the
     collision ends' errors (root_tol each), and their binding pairs hashed into the signature;
     the extent for the last target."""
@@ -125,7 +125,8 @@ def union_pieces(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, end
             for code in (code_a, code_e):
                 if code > 0:
                     err[c, t] += root_tol
-                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
+                    if hashed:
+                        sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
                 rank += 1
             if last:
                 zbox[c, 0] = min(zbox[c, 0], cur_a)

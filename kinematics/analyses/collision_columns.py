@@ -18,13 +18,19 @@ interval is free):
   negative at both ends, stays negative when some pair provably does or |m(a)| + |m(b)| >
   max_p s_p w. Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
 * every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
-  8th step on); the binding pair at a root is the smallest pair at its colliding side;
+  8th step on) on one pair's distance, its two shapes alone placed
+  (`AnalyticDistances.pair_distances`): a watched pair's, or, for the smallest distance, the pair
+  smallest at the gap's colliding end, whose root is the smallest distance's when every pair is
+  clear at the final bracket's free end (one full evaluation; else the smallest distance itself
+  is refined over the gap); a gap and pair shared by several functions is refined once. The
+  binding pair at a root is that pair;
 * the collision-free pieces of every branch, and their unions over the branches, give the
   targets' lengths: each branch's, the kinematic union (the exact columns' own), the union with
   each watched pair alone, the union with every pair.
 
 Errors: the kinematic ends' (the exact columns') plus `root_tol` per collision end. The signature
-is the kinematic one combined with, per target, the binding pair of each collision end in order,
+is the kinematic one combined with, per target (the watched pairs' own only with
+`WATCHED_SIGNATURE`), the binding pair of each collision end in order,
 so the column engine locates where a collision end appears, vanishes or changes pair as it does a
 kinematic one. What it can miss, beside the exact columns' caveats: the slopes are observed on the
 pre-scan's grid and the curvatures on the samples, not bounded (a pair closing in faster, as near a
@@ -48,13 +54,26 @@ from kinematics.analyses.collision_column_kernels import (
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 
-SPACING = 2.0
+SPACING = 4.0
 """The collision margin's first samples along a column are SPACING x the column step apart (the gap
-tests refine where a root may hide; at 1 x p2us-results took 1.5 x the CPU time for the same
-volume to 5e-9 m^3 at rtol 1e-3)."""
+tests refine where a root may hide; the check run halves it). p2us-results, mode ---, rtol 1e-3,
+first run: at 2 x 4.5M samples, 32.8 s CPU; at 4 x 3.2M, 29.0 s, the same volume to 1e-7 m^3 and
+every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x."""
 
 SIGNATURE_PAIRS = True
-"""Whether a collision end's binding pair enters the column's signature (else only its rank)."""
+"""Whether a collision end's binding pair enters the column's signature (else only its rank; off,
+the same run took 5 % more columns)."""
+
+PAIR_ROOTS = True
+"""Whether roots are refined on one pair's distance (module docstring; else every root on its
+function: the smallest distance, or a watched pair's, evaluating every pair)."""
+
+WATCHED_SIGNATURE = False
+"""Whether the collision ends of the watched pairs' own targets (the union with one pair alone)
+enter the signature too. Off, the quadrature locates the breaks of the branches' and the union's
+collision-free lengths only; a watched target's own ends are kinks its adaptive rules refine
+around (the same run: 173k columns on, 140k off, every removal the same within 1e-6 m^3, errors
+5e-5)."""
 
 CHUNK_COLUMNS = 8192
 """Most columns per batch (about 20 samples of every pair per column)."""
@@ -127,7 +146,8 @@ class CollisionColumns:
             keep = e > a
             order = np.lexsort((a[keep], col[keep]))
             union_pieces(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
-                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, length, err, ends, sig, zbox)
+                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, WATCHED_SIGNATURE or not B < t < T - 1, length, err, ends,
+                   sig, zbox)
             err[:, t] += kin_err
         out_sig = (sig >> np.uint64(1)).astype(np.int64)
         zbox[~np.isfinite(zbox)] = np.nan
@@ -293,6 +313,9 @@ class CollisionColumns:
         distance itself is refined over the gap."""
         n_pairs = len(self.margin.distances.kinds)
         lower = fa[gi, fi] < 0  # colliding at the gap's lower end
+        if not PAIR_ROOTS:
+            return self._smallest_roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi],
+                                        np.where(lower, pa[gi], pb[gi]), fi)
         pair_of = np.concatenate([[0], self.margin.watched]).astype(np.int64)
         pair = np.where(fi > 0, pair_of[fi], np.where(lower, pa[gi], pb[gi]))
         va = np.where(fi > 0, fa[gi, fi], np.where(lower, fa[gi, 0], xa[gi]))
@@ -319,16 +342,19 @@ class CollisionColumns:
         return root, code
 
     def _smallest_roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
-                        fa: np.ndarray, fb: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Roots [m] of the smallest distance in brackets (za, zb) (values fa, fb of opposite
-        signs) to `root_tol`, and the smallest pair at each bracket's colliding end (`pair`: at
-        the gap's)."""
-        pair = pair.copy()
+                        fa: np.ndarray, fb: np.ndarray, pair: np.ndarray, fi: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Roots [m] of function fi (default 0: the smallest distance; `_functions`), every pair
+        evaluated, in brackets (za, zb) (values fa, fb of opposite signs) to `root_tol`, and the
+        pair that binds: a watched function's own, else the smallest pair at each bracket's
+        colliding end (`pair`: at the gap's)."""
+        fi = np.zeros(len(za), np.int64) if fi is None else fi
+        pair = np.where(fi > 0, np.concatenate([[0], self.margin.watched]).astype(np.int64)[fi], pair)
 
         def smallest(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
             d = self._evaluate(b, base, ax, col[rows], x)
-            y = d.min(axis=1, initial=np.inf)
-            neg = y < 0
+            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            neg = (y < 0) & (fi[rows] == 0)
             pair[rows[neg]] = d[neg].argmin(axis=1)
             return y
 
@@ -407,5 +433,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]
