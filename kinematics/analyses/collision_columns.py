@@ -195,37 +195,37 @@ class CollisionColumns:
         col, a, e, err = (np.concatenate(x) for x in zip(*out, strict=True))
         return col.astype(np.int64), a, e, np.abs(err)
 
-    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
-        the points of columns `col` at `z` in branch b."""
+    def _configurations(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, nq) configurations of branch b at the points of columns `col` at `z`, and where
+        they exist (rounding at a reach end can leave none: the kinematic end decides there)."""
         others = [k for k in range(3) if k != ax]
         pts = np.empty((len(z), 3))
         pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
         self.evaluations += len(z)
         m = self.margin
         q = configurations(m.mech, m.robot, pts, m.branches[b])
-        bad = ~np.isfinite(q).all(axis=1)
-        if bad.any():  # rounding at a reach end: no configuration; the kinematic end decides
-            d = np.full((len(z), len(m.distances.kinds)), np.inf)
-            if (~bad).any():
-                d[~bad] = m.distances.distances(q[~bad], signs=True)
-            return d
-        return m.distances.distances(q, signs=True)
+        return q, np.isfinite(q).all(axis=1)
+
+    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
+        the points of columns `col` at `z` in branch b (+inf where no configuration exists)."""
+        q, good = self._configurations(b, base, ax, col, z)
+        if good.all():
+            return self.margin.distances.distances(q, signs=True)
+        d = np.full((len(z), len(self.margin.distances.kinds)), np.inf)
+        if good.any():
+            d[good] = self.margin.distances.distances(q[good], signs=True)
+        return d
 
     def _pair_values(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray, pair: np.ndarray
                      ) -> np.ndarray:
         """(N,) the distance [m] of pair pair[n] alone (sign exact) at the point of column col[n]
-        at z[n] in branch b (+inf where rounding at a reach end leaves no configuration)."""
-        others = [k for k in range(3) if k != ax]
-        pts = np.empty((len(z), 3))
-        pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
-        self.evaluations += len(z)
-        m = self.margin
-        q = configurations(m.mech, m.robot, pts, m.branches[b])
-        good = np.isfinite(q).all(axis=1)
+        at z[n] in branch b (+inf where no configuration exists)."""
+        q, good = self._configurations(b, base, ax, col, z)
         out = np.full(len(z), np.inf)
         if good.any():
-            out[good] = m.distances.pair_distances(q[good], pair[good], signs=True)
+            out[good] = self.margin.distances.pair_distances(q[good], pair[good], signs=True)
         return out
 
     def _functions(self, d: np.ndarray) -> np.ndarray:
