@@ -134,21 +134,19 @@ class CollisionColumns:
         length[:, B], err[:, B] = klen[:, B], kerr[:, B]
         # one branch: its own columns are the union's (targets: the branch, the union)
         pieces = [self._branch_pieces(b, base, axis, z0, z1, kin if B == 1 else None) for b in range(B)]
+        col = np.concatenate([p[0] for p in pieces])
+        a, e, ca, ce = (np.ascontiguousarray(np.concatenate([p[n] for p in pieces], axis=1)) for n in range(1, 5))
+        first = np.cumsum([0] + [len(p[0]) for p in pieces])
+        # a branch's pieces lie in disjoint segments of its columns, in the same order for every
+        # function: one sort by the first function's starts serves them all
+        own = [first[b] + np.lexsort((p[1][0], p[0])) for b, p in enumerate(pieces)]
         for t in [*range(B), *range(B + 1, T)]:
             f = 0 if t < B or t == T - 1 else t - B
-            chosen = [pieces[t]] if t < B else pieces
-            col = np.concatenate([p[0] for p in chosen])
-            a = np.concatenate([p[1][f] for p in chosen])
-            e = np.concatenate([p[2][f] for p in chosen])
-            ca = np.concatenate([p[3][f] for p in chosen])
-            ce = np.concatenate([p[4][f] for p in chosen])
-            kin_err = sum(p[5] for p in chosen)
-            keep = e > a
-            order = np.lexsort((a[keep], col[keep]))
-            union_pieces(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
-                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, WATCHED_SIGNATURE or not B < t < T - 1, length, err, ends,
-                   sig, zbox)
-            err[:, t] += kin_err
+            # the union over several branches: their pieces overlap, sorted by this function's starts
+            order = own[t] if t < B else (own[0] if B == 1 else np.lexsort((a[f], col)))
+            union_pieces(col, order, a, e, ca, ce, f, t, t == T - 1, self.root_tol, SIGNATURE_PAIRS,
+                         WATCHED_SIGNATURE or not B < t < T - 1, length, err, ends, sig, zbox)
+            err[:, t] += pieces[t][5] if t < B else sum(p[5] for p in pieces)
         out_sig = (sig >> np.uint64(1)).astype(np.int64)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, err, ends, out_sig, zbox
