@@ -79,3 +79,30 @@ def test_closed_forms_agree_with_coal_on_random_configurations(robot, rng):
     apart = ~ok & (coal > 0)
     assert np.abs(full[apart] - coal[apart]).max() < 1e-9 and (np.sign(full[~ok]) == np.sign(coal[~ok])).all()
     assert np.array_equal(full[ok], d[ok])
+
+
+@pytest.mark.parametrize("robot", ["p2us-results", "delta"])
+def test_one_pair_per_configuration_is_the_full_evaluation(robot, rng):
+    """`pair_distances(q, pair)` (only pair[n]'s two shapes placed, on the chains of their joints)
+    is entry [n, pair[n]] of `distances(q)`: bit for bit where the closed form holds (the same
+    operations on the same joints), and, with `signs`, of the same sign everywhere (coal's EPA
+    depths of a rod deep in a plate depend on its warm start); in batches on one core and on every
+    core."""
+    from kinematics.generic import capsules
+
+    rb = load_robot(robot)
+    ad = AnalyticDistances(CollisionModel.from_robot(rb))
+    m = rb.model
+    q = rng.uniform(np.maximum(m.lowerPositionLimit, -np.pi), np.minimum(m.upperPositionLimit, np.pi), (3000, m.nq))
+    d, ok = ad.closed_form(q)
+    # half the rows ask for their smallest pair (overlaps), half for any
+    smallest = np.nanargmin(np.where(ok, d, np.inf), axis=1)
+    pair = np.where(rng.random(len(q)) < 0.5, smallest, rng.integers(0, len(ad.kinds), len(q)))
+    rows = np.arange(len(q))
+    for n in (len(q), capsules.PARALLEL_MIN - 1):  # every core, one core
+        one = ad.pair_distances(q[:n], pair[:n])
+        good = ok[rows[:n], pair[:n]]
+        assert good.mean() > 0.8 and np.array_equal(one[good], d[rows[:n], pair[:n]][good])
+        signs = ad.pair_distances(q[:n], pair[:n], signs=True)
+        full = ad.distances(q[:n], signs=True)[rows[:n], pair[:n]]
+        assert (full < 0).sum() > 50 and (np.sign(signs) == np.sign(full)).all()

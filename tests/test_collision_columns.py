@@ -76,3 +76,23 @@ def test_volume_matches_the_sampled_route_at_a_finer_step(p2us_results):
     assert len(a.pairs) == 2
     for p, q in zip(a.pairs, b.pairs, strict=True):
         assert p.links == q.links and abs(p.removed - q.removed) <= p.error + q.error
+
+
+def test_roots_on_one_pair_are_the_roots_on_every_pair(p2us_results, rng, monkeypatch):
+    """The collision ends refined on one pair's distance (`PAIR_ROOTS`: its two shapes alone, the
+    smallest distance's root checked by one full evaluation at the bracket's free end) are those
+    refined on the targets' functions with every pair evaluated: on 200 random columns of
+    p2us-results every target's length agrees within 2 brackets (1e-10 m) per end, and the
+    signatures (which pair binds at each collision end) are the same."""
+    import kinematics.analyses.collision_columns as cc
+
+    mech, robot, dist, lo, hi, scan, watched, margin = p2us_results
+    ax = int(np.argmin(hi - lo))
+    others = [k for k in range(3) if k != ax]
+    base = lo[others] + (hi[others] - lo[others]) * rng.random((200, 2))
+    one = margin.exact_columns(base, ax, lo[ax], hi[ax])
+    monkeypatch.setattr(cc, "PAIR_ROOTS", False)
+    every = margin.exact_columns(base, ax, lo[ax], hi[ax])
+    assert (one[0][:, 1] - one[0][:, -1]).max() > 0.05  # collisions shorten columns
+    assert np.all(np.abs(one[0] - every[0]) <= 2e-10 * np.maximum(one[2], 1))
+    assert np.array_equal(one[3], every[3])

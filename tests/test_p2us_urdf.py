@@ -122,3 +122,31 @@ def test_degenerate_design_cli(tmp_path, capsys):
         code, stdout, err = run(capsys, "urdf", "p2us", *flags, "-o", str(out))
         assert code == 2 and stdout == "" and len(err.strip().splitlines()) == 1
         assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("name", ["p2us", "p2us-results"])
+def test_compiled_configurations_are_the_closed_forms(name, rng):
+    """`configurations_at` (compiled, one pass per point) against the closed forms it replaces
+    (`limb_ik` per mode, `passive_angles`, the tree's named values) at random points of the
+    bounding box in every working mode: the same NaN pattern (a limb that cannot reach) and the
+    same values to 1e-11 (the IK square root near a reach boundary amplifies the roundings of a
+    differently ordered sum: measured <= 8e-13 rad)."""
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.mechanisms.p2us.closed_form import limb_ik, passive_angles
+    from kinematics.mechanisms.p2us.urdf import configurations_at, theta_centre
+    from kinematics.mechanisms.three_limb import urdf as three_limb
+    from kinematics.mechanisms.three_limb.closed_form import MODES
+
+    robot = load_robot(name)
+    mech = mechanism_of(robot)
+    lo, hi = mech.bounding_box("all")
+    pts = lo + (hi - lo) * rng.random((4000, 3))
+    for mode in MODES:
+        q, n = three_limb.mode_solutions(limb_ik, mech.params, pts, mode)
+        theta, phi = passive_angles(mech.params, n)
+        ref = three_limb.tree_arrays(robot.model, three_limb.tree_value_arrays(
+            "slider", q, "u_theta", theta, phi, theta_centre(mech.params) - theta[:, 0]))
+        got = configurations_at(mech.params, robot.model, pts, mode)
+        assert 0.2 < np.isfinite(ref).all(axis=1).mean() < 0.9  # points in and out of reach
+        assert np.array_equal(np.isnan(got), np.isnan(ref))
+        assert np.nanmax(np.abs(got - ref)) < 1e-11

@@ -103,21 +103,30 @@ def split_close(col, a, e, cells, lo, g):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def union_pieces(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, ends, sig, zbox):  # pragma: no cover - compiled
-    """Target t's union of the pieces (sorted by column, then start): its length, ends, the
-    collision ends' errors (root_tol each), and their binding pairs hashed into the signature;
-    the extent for the last target."""
-    n = len(col)
+def union_pieces(col, order, a, e, ca, ce, f, t, last, root_tol, by_pair, hashed, length, err, ends, sig,
+                 zbox):  # pragma: no cover - compiled
+    """Target t's union of function f's pieces k = order[0], order[1], ... (sorted by column
+    col[k], then start a[f, k]; rows of a, e, ca, ce (F, K) per function; empty pieces, e <= a,
+    skipped): its length, ends, the collision ends' errors (root_tol each), and (`hashed`) their
+    binding pairs hashed into the signature; the extent for the last target."""
+    n = len(order)
     i = 0
     while i < n:
-        c = col[i]
+        k = order[i]
+        if e[f, k] <= a[f, k]:
+            i += 1
+            continue
+        c = col[k]
         rank = 0
-        cur_a, cur_e, code_a, code_e = a[i], e[i], ca[i], ce[i]
+        cur_a, cur_e, code_a, code_e = a[f, k], e[f, k], ca[f, k], ce[f, k]
         j = i + 1
         while True:
-            if j < n and col[j] == c and a[j] <= cur_e:
-                if e[j] > cur_e:
-                    cur_e, code_e = e[j], ce[j]
+            while j < n and e[f, order[j]] <= a[f, order[j]]:
+                j += 1
+            if j < n and col[order[j]] == c and a[f, order[j]] <= cur_e:
+                kj = order[j]
+                if e[f, kj] > cur_e:
+                    cur_e, code_e = e[f, kj], ce[f, kj]
                 j += 1
                 continue
             length[c, t] += cur_e - cur_a
@@ -125,13 +134,15 @@ def union_pieces(col, a, e, ca, ce, t, last, root_tol, by_pair, length, err, end
             for code in (code_a, code_e):
                 if code > 0:
                     err[c, t] += root_tol
-                    sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
+                    if hashed:
+                        sig[c] = (sig[c] ^ np.uint64(((t + 1) * 4096 + rank) * 65536 + (code if by_pair else 1))) * _PRIME
                 rank += 1
             if last:
                 zbox[c, 0] = min(zbox[c, 0], cur_a)
                 zbox[c, 1] = max(zbox[c, 1], cur_e)
-            if j < n and col[j] == c:
-                cur_a, cur_e, code_a, code_e = a[j], e[j], ca[j], ce[j]
+            if j < n and col[order[j]] == c:
+                kj = order[j]
+                cur_a, cur_e, code_a, code_e = a[f, kj], e[f, kj], ca[f, kj], ce[f, kj]
                 j += 1
                 continue
             break

@@ -18,13 +18,19 @@ interval is free):
   negative at both ends, stays negative when some pair provably does or |m(a)| + |m(b)| >
   max_p s_p w. Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
 * every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
-  8th step on); the binding pair at a root is the smallest pair at its colliding side;
+  8th step on) on one pair's distance, its two shapes alone placed
+  (`AnalyticDistances.pair_distances`): a watched pair's, or, for the smallest distance, the pair
+  smallest at the gap's colliding end, whose root is the smallest distance's when every pair is
+  clear at the final bracket's free end (one full evaluation; else the smallest distance itself
+  is refined over the gap); a gap and pair shared by several functions is refined once. The
+  binding pair at a root is that pair;
 * the collision-free pieces of every branch, and their unions over the branches, give the
   targets' lengths: each branch's, the kinematic union (the exact columns' own), the union with
   each watched pair alone, the union with every pair.
 
 Errors: the kinematic ends' (the exact columns') plus `root_tol` per collision end. The signature
-is the kinematic one combined with, per target, the binding pair of each collision end in order,
+is the kinematic one combined with, per target (the watched pairs' own only with
+`WATCHED_SIGNATURE`), the binding pair of each collision end in order,
 so the column engine locates where a collision end appears, vanishes or changes pair as it does a
 kinematic one. What it can miss, beside the exact columns' caveats: the slopes are observed on the
 pre-scan's grid and the curvatures on the samples, not bounded (a pair closing in faster, as near a
@@ -48,13 +54,26 @@ from kinematics.analyses.collision_column_kernels import (
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 
-SPACING = 2.0
+SPACING = 4.0
 """The collision margin's first samples along a column are SPACING x the column step apart (the gap
-tests refine where a root may hide; at 1 x p2us-results took 1.5 x the CPU time for the same
-volume to 5e-9 m^3 at rtol 1e-3)."""
+tests refine where a root may hide; the check run halves it). p2us-results, mode ---, rtol 1e-3,
+first run: at 2 x 4.5M samples, 32.8 s CPU; at 4 x 3.2M, 29.0 s, the same volume to 1e-7 m^3 and
+every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x."""
 
 SIGNATURE_PAIRS = True
-"""Whether a collision end's binding pair enters the column's signature (else only its rank)."""
+"""Whether a collision end's binding pair enters the column's signature (else only its rank; off,
+the same run took 5 % more columns)."""
+
+PAIR_ROOTS = True
+"""Whether roots are refined on one pair's distance (module docstring; else every root on its
+function: the smallest distance, or a watched pair's, evaluating every pair)."""
+
+WATCHED_SIGNATURE = False
+"""Whether the collision ends of the watched pairs' own targets (the union with one pair alone)
+enter the signature too. Off, the quadrature locates the breaks of the branches' and the union's
+collision-free lengths only; a watched target's own ends are kinks its adaptive rules refine
+around (the same run: 173k columns on, 140k off, every removal the same within 1e-6 m^3, errors
+5e-5)."""
 
 CHUNK_COLUMNS = 8192
 """Most columns per batch (about 20 samples of every pair per column)."""
@@ -115,20 +134,19 @@ class CollisionColumns:
         length[:, B], err[:, B] = klen[:, B], kerr[:, B]
         # one branch: its own columns are the union's (targets: the branch, the union)
         pieces = [self._branch_pieces(b, base, axis, z0, z1, kin if B == 1 else None) for b in range(B)]
+        col = np.concatenate([p[0] for p in pieces])
+        a, e, ca, ce = (np.ascontiguousarray(np.concatenate([p[n] for p in pieces], axis=1)) for n in range(1, 5))
+        first = np.cumsum([0] + [len(p[0]) for p in pieces])
+        # a branch's pieces lie in disjoint segments of its columns, in the same order for every
+        # function: one sort by the first function's starts serves them all
+        own = [first[b] + np.lexsort((p[1][0], p[0])) for b, p in enumerate(pieces)]
         for t in [*range(B), *range(B + 1, T)]:
             f = 0 if t < B or t == T - 1 else t - B
-            chosen = [pieces[t]] if t < B else pieces
-            col = np.concatenate([p[0] for p in chosen])
-            a = np.concatenate([p[1][f] for p in chosen])
-            e = np.concatenate([p[2][f] for p in chosen])
-            ca = np.concatenate([p[3][f] for p in chosen])
-            ce = np.concatenate([p[4][f] for p in chosen])
-            kin_err = sum(p[5] for p in chosen)
-            keep = e > a
-            order = np.lexsort((a[keep], col[keep]))
-            union_pieces(col[keep][order], a[keep][order], e[keep][order], ca[keep][order], ce[keep][order], t,
-                   t == T - 1, self.root_tol, SIGNATURE_PAIRS, length, err, ends, sig, zbox)
-            err[:, t] += kin_err
+            # the union over several branches: their pieces overlap, sorted by this function's starts
+            order = own[t] if t < B else (own[0] if B == 1 else np.lexsort((a[f], col)))
+            union_pieces(col, order, a, e, ca, ce, f, t, t == T - 1, self.root_tol, SIGNATURE_PAIRS,
+                         WATCHED_SIGNATURE or not B < t < T - 1, length, err, ends, sig, zbox)
+            err[:, t] += pieces[t][5] if t < B else sum(p[5] for p in pieces)
         out_sig = (sig >> np.uint64(1)).astype(np.int64)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, err, ends, out_sig, zbox
@@ -175,22 +193,38 @@ class CollisionColumns:
         col, a, e, err = (np.concatenate(x) for x in zip(*out, strict=True))
         return col.astype(np.int64), a, e, np.abs(err)
 
-    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
-        the points of columns `col` at `z` in branch b."""
+    def _configurations(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, nq) configurations of branch b at the points of columns `col` at `z`, and where
+        they exist (rounding at a reach end can leave none: the kinematic end decides there)."""
         others = [k for k in range(3) if k != ax]
         pts = np.empty((len(z), 3))
         pts[:, others[0]], pts[:, others[1]], pts[:, ax] = base[col, 0], base[col, 1], z
         self.evaluations += len(z)
         m = self.margin
         q = configurations(m.mech, m.robot, pts, m.branches[b])
-        bad = ~np.isfinite(q).all(axis=1)
-        if bad.any():  # rounding at a reach end: no configuration; the kinematic end decides
-            d = np.full((len(z), len(m.distances.kinds)), np.inf)
-            if (~bad).any():
-                d[~bad] = m.distances.distances(q[~bad], signs=True)
-            return d
-        return m.distances.distances(q, signs=True)
+        return q, np.isfinite(q).all(axis=1)
+
+    def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
+        the points of columns `col` at `z` in branch b (+inf where no configuration exists)."""
+        q, good = self._configurations(b, base, ax, col, z)
+        if good.all():
+            return self.margin.distances.distances(q, signs=True)
+        d = np.full((len(z), len(self.margin.distances.kinds)), np.inf)
+        if good.any():
+            d[good] = self.margin.distances.distances(q[good], signs=True)
+        return d
+
+    def _pair_values(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray, pair: np.ndarray
+                     ) -> np.ndarray:
+        """(N,) the distance [m] of pair pair[n] alone (sign exact) at the point of column col[n]
+        at z[n] in branch b (+inf where no configuration exists)."""
+        q, good = self._configurations(b, base, ax, col, z)
+        out = np.full(len(z), np.inf)
+        if good.any():
+            out[good] = self.margin.distances.pair_distances(q[good], pair[good], signs=True)
+        return out
 
     def _functions(self, d: np.ndarray) -> np.ndarray:
         """(N, F): the smallest distance over the pairs, then each watched pair's."""
@@ -225,7 +259,10 @@ class CollisionColumns:
                 ambiguous_gaps(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
             fn, arg = self._functions(d), d.argmin(axis=1)
             keep = ~amb
-            done.append((gc[keep], za[keep], zb[keep], fn[ia[keep]], fn[ib[keep]], arg[ia[keep]], arg[ib[keep]]))
+            ka, kb = ia[keep], ib[keep]
+            # each end's smallest pair, and its distance at the other end (a root of the smallest
+            # distance is first sought as that pair's own)
+            done.append((gc[keep], za[keep], zb[keep], fn[ka], fn[kb], arg[ka], arg[kb], d[ka, arg[kb]], d[kb, arg[ka]]))
             if not amb.any():
                 break
             # each gap to halve gets its own three samples (a, b, midpoint), its parent's curvature bound
@@ -238,33 +275,96 @@ class CollisionColumns:
             r = np.arange(m)
             gc, za, zb = np.concatenate([gc, gc]), np.concatenate([za, zm]), np.concatenate([zm, zb])
             ia, ib = np.concatenate([r, r + 2 * m]), np.concatenate([r + 2 * m, r + m])
-        gc, za, zb, fa, fb, pa, pb = (np.concatenate(x) for x in zip(*done, strict=True))
-        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb)
+        gc, za, zb, fa, fb, pa, pb, xa, xb = (np.concatenate(x) for x in zip(*done, strict=True))
+        return self._pieces(b, base, ax, gc, za, zb, fa, fb, pa, pb, xa, xb)
 
     def _pieces(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
-                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> tuple[np.ndarray, ...]:
+                fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray, xa: np.ndarray, xb: np.ndarray
+                ) -> tuple[np.ndarray, ...]:
         """Each final gap's free piece per function (values fa, fb (G, F) at its ends, smallest
-        pairs pa, pb there), its sign changes refined to roots."""
+        pairs pa, pb there, pa's distance xb at the upper end and pb's xa at the lower), its sign
+        changes refined to roots."""
         F = fa.shape[1]
         starts, stops = np.repeat(za[None], F, 0), np.repeat(zb[None], F, 0)
         ca, ce = np.zeros((F, len(gc)), np.int64), np.zeros((F, len(gc)), np.int64)
-        pair_of = np.concatenate([[-1], self.margin.watched])
         gi, fi = np.nonzero((fa >= 0) != (fb >= 0))
-        root, code = self._roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi], fi,
-                                 np.where(fa[gi, fi] < 0, pa[gi], pb[gi]))
-        code = np.where(pair_of[fi] >= 0, pair_of[fi], code) + 1
+        root, code = self._roots(b, base, ax, gc, za, zb, fa, fb, pa, pb, xa, xb, gi, fi)
         up = fa[gi, fi] < 0  # colliding below the root: the piece starts there
-        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up]
-        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up]
+        starts[fi[up], gi[up]], ca[fi[up], gi[up]] = root[up], code[up] + 1
+        stops[fi[~up], gi[~up]], ce[fi[~up], gi[~up]] = root[~up], code[~up] + 1
         out = (fa < 0) & (fb < 0)
         stops[out.T] = starts[out.T]  # empty pieces (dropped by the union)
         return gc, starts, stops, ca, ce
 
-    def _roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
-               fa: np.ndarray, fb: np.ndarray, fi: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Roots [m] of function fi in brackets (za, zb) (values fa, fb of opposite signs) to
-        `root_tol`, and the smallest pair at each bracket's colliding end."""
-        za, zb, fa, fb, pair = za.copy(), zb.copy(), fa.copy(), fb.copy(), pair.copy()
+    def _roots(self, b: int, base: np.ndarray, ax: int, gc: np.ndarray, za: np.ndarray, zb: np.ndarray,
+               fa: np.ndarray, fb: np.ndarray, pa: np.ndarray, pb: np.ndarray, xa: np.ndarray, xb: np.ndarray,
+               gi: np.ndarray, fi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The root [m] of function fi[r] in gap gi[r] (its values change sign there) to
+        `root_tol`, and the pair that binds there.
+
+        Each is first sought as one pair's own root (`AnalyticDistances.pair_distances`: that
+        pair's two shapes alone, about a third of a full evaluation): a watched pair's, or, for
+        the smallest distance, the pair smallest at the gap's colliding end; a gap and pair
+        shared by several functions is refined once. The smallest distance's root is that
+        pair's when every pair is clear at the final bracket's free end (one full evaluation
+        there); where one is not (another pair takes over inside the gap), the smallest
+        distance itself is refined over the gap."""
+        n_pairs = len(self.margin.distances.kinds)
+        lower = fa[gi, fi] < 0  # colliding at the gap's lower end
+        if not PAIR_ROOTS:
+            return self._smallest_roots(b, base, ax, gc[gi], za[gi], zb[gi], fa[gi, fi], fb[gi, fi],
+                                        np.where(lower, pa[gi], pb[gi]), fi)
+        pair_of = np.concatenate([[0], self.margin.watched]).astype(np.int64)
+        pair = np.where(fi > 0, pair_of[fi], np.where(lower, pa[gi], pb[gi]))
+        va = np.where(fi > 0, fa[gi, fi], np.where(lower, fa[gi, 0], xa[gi]))
+        vb = np.where(fi > 0, fb[gi, fi], np.where(lower, xb[gi], fb[gi, 0]))
+        _, first, task = np.unique(gi * n_pairs + pair, return_index=True, return_inverse=True)
+        g, k = gi[first], pair[first]
+
+        def one_pair(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+            return self._pair_values(b, base, ax, gc[g[rows]], x, k[rows])
+
+        lo, hi, ylo, _ = self._illinois(one_pair, za[g], zb[g], va[first], vb[first])
+        root, code = 0.5 * (lo + hi), k.copy()
+        root, code = root[task], code[task]
+        smallest = np.flatnonzero(fi == 0)
+        if len(smallest):  # every pair clear at the free end: the smallest distance's root too
+            t = task[smallest]
+            free = np.where(ylo[t] >= 0, lo[t], hi[t])
+            clear = self._evaluate(b, base, ax, gc[gi[smallest]], free).min(axis=1, initial=np.inf) >= 0
+            again = smallest[~clear]
+            if len(again):
+                root[again], code[again] = self._smallest_roots(b, base, ax, gc[gi[again]], za[gi[again]],
+                                                                zb[gi[again]], fa[gi[again], 0], fb[gi[again], 0],
+                                                                pair[again])
+        return root, code
+
+    def _smallest_roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
+                        fa: np.ndarray, fb: np.ndarray, pair: np.ndarray, fi: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Roots [m] of function fi (default 0: the smallest distance; `_functions`), every pair
+        evaluated, in brackets (za, zb) (values fa, fb of opposite signs) to `root_tol`, and the
+        pair that binds: a watched function's own, else the smallest pair at each bracket's
+        colliding end (`pair`: at the gap's)."""
+        fi = np.zeros(len(za), np.int64) if fi is None else fi
+        pair = np.where(fi > 0, np.concatenate([[0], self.margin.watched]).astype(np.int64)[fi], pair)
+
+        def smallest(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+            d = self._evaluate(b, base, ax, col[rows], x)
+            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            neg = (y < 0) & (fi[rows] == 0)
+            pair[rows[neg]] = d[neg].argmin(axis=1)
+            return y
+
+        lo, hi, _, _ = self._illinois(smallest, za, zb, fa, fb)
+        return 0.5 * (lo + hi), pair
+
+    def _illinois(self, evaluate: Any, za: np.ndarray, zb: np.ndarray, fa: np.ndarray, fb: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Brackets (za, zb) of roots (values fa, fb of opposite signs; `evaluate(rows, z)` the
+        values at z of brackets `rows`) narrowed to `root_tol` (Illinois false position, bisection
+        from the 8th step on): the final brackets and their values."""
+        za, zb, fa, fb = za.copy(), zb.copy(), fa.copy(), fb.copy()
         side = np.zeros(len(za), np.int64)
         rows = np.arange(len(za))
         for step in range(ROOT_STEPS):
@@ -275,8 +375,7 @@ class CollisionColumns:
             a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
             tol = 0.25 * self.root_tol
             x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol) if step < 8 else 0.5 * (a + c)
-            d = self._evaluate(b, base, ax, col[rows], x)
-            y = self._functions(d)[np.arange(len(rows)), fi[rows]]
+            y = evaluate(rows, x)
             below = (y >= 0) == (ya >= 0)  # the root is above x
             # Illinois: halve the value kept at the end that stays twice in a row
             fb[rows[below & (side[rows] == 1)]] *= 0.5
@@ -284,9 +383,7 @@ class CollisionColumns:
             za[rows[below]], fa[rows[below]] = x[below], y[below]
             zb[rows[~below]], fb[rows[~below]] = x[~below], y[~below]
             side[rows] = np.where(below, 1, -1)
-            neg = y < 0
-            pair[rows[neg]] = d[neg].argmin(axis=1)
-        return 0.5 * (za + zb), pair
+        return za, zb, fa, fb
 
 
 def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -334,5 +431,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]

@@ -33,19 +33,26 @@ penetration depth, the shortest translation that separates them, when they overl
   half-space's nearest face is the plane).
 
 Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from one
-compiled pass over the tree of the geometries' joints (`_tree_kernel`; joint data as
+compiled pass over the tree of the geometries' joints (`capsule_kernels.tree_kernel`; joint data as
 `kinematics.generic.batched` reads them).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
 
 from kinematics.chunks import slices
+from kinematics.generic import capsule_kernels
+from kinematics.generic.capsule_kernels import (
+    pair_rows_kernel,
+    pair_rows_serial,
+    pairs_kernel,
+    pairs_serial,
+    tree_kernel,
+    tree_serial,
+)
 from kinematics.generic.collision import CollisionModel
 
 CAPSULE, PLATE, COAL, HALFSPACE = 0, 1, 2, 3
@@ -109,16 +116,18 @@ class AnalyticDistances:
         used = sorted({int(x) for x in pairs[kinds != COAL].ravel()})
         self._used = np.array(used, dtype=np.int64)
         self._tree = _Tree(model.robot.model, [int(objs[k].parentJoint) for k in used], model.robot.name)
+        self._joint_of = np.full(G, -1, dtype=np.int64)  # each closed-form shape's tree joint (-1: the world)
+        self._joint_of[self._used] = self._tree.of_geometry
 
     def _placements(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, G, 3) centres and (N, G, 3) z axes of the closed-form geometries in the world (one
-        compiled pass over the tree of their joints, `_tree_kernel`)."""
+        compiled pass over the tree of their joints, `capsule_kernels.tree_kernel`)."""
         N, G = len(q), len(self._radius)
         centre = np.zeros((N, G, 3))
         axis = np.zeros((N, G, 3))
         if len(self._used):
             t = self._tree
-            (_tree_kernel if N >= PARALLEL_MIN else _tree_serial)(np.ascontiguousarray(q), t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation,
+            (tree_kernel if N >= PARALLEL_MIN else tree_serial)(np.ascontiguousarray(q), t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation,
                          t.of_geometry, self._used, self._local_p, self._local_axis, centre, axis)
         return centre, axis
 
@@ -131,7 +140,7 @@ class AnalyticDistances:
         ok = np.empty((len(q), len(self.kinds)), dtype=np.bool_)
         for s in slices(len(q), CHUNK):
             centre, axis = self._placements(q[s])
-            (_kernel if len(centre) >= PARALLEL_MIN else _kernel_serial)(
+            (pairs_kernel if len(centre) >= PARALLEL_MIN else pairs_serial)(
                 centre, axis, self._radius, self._half, self._pairs, self.kinds, out[s], ok[s])
         return out, ok
 
@@ -154,6 +163,30 @@ class AnalyticDistances:
             out[rows] = np.where(ok[rows], out[rows], d)
         return out
 
+    def pair_distances(self, q: np.ndarray, pair: np.ndarray, signs: bool = False) -> np.ndarray:
+        """(N,) the signed distance [m] of pair `pair[n]` at configuration q[n]: the entries
+        `distances(q, signs)[n, pair[n]]`, with only that pair's two shapes placed (a root
+        refinement follows one pair: about 1/P of the pair work, a few joints of the tree)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        pair = np.ascontiguousarray(pair, dtype=np.int64)
+        if q.ndim != 2 or q.shape[1] != self.model.robot.model.nq or not np.isfinite(q).all():
+            return self.model.distances(q)  # raises the model's error
+        out = np.full(len(q), np.nan)
+        ok = np.zeros(len(q), dtype=np.bool_)
+        if len(q) and len(self._used):
+            t = self._tree
+            (pair_rows_kernel if len(q) >= PARALLEL_MIN else pair_rows_serial)(
+                q, pair, t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation, t.chain, t.chain_len,
+                self._joint_of, self._local_p, self._local_axis, self._radius, self._half, self._pairs, self.kinds,
+                out, ok)
+        if signs:
+            ok |= (self.kinds[pair] == PLATE) & (out > 0)
+        rows = np.flatnonzero(~ok)
+        for k in np.unique(pair[rows]):
+            r = rows[pair[rows] == k]
+            out[r] = self.model.distances(q[r], only=np.array([k]))[:, k]
+        return out
+
     def margin(self, q: np.ndarray, signs: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Smallest signed distance [m] over the pairs and its pair index (-1, +inf: no pair);
         `signs` as in `distances`."""
@@ -166,7 +199,7 @@ class AnalyticDistances:
 
 class _Tree:
     """The joints on the way from the root to the given joints (parents before children), compiled
-    for `_tree_kernel`: each one's parent (index in this list, -1 for the world), kind
+    for `capsule_kernels.tree_kernel`: each one's parent (index in this list, -1 for the world), kind
     (`batched.REVOLUTE`, `CONTINUOUS` or `PRISMATIC`), unit axis, first index in q and placement
     in its parent; `of_geometry[k]` the list index of the k-th given joint (-1: the world)."""
 
@@ -200,6 +233,16 @@ class _Tree:
                 self.kind[m], self.axis[m], self.idx_q[m] = bk.kind[k], bk.axis[k], bk.idx_q[k]
                 self.rotation[m], self.translation[m] = bk.rotation[k], bk.translation[k]
         self.of_geometry = np.array([at.get(j, -1) for j in joints], dtype=np.int64)
+        # chain[m, :chain_len[m]]: tree joint m's ancestors and itself, parents first (one shape's
+        # joints alone, `capsule_kernels.pair_rows_kernel`)
+        self.chain = np.zeros((n, max(n, 1)), dtype=np.int64)
+        self.chain_len = np.zeros(n, dtype=np.int64)
+        for m in range(n):
+            up = [m]
+            while self.parent[up[-1]] >= 0:
+                up.append(int(self.parent[up[-1]]))
+            self.chain_len[m] = len(up)
+            self.chain[m, :len(up)] = up[::-1]
 
 
 def _joint_frame(model: Any, joint: int) -> int:
@@ -211,204 +254,7 @@ def _joint_frame(model: Any, joint: int) -> int:
                 and fr.placement.isIdentity()) or (joint == 0 and f == 0))
 
 
-@njit(cache=True, parallel=True)
-def _tree_kernel(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis
-                 ):  # pragma: no cover - compiled
-    """World placements of every joint of the tree (parents first), oM_j = oM_parent M_j X_j(q)
-    with X_j a rotation by t about the axis a (Rodrigues, as Pinocchio; (cos t, sin t) from q for
-    a continuous joint) or a translation t a; then each used geometry's centre oR_j p + op_j and
-    axis oR_j a_local, in blocks of 64 configurations on every core."""
-    J = parent.shape[0]
-    for blk in prange((q.shape[0] + 63) // 64):
-        R = np.empty((J, 3, 3))
-        p = np.empty((J, 3))
-        for n in range(blk * 64, min(q.shape[0], blk * 64 + 64)):
-            _tree_row(q, n, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis,
-                      R, p)
-
-
-@njit(cache=True)
-def _tree_serial(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis
-                 ):  # pragma: no cover - compiled
-    """`_tree_kernel` on one core (small batches: no parallel launch)."""
-    J = parent.shape[0]
-    R = np.empty((J, 3, 3))
-    p = np.empty((J, 3))
-    for n in range(q.shape[0]):
-        _tree_row(q, n, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis, R, p)
-
-
-@njit(cache=True, inline="always")
-def _tree_row(q, n, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis, R, p
-              ):  # pragma: no cover - compiled
-    """`_tree_kernel` at configuration n, with scratch R (J, 3, 3) and p (J, 3)."""
-    for j in range(parent.shape[0]):
-        _joint_pose(q, n, j, parent[j], kind[j], axis, iq[j], rot, tra, R, p)
-    for m in range(used.shape[0]):
-        g, j = used[m], of_geometry[m]
-        for r in range(3):
-            if j < 0:
-                centre[n, g, r], out_axis[n, g, r] = local_p[g, r], local_axis[g, r]
-            else:
-                centre[n, g, r] = p[j, r] + R[j, r, 0] * local_p[g, 0] + R[j, r, 1] * local_p[g, 1] \
-                    + R[j, r, 2] * local_p[g, 2]
-                out_axis[n, g, r] = R[j, r, 0] * local_axis[g, 0] + R[j, r, 1] * local_axis[g, 1] \
-                    + R[j, r, 2] * local_axis[g, 2]
-
-
-@njit(cache=True, inline="always")
-def _joint_pose(q, n, j, u, kind, axis, iq, rot, tra, R, p):  # pragma: no cover - compiled
-    """Joint j's world rotation R[j] and origin p[j] at configuration q[n], from its parent u's."""
-    for r in range(3):
-        if u < 0:
-            for c in range(3):
-                R[j, r, c] = rot[j, r, c]
-            p[j, r] = tra[j, r]
-        else:
-            for c in range(3):
-                R[j, r, c] = R[u, r, 0] * rot[j, 0, c] + R[u, r, 1] * rot[j, 1, c] + R[u, r, 2] * rot[j, 2, c]
-            p[j, r] = p[u, r] + R[u, r, 0] * tra[j, 0] + R[u, r, 1] * tra[j, 1] + R[u, r, 2] * tra[j, 2]
-    ax, ay, az = axis[j, 0], axis[j, 1], axis[j, 2]
-    t = q[n, iq]
-    if kind == 2:  # prismatic: p += t R a
-        for r in range(3):
-            p[j, r] += t * (R[j, r, 0] * ax + R[j, r, 1] * ay + R[j, r, 2] * az)
-        return
-    if kind == 1:  # continuous: (cos t, sin t) from q
-        cs, sn = t, q[n, iq + 1]
-    else:
-        cs, sn = math.cos(t), math.sin(t)
-    d = 1.0 - cs
-    e00, e01, e02 = cs + d * ax * ax, d * ax * ay - sn * az, d * ax * az + sn * ay
-    e10, e11, e12 = d * ay * ax + sn * az, cs + d * ay * ay, d * ay * az - sn * ax
-    e20, e21, e22 = d * az * ax - sn * ay, d * az * ay + sn * ax, cs + d * az * az
-    for r in range(3):
-        a0, a1, a2 = R[j, r, 0], R[j, r, 1], R[j, r, 2]
-        R[j, r, 0] = a0 * e00 + a1 * e10 + a2 * e20
-        R[j, r, 1] = a0 * e01 + a1 * e11 + a2 * e21
-        R[j, r, 2] = a0 * e02 + a1 * e12 + a2 * e22
-
-
-@njit(cache=True, inline="always")
-def _segments(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):  # pragma: no cover - compiled
-    """Distance [m] between segments p1 + s d1 and p2 + t d2, s, t in [0, 1] (Ericson 5.1.9,
-    clamped; parallel and degenerate segments included)."""
-    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
-    a = d1x * d1x + d1y * d1y + d1z * d1z
-    e = d2x * d2x + d2y * d2y + d2z * d2z
-    f = d2x * rx + d2y * ry + d2z * rz
-    eps = 1e-300
-    s = 0.0
-    t = 0.0
-    if a <= eps and e <= eps:
-        pass
-    elif a <= eps:
-        t = min(max(f / e, 0.0), 1.0)
-    else:
-        c = d1x * rx + d1y * ry + d1z * rz
-        if e <= eps:
-            s = min(max(-c / a, 0.0), 1.0)
-        else:
-            b = d1x * d2x + d1y * d2y + d1z * d2z
-            denom = a * e - b * b
-            if denom > 0.0:
-                s = min(max((b * f - c * e) / denom, 0.0), 1.0)
-            t = (b * s + f) / e
-            if t < 0.0:
-                t = 0.0
-                s = min(max(-c / a, 0.0), 1.0)
-            elif t > 1.0:
-                t = 1.0
-                s = min(max((b - c) / a, 0.0), 1.0)
-    x = rx + d1x * s - d2x * t
-    y = ry + d1y * s - d2y * t
-    z = rz + d1z * s - d2z * t
-    return math.sqrt(x * x + y * y + z * z)
-
-
-@njit(cache=True, parallel=True)
-def _kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
-    for n in prange(centre.shape[0]):
-        _pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok)
-
-
-@njit(cache=True)
-def _kernel_serial(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
-    """`_kernel` on one core (small batches: no parallel launch)."""
-    for n in range(centre.shape[0]):
-        _pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok)
-
-
-@njit(cache=True, inline="always")
-def _pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
-    """Every pair's closed form at configuration n."""
-    for k in range(pairs.shape[0]):
-        i = pairs[k, 0]
-        j = pairs[k, 1]
-        kind = kinds[k]
-        if kind == 2:
-            out[n, k] = np.nan
-            ok[n, k] = False
-            continue
-        hi = half[i]
-        ax, ay, az = axis[n, i, 0], axis[n, i, 1], axis[n, i, 2]
-        p1x = centre[n, i, 0] - hi * ax
-        p1y = centre[n, i, 1] - hi * ay
-        p1z = centre[n, i, 2] - hi * az
-        if kind == 0:
-            hj = half[j]
-            bx, by, bz = axis[n, j, 0], axis[n, j, 1], axis[n, j, 2]
-            dist = _segments(p1x, p1y, p1z, 2 * hi * ax, 2 * hi * ay, 2 * hi * az,
-                             centre[n, j, 0] - hj * bx, centre[n, j, 1] - hj * by, centre[n, j, 2] - hj * bz,
-                             2 * hj * bx, 2 * hj * by, 2 * hj * bz)
-            out[n, k] = dist - radius[i] - radius[j]
-            ok[n, k] = True
-            continue
-        if kind == 3:  # capsule i against the half-space j: n.x <= n.c
-            zu = axis[n, j, 0] * (p1x - centre[n, j, 0]) + axis[n, j, 1] * (p1y - centre[n, j, 1]) \
-                + axis[n, j, 2] * (p1z - centre[n, j, 2])
-            zv = zu + 2 * hi * (axis[n, j, 0] * ax + axis[n, j, 1] * ay + axis[n, j, 2] * az)
-            out[n, k] = min(zu, zv) - radius[i]
-            ok[n, k] = True
-            continue
-        # capsule i against plate j (axis a, centre c): end heights z and axis distances rho
-        cx, cy, cz = centre[n, j, 0], centre[n, j, 1], centre[n, j, 2]
-        a0, a1, a2 = axis[n, j, 0], axis[n, j, 1], axis[n, j, 2]
-        ux, uy, uz = p1x - cx, p1y - cy, p1z - cz
-        vx, vy, vz = ux + 2 * hi * ax, uy + 2 * hi * ay, uz + 2 * hi * az
-        zu = a0 * ux + a1 * uy + a2 * uz
-        zv = a0 * vx + a1 * vy + a2 * vz
-        wx, wy, wz = ux - zu * a0, uy - zu * a1, uz - zu * a2
-        ru = math.sqrt(wx * wx + wy * wy + wz * wz)
-        wx, wy, wz = vx - zv * a0, vy - zv * a1, vz - zv * a2
-        rv = math.sqrt(wx * wx + wy * wy + wz * wz)
-        r = radius[i]
-        h = half[j]
-        d = max(min(zu, zv) - r - h, -h - max(zu, zv) - r)
-        ok[n, k] = max(ru, rv) + r <= radius[j] - max(0.0, -d)
-        if ok[n, k] or d > 0.0:
-            out[n, k] = d  # exact, or a lower bound: the disk is in the slab
-            continue
-        # beside the disk: on the axis part within the band |z| <= h + r + m (m = h + r > 0) the
-        # segment's distance to the axis, less R + r, bounds the gap; beyond the band the
-        # height alone keeps the segment m + r away: min(m, that) when positive, else NaN
-        m = h + r
-        band = h + r + m
-        s0, s1 = 0.0, 1.0
-        if zv != zu:
-            sa = (-band - zu) / (zv - zu)
-            sb = (band - zu) / (zv - zu)
-            s0 = max(0.0, min(sa, sb))
-            s1 = min(1.0, max(sa, sb))
-        gap = m
-        if s0 <= s1:
-            e0x, e0y, e0z = p1x + 2 * hi * ax * s0, p1y + 2 * hi * ay * s0, p1z + 2 * hi * az * s0
-            rho = _segments(e0x, e0y, e0z, 2 * hi * ax * (s1 - s0), 2 * hi * ay * (s1 - s0), 2 * hi * az * (s1 - s0),
-                            cx - band * a0, cy - band * a1, cz - band * a2, 2 * band * a0, 2 * band * a1, 2 * band * a2)
-            gap = min(m, rho - radius[j] - r)
-        out[n, k] = gap if gap > 0.0 else np.nan
-
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels (for `kinematics.jit`)."""
-    return (_kernel, _kernel_serial, _tree_kernel, _tree_serial)
+    return capsule_kernels.kernels()

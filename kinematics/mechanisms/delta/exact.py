@@ -56,7 +56,13 @@ from kinematics.mechanisms.delta.roots import (
     roots_of_quadratic,
 )
 from kinematics.mechanisms.delta.scan import kernel_geometry, limb_kernel, scan
-from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column, other_axes
+from kinematics.mechanisms.three_limb.column_ends import (
+    PARALLEL_COLUMNS,
+    SIGNATURE_SEED,
+    add_gap,
+    close_column,
+    other_axes,
+)
 from kinematics.mechanisms.three_limb.margin import ThreeLimbMargin, column_buffers
 
 __all__ = ["ROOT_ERROR", "ExactColumns", "delta_margin", "kernels"]
@@ -268,30 +274,45 @@ def _sort(cand, err, ids, n):  # pragma: no cover - compiled
 def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig,
                     zbox):  # pragma: no cover - compiled
     M = base.shape[0]
-    o0, o1 = other_axes(ax)
-    T = modes.shape[0] + 1
     chunks = min(M, 64)
     for ch in prange(chunks):
-        p0 = np.zeros(3)
-        polys = np.zeros((3, _NPOLY + 2, _DEG + 1))
-        cand = np.empty(_CAP)
-        err = np.empty(_CAP)
-        ids = np.empty(_CAP, np.int64)
-        work = np.zeros((_DEG + 1, _DEG + 1))
-        crit = np.zeros((64, 2 * _DEG + 2))
-        prev_in = np.zeros(T, np.bool_)
-        pm = np.empty(8)
-        pt = np.zeros(3)
-        a = np.empty(8)
-        b = np.empty(8)
-        d = np.empty(8)
-        tbuf = np.zeros((4, _DEG + 1))
-        for c in range(ch * M // chunks, (ch + 1) * M // chunks):
-            p0[o0] = base[c, 0]
-            p0[o1] = base[c, 1]
-            p0[ax] = 0.0
-            out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, zbox, c, polys,
-                                     cand, err, ids, work, crit, prev_in, pm, pt, a, b, d, tbuf)
+        _columns_range(base, ch * M // chunks, (ch + 1) * M // chunks, ax, z0, z1, g, passive, modes, out_len, out_err,
+                       out_ends, out_sig, zbox)
+
+
+@njit(cache=True)
+def _columns_serial(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig,
+                    zbox):  # pragma: no cover - compiled
+    """`_columns_kernel` on one core (small batches: no parallel launch)."""
+    _columns_range(base, 0, base.shape[0], ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig, zbox)
+
+
+@njit(cache=True, inline="always")
+def _columns_range(base, c0, c1, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig,
+                   zbox):  # pragma: no cover - compiled
+    """Columns c0..c1 - 1 of `_columns_kernel`."""
+    o0, o1 = other_axes(ax)
+    T = modes.shape[0] + 1
+    p0 = np.zeros(3)
+    polys = np.zeros((3, _NPOLY + 2, _DEG + 1))
+    cand = np.empty(_CAP)
+    err = np.empty(_CAP)
+    ids = np.empty(_CAP, np.int64)
+    work = np.zeros((_DEG + 1, _DEG + 1))
+    crit = np.zeros((64, 2 * _DEG + 2))
+    prev_in = np.zeros(T, np.bool_)
+    pm = np.empty(8)
+    pt = np.zeros(3)
+    a = np.empty(8)
+    b = np.empty(8)
+    d = np.empty(8)
+    tbuf = np.zeros((4, _DEG + 1))
+    for c in range(c0, c1):
+        p0[o0] = base[c, 0]
+        p0[o1] = base[c, 1]
+        p0[ax] = 0.0
+        out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, zbox, c, polys,
+                                 cand, err, ids, work, crit, prev_in, pm, pt, a, b, d, tbuf)
 
 
 class ExactColumns:
@@ -318,8 +339,8 @@ class ExactColumns:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
         length, error, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
-        _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, error, ends,
-                        sig, zbox)
+        (_columns_kernel if len(base) >= PARALLEL_COLUMNS else _columns_serial)(
+            base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, error, ends, sig, zbox)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, error, ends, sig, zbox
 
@@ -333,4 +354,4 @@ def delta_margin(params: DeltaParams, cols: list[int], passive: bool) -> ThreeLi
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels of this module (for `kinematics.jit`)."""
-    return (_columns_kernel,)
+    return (_columns_kernel, _columns_serial)

@@ -35,7 +35,13 @@ from numba import njit, prange
 
 from kinematics.mechanisms.p2us.closed_form import P2USParams
 from kinematics.mechanisms.p2us.scan import check_limits, kernel_geometry, limb_kernel
-from kinematics.mechanisms.three_limb.column_ends import SIGNATURE_SEED, add_gap, close_column, other_axes
+from kinematics.mechanisms.three_limb.column_ends import (
+    PARALLEL_COLUMNS,
+    SIGNATURE_SEED,
+    add_gap,
+    close_column,
+    other_axes,
+)
 from kinematics.mechanisms.three_limb.margin import column_buffers
 
 ROOT_ERROR = 1e-13
@@ -207,6 +213,22 @@ def _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err
 @njit(cache=True, parallel=True)
 def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig, zbox):  # pragma: no cover
     M = base.shape[0]
+    chunks = min(M, 64)
+    for ch in prange(chunks):
+        _columns_range(base, ch * M // chunks, (ch + 1) * M // chunks, ax, z0, z1, g, passive, modes, out_len, out_err,
+                       out_ends, out_sig, zbox)
+
+
+@njit(cache=True)
+def _columns_serial(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig, zbox):  # pragma: no cover
+    """`_columns_kernel` on one core (small batches: no parallel launch)."""
+    _columns_range(base, 0, base.shape[0], ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig, zbox)
+
+
+@njit(cache=True, inline="always")
+def _columns_range(base, c0, c1, ax, z0, z1, g, passive, modes, out_len, out_err, out_ends, out_sig,
+                   zbox):  # pragma: no cover - compiled
+    """Columns c0..c1 - 1 of `_columns_kernel`."""
     cons = np.zeros((3, 6, 5))
     ncons = 2
     for i in range(3):
@@ -214,21 +236,19 @@ def _columns_kernel(base, ax, z0, z1, g, passive, modes, out_len, out_err, out_e
         cons[i] = ci
     o0, o1 = other_axes(ax)
     T = modes.shape[0] + 1
-    chunks = min(M, 64)
-    for ch in prange(chunks):
-        p0 = np.zeros(3)
-        cand = np.empty(64)
-        ids = np.empty(64, np.int64)
-        Dc = np.empty((3, 3))
-        prev_in = np.zeros(T, np.bool_)
-        pm = np.empty(8)
-        pt = np.zeros(3)
-        for c in range(ch * M // chunks, (ch + 1) * M // chunks):
-            p0[o0] = base[c, 0]
-            p0[o1] = base[c, 1]
-            p0[ax] = 0.0
-            out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err, out_ends,
-                                     zbox, c, cand, ids, Dc, prev_in, pm, pt)
+    p0 = np.zeros(3)
+    cand = np.empty(64)
+    ids = np.empty(64, np.int64)
+    Dc = np.empty((3, 3))
+    prev_in = np.zeros(T, np.bool_)
+    pm = np.empty(8)
+    pt = np.zeros(3)
+    for c in range(c0, c1):
+        p0[o0] = base[c, 0]
+        p0[o1] = base[c, 1]
+        p0[ax] = 0.0
+        out_sig[c] = _one_column(p0, ax, z0, z1, g, passive, modes, cons, ncons, out_len, out_err, out_ends,
+                                 zbox, c, cand, ids, Dc, prev_in, pm, pt)
 
 
 class ExactColumns:
@@ -248,12 +268,12 @@ class ExactColumns:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         base = np.ascontiguousarray(base, dtype=float)
         length, err, ends, sig, zbox = column_buffers(base.shape[0], len(self.modes) + 1)
-        _columns_kernel(base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, err, ends,
-                        sig, zbox)
+        (_columns_kernel if len(base) >= PARALLEL_COLUMNS else _columns_serial)(
+            base, int(axis), float(z0), float(z1), self.g, self.passive, self.modes, length, err, ends, sig, zbox)
         zbox[~np.isfinite(zbox)] = np.nan
         return length, err, ends, sig, zbox
 
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels of this module (for `kinematics.jit`)."""
-    return (_columns_kernel,)
+    return (_columns_kernel, _columns_serial)

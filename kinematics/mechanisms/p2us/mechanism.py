@@ -90,9 +90,9 @@ class P2US(ThreeLimbMechanism):
 
     def kernels(self) -> tuple[Any, ...]:
         import kinematics.mechanisms.p2us.scan as scan_module
-        from kinematics.mechanisms.p2us import exact
+        from kinematics.mechanisms.p2us import configurations, exact
 
-        return (*scan_module.kernels(), *exact.kernels())
+        return (*scan_module.kernels(), *exact.kernels(), *configurations.kernels())
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         self.check_limits(limits)

@@ -172,11 +172,10 @@ def joint_values_at(params: P2USParams, p: np.ndarray, mode: str = "---") -> dic
 def configurations_at(params: P2USParams, model: Any, points: np.ndarray, mode: str) -> np.ndarray:
     """Pinocchio configurations (N, nq) of this URDF's `model` with the platform at `points`
     (N, 3) [m] in working mode `mode` (loops closed; `joint_values_at` at many points, NaN rows
-    where a limb cannot reach)."""
-    q, n = three_limb.mode_solutions(limb_ik, params, points, mode)
-    theta, phi = passive_angles(params, n)
-    values = three_limb.tree_value_arrays("slider", q, "u_theta", theta, phi, theta_centre(params) - theta[:, 0])
-    return three_limb.tree_arrays(model, values)
+    where a limb cannot reach), compiled (`kinematics.mechanisms.p2us.configurations`)."""
+    from kinematics.mechanisms.p2us.configurations import configurations
+
+    return configurations(params, model, points, mode)
 
 
 def reference_configuration(params: P2USParams) -> dict[str, float]:

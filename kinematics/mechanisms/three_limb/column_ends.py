@@ -15,6 +15,11 @@ SIGNATURE_SEED = np.uint64(1469598103934665603)
 
 _PRIME = np.uint64(1099511628211)
 
+PARALLEL_COLUMNS = 512
+"""Fewer columns per call run on one core: a parallel launch costs more than they do (milliseconds
+on a loaded machine; the collision-free exact columns separate a column's intervals by calls on
+the few columns that have several)."""
+
 
 @njit(cache=True)
 def other_axes(ax):  # pragma: no cover - compiled
@@ -64,4 +69,4 @@ def close_column(c, prev_in, end_id, end_err, out_err, out_ends, h):  # pragma: 
     return np.int64(h >> np.uint64(1))
 
 
-__all__ = ["SIGNATURE_SEED", "add_gap", "close_column", "other_axes"]
+__all__ = ["PARALLEL_COLUMNS", "SIGNATURE_SEED", "add_gap", "close_column", "other_axes"]
