@@ -63,8 +63,8 @@ class ColumnVolume:
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
         root_tol: sampled columns: the width [m] every root was bracketed to.
-        fixed_error: (T,) the part of `error` that no finer step reduces (a bound a margin's own
-            `finish` adds, e.g. a serial arm's partial base turn), or None.
+        fixed_error: (T,) the part of `error` that no finer step reduces, or None (no path sets it
+            since a partial base turn is integrated rather than bounded; kept for its readers).
     """
 
     estimate: np.ndarray
@@ -130,7 +130,8 @@ def column_volume(
 
     Two optional attributes of the margin change the run: `profile` (3D margins of a solid of
     revolution: `margin`, `lo`, `hi`, `axis`, `weight` and `world_box` of its (rho, z) profile,
-    measured instead with the weight 2 pi rho, Pappus) and `for_check()` (the margin the check run
+    measured instead with the weight 2 pi rho, Pappus; with a `turn`, a partial turn's, by
+    `turned.add_turn`) and `for_check()` (the margin the check run
     uses, e.g. a search with more restarts, so that the check also compares two searches).
     """
     profile = getattr(margin, "profile", None)
@@ -138,7 +139,13 @@ def column_volume(
         res = column_volume(profile.margin, profile.lo, profile.hi, step=step, rtol=rtol, order=order,
                             pieces=pieces, axis=profile.axis, check=check, max_points=max_points, progress=progress,
                             floor=floor, root_tol=root_tol, weight=profile.weight)
-        return replace(res, box=profile.world_box(res.box))
+        res = replace(res, box=profile.world_box(res.box))
+        turn = getattr(profile, "turn", None)
+        if turn is not None:  # a partial turn: (L / 2 pi) x the solid + the circles' integral
+            from .turned import add_turn
+
+            res = add_turn(res, turn, profile.lo, profile.hi, step, check, max_points, root_tol)
+        return res
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     d = lo.shape[0]
