@@ -99,3 +99,19 @@ def test_fewer_freedoms_than_the_task_is_measure_zero(tmp_path):
     ws = measure_workspace(elbow, step=0.02, rtol=1e-3)
     assert ws.total == 0.0 and "2 freedoms in a 3-D task space" in ws.measure_zero and "a surface" in ws.measure_zero
     assert SerialArm(load_robot(MODELS / "arm3r_revolved.urdf")).measure_zero() is None
+
+
+def test_out_of_searches_is_not_converged_and_still_covers(tmp_path, monkeypatch):
+    """The integral's budget counts reach searches (a point of an arc set costs 2 pi r / step of
+    them): with 20 000 the partly covered arm (X exact, as above) stops after its first rounds,
+    `converged` false, and the estimate still covers the exact volume; the run spends at most one
+    round past the budget (each rule prices its next round before it halves)."""
+    from kinematics.analyses.columns import turned
+
+    monkeypatch.setattr(turned, "SEARCHES", 20_000)
+    B = 0.3
+    arm = SerialArm(load_robot(limited(tmp_path, True, B)))
+    exact = (1.5 * math.pi + 2 * B) / (2 * math.pi) * revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)
+    ws = measure_workspace(arm, step=0.05, rtol=1e-2)
+    assert not ws.result.converged and "error estimate above the tolerance" in ws.unconverged()["union"]
+    assert abs(ws.total - exact) <= ws.error

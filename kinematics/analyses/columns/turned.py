@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .quadrature import adaptive_1d
+from .quadrature import adaptive_1d, piecewise_1d
 
 SPAN = 8
 """The outer integral's starting intervals along r are SPAN x step wide (the engine's sampled columns' 8 x step)."""
@@ -26,6 +26,28 @@ FINEST = 1 / 64
 part of S appears, and whether a part shorter than the step is seen depends on the sampling and
 the search (the check run's business); below that scale the intervals are accepted with their
 estimates (the jump's variation over a width <= step / 64 counted), not refined without end."""
+
+SEARCHES = 2_000_000
+"""Each run of the integral (the first, and the check's) stops refining after this many reach
+searches (or the engine's `max_points`, if smaller), not converged: a point of a circle's arc set
+costs 2 pi r / step searches (~200 on the so100 at the CLI's 1 cm), so a budget counted in columns
+or points says nothing of the time (~30-60 s per run on 2 cores, the figures in docs/serial-workspace.md)."""
+
+BRACKET_SHARE = 0.01
+"""The share of the integral's `atol` the root brackets (the circles' gap ends, the columns'
+ends) may take at most: bisecting them to the engine's 1e-12 m cost ~33 rounds of searches per
+end, ~15 at this share for the so100 at rtol 1e-3."""
+
+NODES = 8
+"""A column's inside interval starts with NODES + 1 equally spaced points (`piecewise_1d`): the
+circles' kind changes between them are bisected one circle per halving, where a halving of
+`adaptive_1d` costs 8 circles."""
+
+BREAK_TOL = 1e-7
+"""[m] A kind change is bisected until its bracket times the integrand's jump is within a tenth of
+the interval's share of the tolerance, or to BREAK_TOL: a part of S appearing makes c jump by up
+to w (the largest gap split), so a bracket of step / 64 held ~1e-4 m^2 per change on the so100,
+over the whole tolerance at rtol 1e-3."""
 
 BISECTIONS = 60
 """Most bisections of a column's root bracket (from the step down to the root tolerance: ~20)."""
@@ -63,15 +85,24 @@ def _intervals(margin: Callable[[np.ndarray], np.ndarray], r: np.ndarray, z0: fl
 
 
 def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: float, atol: float, rtol: float,
-                   root_tol: float, max_points: int, order: int = 4) -> tuple[float, float, bool, int, int]:
+                   root_tol: float, budget: int, order: int = 4) -> tuple[float, float, bool, int, int]:
     """X = integral of g over the profile box [lo, hi] (2,) [m] to max(rtol |X|, atol): columns
     along z at the nodes of an adaptive rule over r (starting intervals `cell` [m] wide), each
     column's inside intervals of the profile (`g.margin`, sampled every `step` [m], ends bisected to
     `root_tol`) integrated by an adaptive rule of their own (g is continuous inside the profile, and
     falls to 0 at its boundary only where the arc sets shrink to points), the ends' brackets times
-    the integrand's bound r w in the error. Returns the value [m^3], its error estimate,
-    converged, columns and searches spent."""
+    the integrand's bound r w in the error (the brackets narrowed only to a BRACKET_SHARE of
+    `atol` over the box: each halving is a search per end, a circle's end one of many). `budget` bounds the searches (both rules price their
+    rounds in searches, `adaptive_1d`'s `cost`): when it runs out every interval is accepted with
+    its estimate, converged False. Returns the value [m^3], its error estimate, converged, columns
+    and searches spent."""
     spent = [0, 0]
+    # the brackets' errors (charged in full) need not be narrower than a share of the tolerance:
+    # the ends of the circles' gaps to `arc_tol` [m of arc] (<= 2 arc_tol per point over the box's
+    # area), the columns' ends to `end_tol` (<= end_tol r w per column over the r range)
+    area = float((hi[0] - lo[0]) * (hi[1] - lo[1]))
+    arc_tol = max(root_tol, BRACKET_SHARE * atol / (2 * area))
+    end_tol = max(root_tol, BRACKET_SHARE * atol / (2 * g.w * float(hi[0]) * float(hi[0] - lo[0])))
 
     def depth(width: float) -> int:
         """Halvings from `width` [m] down to FINEST x step."""
@@ -81,29 +112,37 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
 
     def column(_: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         M = len(r)
-        c, za, zb, width, n = _intervals(g.margin, r, lo[1], hi[1], step, root_tol)
+        c, za, zb, width, n = _intervals(g.margin, r, lo[1], hi[1], step, end_tol)
         spent[0] += M
         spent[1] += n
         value, error = np.zeros(M), np.zeros(M)
         if len(c):
             def f(p: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-                v, e, sig, used = g(np.column_stack([r[c[p]], z]), step, root_tol)
+                v, e, sig, used = g(np.column_stack([r[c[p]], z]), step, arc_tol)
                 spent[1] += used
-                return v[:, None], e[:, None], sig[:, None]
+                return v[:, None], e[:, None], sig
 
-            # a column's intervals share its tolerance (group)
-            q, e, _ok, _n = adaptive_1d(f, za, zb, 0.25 * rtol, atol_in, order=order, pieces=1,
-                                       max_evals=max_points, group=c, max_depth=depth(float((zb - za).max())))
+            before = spent[1]
+            # the outer rule prices its rounds so as to stay within the budget; a column cut short
+            # would carry its first rules' errors into the result, so the columns may overrun it,
+            # up to twice the budget in all
+            room, counter = max(2 * budget - before, 0), (lambda: spent[1] - before)
+            # each interval its share of the column's tolerance, by length
+            share = (zb - za) / np.bincount(c, zb - za, minlength=M)[c]
+            q, e, _ok, _n = piecewise_1d(f, za, zb, NODES, 0.25 * rtol, atol_in * share, order=order,
+                                         xtol=BREAK_TOL / max(float((zb - za).max()), step),
+                                         brk_tol=0.1 * atol_in * share, max_evals=room, cost=counter)
+            q, e = np.bincount(c, q[:, 0], minlength=M)[:, None], np.bincount(c, e[:, 0], minlength=M)[:, None]
             G = len(q)
             value[:G] += q[:, 0]
             error[:G] += e[:, 0] + np.bincount(c, width * r[c] * g.w, minlength=G)[:G]
         return value[:, None], error[:, None], np.bincount(c, minlength=M)[:, None].astype(np.int64)
 
     pieces = max(1, math.ceil((hi[0] - lo[0]) / cell))
-    q, e, conv, _ = adaptive_1d(column, lo[:1], hi[:1], rtol, atol, order=order, pieces=pieces, max_evals=max_points,
-                                max_depth=depth((hi[0] - lo[0]) / pieces))
+    q, e, conv, _ = adaptive_1d(column, lo[:1], hi[:1], rtol, atol, order=order, pieces=pieces, max_evals=budget,
+                                max_depth=depth((hi[0] - lo[0]) / pieces), cost=lambda: spent[1])
     # a column's own tolerance is a device: its errors are carried into the outer rule's, which judges
-    ok = bool(conv.all()) and spent[1] <= max_points
+    ok = bool(conv.all())
     return float(q[0, 0]), float(e[0, 0]), ok, spent[0], spent[1]
 
 
@@ -118,11 +157,13 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     base = f * float(res.estimate[-1])
     # X's share of the tolerance: a quarter of the volume's (|W| >= f |W_P|)
     atol = 0.25 * res.rtol * max(base, 1e-300)
-    x1, e1, c1, n1, s1 = integrate_turn(turn, lo, hi, step, SPAN * step, atol, res.rtol, root_tol, max_points)
+    budget = min(max_points, SEARCHES)
+    x1, e1, c1, n1, s1 = integrate_turn(turn, lo, hi, step, SPAN * step, atol, res.rtol, root_tol, budget)
     x, err, conv, agrees, diff = x1, e1, c1, True, math.nan
     points, columns = s1, n1
     if check:
-        x2, e2, c2, n2, s2 = integrate_turn(turn.for_check(), lo, hi, step / 2, SPAN * step, atol, res.rtol, root_tol, max_points)
+        x2, e2, c2, n2, s2 = integrate_turn(turn.for_check(), lo, hi, step / 2, SPAN * step, atol, res.rtol, root_tol,
+                                            budget)
         diff = abs(x1 - x2)
         agrees = diff <= e1 + e2
         x, err, conv, points, columns = x2, max(e2, diff), c1 and c2, s1 + s2, n1 + n2

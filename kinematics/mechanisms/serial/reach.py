@@ -47,6 +47,7 @@ from kinematics.generic.batched import compile_frame
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
 from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup, reduced
+from kinematics.mechanisms.serial.turn import partial_turn
 from kinematics.model.robot import Robot
 
 REACH_TOL = 1e-10
@@ -64,11 +65,6 @@ it gets no more restarts: with tens of thousands of samples the nearest one lies
 millimetres of any reached point, so a target that far is outside; the restarts are spent where
 the sign is at stake, near the boundary."""
 
-
-PARTIAL_TURN_MIN = math.pi
-"""A first revolute of at least this range [rad] (and less than a full turn) is measured as a
-partial turn on the profile (`kinematics.mechanisms.serial.turn`, whose circle measure holds for
-any range; the cover test that saves its work needs L >= pi); below it, in 3-D."""
 
 SERIAL_BELOW = 512
 """Fewer targets than this are searched on one thread: starting a parallel region costs
@@ -131,7 +127,7 @@ class Reach:
             orientation = reduced(robot, self.kin, orientation, REACH_TOL, self.setup.reach)
             self.orientation = orientation
             self.setup = oriented_setup(robot, self.kin, self.setup, orientation, REACH_TOL)
-        self.setup, self.turn = _partial_turn(robot, self.kin, self.setup, orientation)
+        self.setup, self.turn = partial_turn(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
         self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
         self.restarts, self.seed = restarts, seed
@@ -433,50 +429,3 @@ class ReachMargin:
     def for_check(self) -> ReachMargin:
         return ReachMargin(self.reach.checker, self.on_profile)
 
-
-def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
-                  ) -> tuple[Setup, tuple[float, float] | None]:
-    """A spatial setup whose first chain joint is a revolute moving the point through a range
-    L in [pi, 2 pi) (and leaving a fixed orientation unchanged): the revolved setup and the range
-    (lo, hi); otherwise (s, None). The reachable set W is then the turns by [lo, hi] of the set W0
-    the rest of the chain reaches: on each circle about the axis, A + [lo, hi] with A the
-    azimuths of W0 there, which is the whole circle as soon as A holds two azimuths at least
-    2 pi - L apart, and at least an arc of length L wherever A is not empty."""
-    import dataclasses
-
-    from kinematics.generic.batched import PRISMATIC
-    from kinematics.mechanisms.serial.joint_box import dof_of
-
-    if (s.mode != "spatial" or kin.kind[0] == PRISMATIC or not len(s.active) or bool(s.periodic[0])
-            or int(s.active[0]) != dof_of(robot, int(kin.idx_v[0]))):
-        return s, None
-    lo, hi = float(s.lo[0]), float(s.hi[0])
-    direction = kin.rotation[0] @ kin.axis[0]
-    if hi - lo < PARTIAL_TURN_MIN or (orientation is not None and not orientation.invariant_about(direction)):
-        return s, None
-    if orientation is None and _rest_rank(robot, kin, s) < 3:
-        return s, None  # W0 has no volume: its circles' azimuths are isolated, which sampling cannot find
-    return dataclasses.replace(s, mode="revolved", active=s.active[1:], lo=s.lo[1:], hi=s.hi[1:],
-                               periodic=s.periodic[1:], axis_origin=kin.translation[0].copy(),
-                               axis_direction=direction), (lo, hi)
-
-
-def _rest_rank(robot: Robot, kin: Any, s: Setup, probes: int = 32) -> int:
-    """The largest rank of the position Jacobian over the moving joints after the first at `probes`
-    seeded configurations of the joint box: below 3 the set W0 they reach has no volume."""
-    from kinematics.mechanisms.serial.joint_box import dof_of
-
-    chain = [dof_of(robot, int(v)) for v in kin.idx_v]
-    rest = [k for k, d in enumerate(chain) if d in set(s.active[1:].tolist())]
-    if len(rest) < 3:
-        return len(rest)
-    rng = np.random.default_rng(0)
-    Q = np.tile(s.base[chain].astype(float), (probes, 1))
-    pos = {int(d): i for i, d in enumerate(s.active)}
-    for k in rest:
-        i = pos[chain[k]]
-        Q[:, k] = s.lo[i] + (s.hi[i] - s.lo[i]) * rng.random(probes)
-    J = kernels.chain_jacobian_many(np.ascontiguousarray(Q), kin.kind, kin.axis, kin.rotation, kin.translation,
-                                    kin.frame_translation)[:, :, rest]
-    sv = np.linalg.svd(J, compute_uv=False)
-    return int((sv > np.maximum(1e-9 * sv[:, :1], 1e-12)).sum(axis=1).max())

@@ -1,5 +1,8 @@
 """A base revolute turning part of a turn: the measure of each circle about its axis.
 
+`partial_turn` decides when a chain is measured so (`Reach` calls it on its setup); `TurnExtent`
+is the integrand.
+
 The base turns through [a, b], a range L = b - a in [pi, 2 pi). With W0 the set the rest of the
 chain reaches with the base at 0, the reachable set is W = union over theta in [a, b] of
 Rot(theta) W0, so on the circle of radius r at height z about the axis (cylindrical (r, phi, z)),
@@ -39,13 +42,24 @@ another search at half the step.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from kinematics.mechanisms.serial import search as kernels
+from kinematics.mechanisms.serial.joint_box import Setup
+from kinematics.mechanisms.serial.orientation import ToolOrientation
+from kinematics.model.robot import Robot
+
 if TYPE_CHECKING:
     from kinematics.mechanisms.serial.reach import Reach
+
+PARTIAL_TURN_MIN = math.pi
+"""A first revolute of at least this range [rad] (and less than a full turn) is measured as a
+partial turn on the profile (`kinematics.mechanisms.serial.turn`, whose circle measure holds for
+any range; the cover test that saves its work needs L >= pi); below it, in 3-D."""
 
 OUTSIDE, PARTIAL, WHOLE = 0, 1, 2
 """The integrand's signature: outside P, an arc of the circle, the whole circle (the quadrature
@@ -165,3 +179,49 @@ class TurnExtent:
             ok = m >= 0
             a[act] = np.where(ok, mid, a[act])
             b[act] = np.where(ok, b[act], mid)
+
+
+def partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
+                 ) -> tuple[Setup, tuple[float, float] | None]:
+    """A spatial setup whose first chain joint is a revolute moving the point through a range
+    L in [pi, 2 pi) (and leaving a fixed orientation unchanged): the revolved setup and the range
+    (lo, hi); otherwise (s, None). The reachable set W is then the turns by [lo, hi] of the set W0
+    the rest of the chain reaches: on each circle about the axis, A + [lo, hi] with A the
+    azimuths of W0 there, which is the whole circle as soon as A holds two azimuths at least
+    2 pi - L apart, and at least an arc of length L wherever A is not empty."""
+    from kinematics.generic.batched import PRISMATIC
+    from kinematics.mechanisms.serial.joint_box import dof_of
+
+    if (s.mode != "spatial" or kin.kind[0] == PRISMATIC or not len(s.active) or bool(s.periodic[0])
+            or int(s.active[0]) != dof_of(robot, int(kin.idx_v[0]))):
+        return s, None
+    lo, hi = float(s.lo[0]), float(s.hi[0])
+    direction = kin.rotation[0] @ kin.axis[0]
+    if hi - lo < PARTIAL_TURN_MIN or (orientation is not None and not orientation.invariant_about(direction)):
+        return s, None
+    if orientation is None and rest_rank(robot, kin, s) < 3:
+        return s, None  # W0 has no volume: its circles' azimuths are isolated, which sampling cannot find
+    return dataclasses.replace(s, mode="revolved", active=s.active[1:], lo=s.lo[1:], hi=s.hi[1:],
+                               periodic=s.periodic[1:], axis_origin=kin.translation[0].copy(),
+                               axis_direction=direction), (lo, hi)
+
+
+def rest_rank(robot: Robot, kin: Any, s: Setup, probes: int = 32) -> int:
+    """The largest rank of the position Jacobian over the moving joints after the first at `probes`
+    seeded configurations of the joint box: below 3 the set W0 they reach has no volume."""
+    from kinematics.mechanisms.serial.joint_box import dof_of
+
+    chain = [dof_of(robot, int(v)) for v in kin.idx_v]
+    rest = [k for k, d in enumerate(chain) if d in set(s.active[1:].tolist())]
+    if len(rest) < 3:
+        return len(rest)
+    rng = np.random.default_rng(0)
+    Q = np.tile(s.base[chain].astype(float), (probes, 1))
+    pos = {int(d): i for i, d in enumerate(s.active)}
+    for k in rest:
+        i = pos[chain[k]]
+        Q[:, k] = s.lo[i] + (s.hi[i] - s.lo[i]) * rng.random(probes)
+    J = kernels.chain_jacobian_many(np.ascontiguousarray(Q), kin.kind, kin.axis, kin.rotation, kin.translation,
+                                    kin.frame_translation)[:, :, rest]
+    sv = np.linalg.svd(J, compute_uv=False)
+    return int((sv > np.maximum(1e-9 * sv[:, :1], 1e-12)).sum(axis=1).max())
