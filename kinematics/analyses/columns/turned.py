@@ -49,6 +49,15 @@ the interval's share of the tolerance, or to BREAK_TOL: a part of S appearing ma
 to w (the largest gap split), so a bracket of step / 64 held ~1e-4 m^2 per change on the so100,
 over the whole tolerance at rtol 1e-3."""
 
+CHECK_BUDGET = 2
+"""The check run (half the step: each circle and column sampled twice as finely) may spend this
+many times the first run's budget."""
+
+LADDER_START, LADDER_FACTOR = 1e-2, 4.0
+"""`ladder`'s first tolerance and its ratio: a run at rtol 1e-3 from the start spent the so100's
+budget on the first columns' inner rules (~14 000 searches a column) and ended further from X
+(+-2e-3 m^3) than a complete run at 1e-2 (+-1.9e-4 m^3 in fewer searches)."""
+
 BISECTIONS = 60
 """Most bisections of a column's root bracket (from the step down to the root tolerance: ~20)."""
 
@@ -146,6 +155,34 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
     return float(q[0, 0]), float(e[0, 0]), ok, spent[0], spent[1]
 
 
+def ladder(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, base: float, rtol: float, root_tol: float,
+           budget: int, top: float | None = None) -> tuple[float, float, bool, int, int, float]:
+    """X by `integrate_turn` at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of
+    the volume: X's atol a quarter of rtol x `base` [m^3], (L / 2 pi) |W_P|), each run on the
+    budget's rest, the next started only while at least twice the last run's searches remain;
+    `top`: no tighter than this. The run with the smallest error estimate is the answer (a run cut
+    short keeps its honest estimate: it may still beat the last complete one); with `top` (the
+    check run: the tolerance the first run reached) one run at it. Returns X [m^3],
+    its error, converged at `rtol`, columns and searches spent (all runs), the tightest tolerance
+    completed."""
+    tol = max(rtol, min(LADDER_START, top)) if top is not None else max(rtol, LADDER_START)
+    best: tuple[float, float, bool] | None = None
+    columns = searches = 0
+    reached = math.inf
+    while True:
+        x, e, ok, n, used = integrate_turn(g, lo, hi, step, SPAN * step, 0.25 * tol * max(base, 1e-300), tol,
+                                           root_tol, budget - searches)
+        columns, searches = columns + n, searches + used
+        if ok:
+            reached = tol
+        if best is None or e < best[1]:
+            best = (x, e, ok and tol <= rtol * (1 + 1e-12))
+        last = tol <= max(rtol, top if top is not None else 0.0) * (1 + 1e-12)
+        if last or not ok or budget - searches < 2 * used:
+            return best[0], best[1], best[2], columns, searches, reached
+        tol = max(rtol, tol / LADDER_FACTOR)
+
+
 def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, check: bool, max_points: int,
              root_tol: float) -> Any:
     """The partial turn's volume from the full turn's `res` (a `ColumnVolume` of one target, the
@@ -155,15 +192,13 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     (`kinematics.mechanisms.serial.turn.TurnExtent`)."""
     f = turn.range / (2 * math.pi)
     base = f * float(res.estimate[-1])
-    # X's share of the tolerance: a quarter of the volume's (|W| >= f |W_P|)
-    atol = 0.25 * res.rtol * max(base, 1e-300)
     budget = min(max_points, SEARCHES)
-    x1, e1, c1, n1, s1 = integrate_turn(turn, lo, hi, step, SPAN * step, atol, res.rtol, root_tol, budget)
+    x1, e1, c1, n1, s1, level = ladder(turn, lo, hi, step, base, res.rtol, root_tol, budget)
     x, err, conv, agrees, diff = x1, e1, c1, True, math.nan
     points, columns = s1, n1
-    if check:
-        x2, e2, c2, n2, s2 = integrate_turn(turn.for_check(), lo, hi, step / 2, SPAN * step, atol, res.rtol, root_tol,
-                                            budget)
+    if check:  # up to the tolerance the first run reached: the comparison needs no more
+        x2, e2, c2, n2, s2, _ = ladder(turn.for_check(), lo, hi, step / 2, base, res.rtol, root_tol,
+                                       CHECK_BUDGET * budget, top=level)
         diff = abs(x1 - x2)
         agrees = diff <= e1 + e2
         x, err, conv, points, columns = x2, max(e2, diff), c1 and c2, s1 + s2, n1 + n2
