@@ -6,7 +6,9 @@ test arm (exact volume by Pappus, tests/test_serial_workspace.py), the UR5 at th
 rtol 1e-3 and at 1e-4 (its error against the 1e-4 run is reported as `true_error`, the 1e-4 run's
 own estimate beside it), the panda and the kinova (example-robot-data) at the CLI's defaults (step
 1 cm, rtol 1e-3), the z1 and the so100 (example-robot-data: base revolutes turning part of a
-turn, `kinematics.mechanisms.serial.turn`) at the defaults, and the SCARA's closed-form margin at
+turn, `kinematics.mechanisms.serial.turn`) at the defaults (their circles' integral stops on its
+search budget, `kinematics.analyses.columns.turned.SEARCHES`, reported as `search_budget`, and
+says `converged: false` there), and the SCARA's closed-form margin at
 rtol 1e-5. With `--monte-carlo N` a partial turn's row also gets an independent count of N points
 (`monte_carlo`: each point turned back by 121 base angles and searched with the base held at 0;
 another seed; no profile, no circles) as `monte_carlo` [volume, standard error]. Every run is
@@ -28,6 +30,7 @@ from typing import Any
 
 from _timing import calibration, dump, machine_line, parse
 
+from kinematics.analyses.columns.turned import SEARCHES
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.serial.mechanism import SerialArm
@@ -110,6 +113,8 @@ def run_row(name: str, quick: bool) -> dict[str, Any]:
         "true_error": None if exact is None else abs(ws.total - exact),
         "converged": bool(r.target_converged[-1]) and r.converged, "rtol": rtol, "goal_relative": goal,
         "step_m": step, "points_evaluated": r.points_evaluated, "seconds": seconds,
+        **({"search_budget": SEARCHES} if getattr(mech, "reach", None) is not None and mech.reach.turn is not None
+           else {}),
     }
 
 

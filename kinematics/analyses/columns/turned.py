@@ -1,11 +1,15 @@
 """A solid turned through part of a turn: |W| = (L / 2 pi) |W_P| + X (see
 `kinematics.mechanisms.serial.turn`), |W_P| the full turn's solid measured on its profile by the
-engine and X = integral over the profile box of a circle-measure integrand g(r, z), integrated
-here by the engine's nested `adaptive_1d` (the same error estimate) and checked the same way: a
-second run at half the step (the circles sampled twice as finely, through the margin's check
-search; the same starting intervals, the quadrature's own estimate covering the integration of
-this continuous integrand: doubling them too cost 7x the first run on the 3R test arm), their
-difference part of the error, `converged` false when they disagree beyond their estimates."""
+engine and X = integral over the profile box of a circle-measure integrand g(r, z): columns along
+z at the nodes of the engine's `adaptive_1d` over r, each column's inside intervals by
+`piecewise_1d` (the circles' kind changes bisected one circle per halving), the same error
+estimate; checked the same way: a second run at half the step (the circles sampled twice as
+finely, through the margin's check search), their difference part of the error, `converged`
+false when they disagree beyond their estimates.
+
+Every run is bounded in reach searches (SEARCHES; a circle costs ~2 pi r / step of them), both
+rules pricing their rounds in searches; the first run climbs a ladder of tolerances (`ladder`)
+so that a run out of budget still answers with the last complete rung's estimate."""
 
 from __future__ import annotations
 
@@ -22,16 +26,17 @@ SPAN = 8
 """The outer integral's starting intervals along r are SPAN x step wide (the engine's sampled columns' 8 x step)."""
 
 FINEST = 1 / 64
-"""No interval of either rule is halved below FINEST x step: the circles' measure jumps where a
-part of S appears, and whether a part shorter than the step is seen depends on the sampling and
-the search (the check run's business); below that scale the intervals are accepted with their
-estimates (the jump's variation over a width <= step / 64 counted), not refined without end."""
+"""No interval of the outer rule (over r) is halved below FINEST x step: whether a part of S
+shorter than the step is seen depends on the sampling and the search (the check run's
+business); below that scale the intervals are accepted with their estimates, not refined without
+end. (The columns' kind changes are bisected to BREAK_TOL: one circle per halving.)"""
 
 SEARCHES = 2_000_000
-"""Each run of the integral (the first, and the check's) stops refining after this many reach
-searches (or the engine's `max_points`, if smaller), not converged: a point of a circle's arc set
-costs 2 pi r / step searches (~200 on the so100 at the CLI's 1 cm), so a budget counted in columns
-or points says nothing of the time (~30-60 s per run on 2 cores, the figures in docs/serial-workspace.md)."""
+"""The first run of the integral stops refining after this many reach searches (or the
+engine's `max_points`, if smaller; the check run after CHECK_BUDGET x as many), not converged: a
+point of a circle's arc set costs 2 pi r / step searches (~200 on the so100 at the CLI's 1 cm),
+so a budget counted in columns or points says nothing of the time (the so100's first run spent
+1.7e6 searches in 86 s at load 6 on 2 cores, docs/serial-workspace.md)."""
 
 BRACKET_SHARE = 0.01
 """The share of the integral's `atol` the root brackets (the circles' gap ends, the columns'
