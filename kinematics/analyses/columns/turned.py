@@ -161,30 +161,47 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
 
 
 def ladder(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, base: float, rtol: float, root_tol: float,
-           budget: int, top: float | None = None) -> tuple[float, float, bool, int, int, float]:
-    """X by `integrate_turn` at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of
-    the volume: X's atol a quarter of rtol x `base` [m^3], (L / 2 pi) |W_P|), each run on the
-    budget's rest, the next started only while at least twice the last run's searches remain;
-    `top`: no tighter than this. The run with the smallest error estimate is the answer (a run cut
-    short keeps its honest estimate: it may still beat the last complete one); with `top` (the
-    check run: the tolerance the first run reached) one run at it. Returns X [m^3],
-    its error, converged at `rtol`, columns and searches spent (all runs), the tightest tolerance
-    completed."""
+           budget: int, top: float | None = None, bounded: bool | None = None, taken: float = 0.0
+           ) -> tuple[float, float, bool, int, int, float, bool]:
+    """X by `integrate_turn`: first through `g.bounded()` (no circle sampling: the circles the
+    cover test cannot prove whole counted w / 2 +- w / 2) at `rtol`, the answer if that converges;
+    else at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of the volume: X's atol a
+    quarter of rtol x `base` [m^3], (L / 2 pi) |W_P|), each run on the budget's rest, the next
+    started only while at least twice the last run's searches remain (X's atol at a tolerance t:
+    what t x base leaves after `taken` [m^3], the full turn's share of the error, and at least a
+    quarter of t x base). The run with the smallest
+    error estimate is the answer (a run cut short keeps its honest estimate: it may still beat the
+    last complete one). With `top` and `bounded` (the check run: the first run's tightest
+    complete tolerance and whether it was the bounded one) one run at it. Returns X [m^3], its
+    error, converged at `rtol`, columns and searches spent (all runs), the tightest tolerance
+    completed, and whether the answer is the bounded run's."""
+    columns = searches = 0
+
+    def run(h: Any, tol: float) -> tuple[float, float, bool]:
+        nonlocal columns, searches
+        atol = max(0.25 * tol * max(base, 1e-300), 0.9 * (tol * base - taken))
+        x, e, ok, n, used = integrate_turn(h, lo, hi, step, SPAN * step, atol, tol, root_tol, budget - searches)
+        columns, searches = columns + n, searches + used
+        return x, e, ok
+
+    if top is None or bounded:
+        tol = rtol if top is None else max(rtol, top)
+        x, e, ok = run(g.bounded(), tol)
+        if ok or bounded:
+            return x, e, ok and tol <= rtol * (1 + 1e-12), columns, searches, tol if ok else math.inf, True
     tol = max(rtol, min(LADDER_START, top)) if top is not None else max(rtol, LADDER_START)
     best: tuple[float, float, bool] | None = None
-    columns = searches = 0
     reached = math.inf
     while True:
-        x, e, ok, n, used = integrate_turn(g, lo, hi, step, SPAN * step, 0.25 * tol * max(base, 1e-300), tol,
-                                           root_tol, budget - searches)
-        columns, searches = columns + n, searches + used
+        spent = searches
+        x, e, ok = run(g, tol)
         if ok:
             reached = tol
         if best is None or e < best[1]:
             best = (x, e, ok and tol <= rtol * (1 + 1e-12))
         last = tol <= max(rtol, top if top is not None else 0.0) * (1 + 1e-12)
-        if last or not ok or budget - searches < 2 * used:
-            return best[0], best[1], best[2], columns, searches, reached
+        if last or not ok or budget - searches < 2 * (searches - spent):
+            return best[0], best[1], best[2], columns, searches, reached, False
         tol = max(rtol, tol / LADDER_FACTOR)
 
 
@@ -198,12 +215,13 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     f = turn.range / (2 * math.pi)
     base = f * float(res.estimate[-1])
     budget = min(max_points, SEARCHES)
-    x1, e1, c1, n1, s1, level = ladder(turn, lo, hi, step, base, res.rtol, root_tol, budget)
+    taken = f * float(res.error[-1])
+    x1, e1, c1, n1, s1, level, bounded = ladder(turn, lo, hi, step, base, res.rtol, root_tol, budget, taken=taken)
     x, err, conv, agrees, diff = x1, e1, c1, True, math.nan
     points, columns = s1, n1
     if check:  # up to the tolerance the first run reached: the comparison needs no more
-        x2, e2, c2, n2, s2, _ = ladder(turn.for_check(), lo, hi, step / 2, base, res.rtol, root_tol,
-                                       CHECK_BUDGET * budget, top=level)
+        x2, e2, c2, n2, s2, _, _ = ladder(turn.for_check(), lo, hi, step / 2, base, res.rtol, root_tol,
+                                          CHECK_BUDGET * budget, top=level, bounded=bounded, taken=taken)
         diff = abs(x1 - x2)
         agrees = diff <= e1 + e2
         x, err, conv, points, columns = x2, max(e2, diff), c1 and c2, s1 + s2, n1 + n2

@@ -69,11 +69,12 @@ bounds its error by the variation where the signature changes among an interval'
 class TurnExtent:
     """The integrand r c(r, z) of a partial base turn's volume (module docstring)."""
 
-    def __init__(self, reach: Reach) -> None:
+    def __init__(self, reach: Reach, bound: bool = False) -> None:
         assert reach.turn is not None
         self.reach = reach
         self.range = float(reach.turn[1] - reach.turn[0])
         self.w = 2 * math.pi - self.range
+        self.bound = bound
 
     def margin(self, points: np.ndarray) -> np.ndarray:
         """(N,) the free turn's margins [m] at profile points (N, 2) (`Reach.profile_margin`): >= 0 on P."""
@@ -81,7 +82,13 @@ class TurnExtent:
 
     def for_check(self) -> TurnExtent:
         """The same integrand through the check run's search (`Reach.checker`)."""
-        return TurnExtent(self.reach.checker)
+        return TurnExtent(self.reach.checker, self.bound)
+
+    def bounded(self) -> TurnExtent:
+        """The integrand without circle sampling: where the cover test fails, c = w / 2 with the
+        error w / 2 (c lies in [0, w]), two searches a point; enough where the circles the cover
+        test cannot prove whole are few (the panda: a ring near its reach)."""
+        return TurnExtent(self.reach, True)
 
     def __call__(self, points: np.ndarray, step: float, root_tol: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -106,7 +113,10 @@ class TurnExtent:
         whole = inside[cover >= 0]
         value[whole], sig[whole] = pts[whole, 0] * w, WHOLE
         arc = inside[cover < 0]
-        if len(arc):
+        if self.bound:
+            value[arc] = error[arc] = 0.5 * pts[arc, 0] * w
+            sig[arc] = PARTIAL
+        elif len(arc):
             e, de, full, n = self._circle(pts[arc], q[arc], step, root_tol)
             spent += n
             r = pts[arc, 0]
