@@ -53,6 +53,7 @@ def test_covered_partial_turn_is_the_solid_of_revolution(tmp_path):
     exact = revolved_volume_closed_form(-0.5, 0.8, 0.3, 1.5)  # 0.3313338 m^3
     ws = measure_workspace(arm, step=0.05, rtol=1e-2, check=True)
     assert ws.result.converged and abs(ws.total - exact) <= ws.error <= 2e-2 * exact
+    assert ws.result.fixed_error is not None  # the cover bound answered (no circle sampled)
 
 
 def test_partial_turn_needs_a_rest_with_volume(tmp_path):

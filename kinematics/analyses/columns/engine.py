@@ -63,8 +63,8 @@ class ColumnVolume:
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
         root_tol: sampled columns: the width [m] every root was bracketed to.
-        fixed_error: (T,) the part of `error` that no finer step reduces, or None (no path sets it
-            since a partial base turn is integrated rather than bounded; kept for its readers).
+        fixed_error: (T,) the part of `error` that no finer step reduces, or None (a partial base
+            turn's cover bound sets it, `turned.cover_bound`, only where it meets the tolerance).
     """
 
     estimate: np.ndarray

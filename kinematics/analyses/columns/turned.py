@@ -54,6 +54,9 @@ the interval's share of the tolerance, or to BREAK_TOL: a part of S appearing ma
 to w (the largest gap split), so a bracket of step / 64 held ~1e-4 m^2 per change on the so100,
 over the whole tolerance at rtol 1e-3."""
 
+COVER_COST = 20_000
+"""Searches of `cover_bound`'s count (a profile search and a cover search at each of 10 000 points)."""
+
 CHECK_BUDGET = 2
 """The check run (half the step: each circle and column sampled twice as finely) may spend this
 many times the first run's budget."""
@@ -161,48 +164,48 @@ def integrate_turn(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, cell: fl
 
 
 def ladder(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, base: float, rtol: float, root_tol: float,
-           budget: int, top: float | None = None, bounded: bool | None = None, taken: float = 0.0
-           ) -> tuple[float, float, bool, int, int, float, bool]:
-    """X by `integrate_turn`: first through `g.bounded()` (no circle sampling: the circles the
-    cover test cannot prove whole counted w / 2 +- w / 2) at `rtol`, the answer if that converges;
-    else at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of the volume: X's atol a
-    quarter of rtol x `base` [m^3], (L / 2 pi) |W_P|), each run on the budget's rest, the next
-    started only while at least twice the last run's searches remain (X's atol at a tolerance t:
-    what t x base leaves after `taken` [m^3], the full turn's share of the error, and at least a
-    quarter of t x base). The run with the smallest
-    error estimate is the answer (a run cut short keeps its honest estimate: it may still beat the
-    last complete one). With `top` and `bounded` (the check run: the first run's tightest
-    complete tolerance and whether it was the bounded one) one run at it. Returns X [m^3], its
-    error, converged at `rtol`, columns and searches spent (all runs), the tightest tolerance
-    completed, and whether the answer is the bounded run's."""
-    columns = searches = 0
-
-    def run(h: Any, tol: float) -> tuple[float, float, bool]:
-        nonlocal columns, searches
-        atol = max(0.25 * tol * max(base, 1e-300), 0.9 * (tol * base - taken))
-        x, e, ok, n, used = integrate_turn(h, lo, hi, step, SPAN * step, atol, tol, root_tol, budget - searches)
-        columns, searches = columns + n, searches + used
-        return x, e, ok
-
-    if top is None or bounded:
-        tol = rtol if top is None else max(rtol, top)
-        x, e, ok = run(g.bounded(), tol)
-        if ok or bounded:
-            return x, e, ok and tol <= rtol * (1 + 1e-12), columns, searches, tol if ok else math.inf, True
+           budget: int, top: float | None = None, taken: float = 0.0) -> tuple[float, float, bool, int, int, float]:
+    """X by `integrate_turn` at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of
+    the volume: X's atol at a tolerance t what t x `base` [m^3], (L / 2 pi) |W_P|, leaves after
+    `taken` [m^3], the full turn's share of the error, and at least a quarter of t x base), each
+    run on the budget's rest, the next started only while at least twice the last run's searches
+    remain. The run with the smallest error estimate is the answer (a run cut short keeps its
+    honest estimate: it may still beat the last complete one); with `top` (the check run: the
+    tolerance the first run reached) one run at it. Returns X [m^3], its error, converged at
+    `rtol`, columns and searches spent (all runs), the tightest tolerance completed."""
     tol = max(rtol, min(LADDER_START, top)) if top is not None else max(rtol, LADDER_START)
     best: tuple[float, float, bool] | None = None
+    columns = searches = 0
     reached = math.inf
     while True:
-        spent = searches
-        x, e, ok = run(g, tol)
+        atol = max(0.25 * tol * max(base, 1e-300), 0.9 * (tol * base - taken))
+        x, e, ok, n, used = integrate_turn(g, lo, hi, step, SPAN * step, atol, tol, root_tol, budget - searches)
+        columns, searches = columns + n, searches + used
         if ok:
             reached = tol
         if best is None or e < best[1]:
             best = (x, e, ok and tol <= rtol * (1 + 1e-12))
         last = tol <= max(rtol, top if top is not None else 0.0) * (1 + 1e-12)
-        if last or not ok or budget - searches < 2 * (searches - spent):
-            return best[0], best[1], best[2], columns, searches, reached, False
+        if last or not ok or budget - searches < 2 * used:
+            return best[0], best[1], best[2], columns, searches, reached
         tol = max(rtol, tol / LADDER_FACTOR)
+
+
+def cover_bound(res: Any, turn: Any) -> Any | None:
+    """The partial turn's volume from the full turn's `res` by the cover bound, when that meets
+    the tolerance: V_P - k D within res.error + k (D + 4 sd), k = w / 4 pi, D and sd
+    (`turn.uncovered()`) the measure of the profile whose circles the cover test cannot prove
+    whole and its standard error: a Monte-Carlo count of 10 000 searches, where the circles'
+    integral costs millions (the panda: uncovered circles in a thin ring near its reach, the
+    answer in ~20 s). None when the bound is too wide (the z1, the so100)."""
+    D, sd = turn.uncovered()
+    k = turn.w / (4 * math.pi)
+    volume = float(res.estimate[-1]) - k * D
+    error = float(res.error[-1]) + k * (D + 4 * sd)
+    if not (bool(res.target_converged[-1]) and error <= res.rtol * abs(volume) * (1 + 1e-12)):
+        return None
+    return replace(res, estimate=np.array([volume]), error=np.array([error]),
+                   fixed_error=np.array([k * (D + 4 * sd)]), points_evaluated=res.points_evaluated + COVER_COST)
 
 
 def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, check: bool, max_points: int,
@@ -215,13 +218,16 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     f = turn.range / (2 * math.pi)
     base = f * float(res.estimate[-1])
     budget = min(max_points, SEARCHES)
+    bound = cover_bound(res, turn)
+    if bound is not None:
+        return bound
     taken = f * float(res.error[-1])
-    x1, e1, c1, n1, s1, level, bounded = ladder(turn, lo, hi, step, base, res.rtol, root_tol, budget, taken=taken)
+    x1, e1, c1, n1, s1, level = ladder(turn, lo, hi, step, base, res.rtol, root_tol, budget, taken=taken)
     x, err, conv, agrees, diff = x1, e1, c1, True, math.nan
     points, columns = s1, n1
     if check:  # up to the tolerance the first run reached: the comparison needs no more
-        x2, e2, c2, n2, s2, _, _ = ladder(turn.for_check(), lo, hi, step / 2, base, res.rtol, root_tol,
-                                          CHECK_BUDGET * budget, top=level, bounded=bounded, taken=taken)
+        x2, e2, c2, n2, s2, _ = ladder(turn.for_check(), lo, hi, step / 2, base, res.rtol, root_tol,
+                                       CHECK_BUDGET * budget, top=level, taken=taken)
         diff = abs(x1 - x2)
         agrees = diff <= e1 + e2
         x, err, conv, points, columns = x2, max(e2, diff), c1 and c2, s1 + s2, n1 + n2

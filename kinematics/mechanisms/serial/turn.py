@@ -56,6 +56,9 @@ from kinematics.model.robot import Robot
 if TYPE_CHECKING:
     from kinematics.mechanisms.serial.reach import Reach
 
+COVER_SAMPLES = 10_000
+"""Profile points of `TurnExtent.uncovered`'s count (main's cover bound, 20 s for the panda)."""
+
 PARTIAL_TURN_MIN = math.pi
 """A first revolute of at least this range [rad] (and less than a full turn) is measured as a
 partial turn on the profile (`kinematics.mechanisms.serial.turn`, whose circle measure holds for
@@ -69,12 +72,11 @@ bounds its error by the variation where the signature changes among an interval'
 class TurnExtent:
     """The integrand r c(r, z) of a partial base turn's volume (module docstring)."""
 
-    def __init__(self, reach: Reach, bound: bool = False) -> None:
+    def __init__(self, reach: Reach) -> None:
         assert reach.turn is not None
         self.reach = reach
         self.range = float(reach.turn[1] - reach.turn[0])
         self.w = 2 * math.pi - self.range
-        self.bound = bound
 
     def margin(self, points: np.ndarray) -> np.ndarray:
         """(N,) the free turn's margins [m] at profile points (N, 2) (`Reach.profile_margin`): >= 0 on P."""
@@ -82,13 +84,23 @@ class TurnExtent:
 
     def for_check(self) -> TurnExtent:
         """The same integrand through the check run's search (`Reach.checker`)."""
-        return TurnExtent(self.reach.checker, self.bound)
+        return TurnExtent(self.reach.checker)
 
-    def bounded(self) -> TurnExtent:
-        """The integrand without circle sampling: where the cover test fails, c = w / 2 with the
-        error w / 2 (c lies in [0, w]), two searches a point; enough where the circles the cover
-        test cannot prove whole are few (the panda: a ring near its reach)."""
-        return TurnExtent(self.reach, True)
+    def uncovered(self, samples: int = COVER_SAMPLES) -> tuple[float, float]:
+        """D [m^3], the measure (weight 2 pi r) of the profile where the cover test fails, and its
+        standard error, by `samples` profile points uniform in the box [0, R] x [-R, R] (seeded,
+        sorted so that neighbours come in turn: warm starts). Every circle of P lies in W for an
+        arc of at least L and wholly where the test succeeds, so with k = w / 4 pi,
+        (L / 2 pi) V_P + X lies within k D of V_P - k D (`kinematics.analyses.columns.turned`)."""
+        reach = self.reach
+        R = reach.setup.reach
+        rng = np.random.default_rng(reach.seed)
+        pts = np.column_stack([R * np.sqrt(rng.random(samples)), rng.uniform(-R, R, samples)])
+        pts = pts[np.lexsort((pts[:, 1], np.round(pts[:, 0], 2)))]
+        m, q = reach.profile_search(pts)
+        f = float(((m >= 0) & (reach.cover(pts, m, q) < 0)).mean())
+        box = 2 * math.pi * R ** 3  # the weighted measure of the sampled box
+        return box * f, box * math.sqrt(max(f * (1 - f), 1.0 / samples) / samples)
 
     def __call__(self, points: np.ndarray, step: float, root_tol: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -113,10 +125,7 @@ class TurnExtent:
         whole = inside[cover >= 0]
         value[whole], sig[whole] = pts[whole, 0] * w, WHOLE
         arc = inside[cover < 0]
-        if self.bound:
-            value[arc] = error[arc] = 0.5 * pts[arc, 0] * w
-            sig[arc] = PARTIAL
-        elif len(arc):
+        if len(arc):
             e, de, full, n = self._circle(pts[arc], q[arc], step, root_tol)
             spent += n
             r = pts[arc, 0]
