@@ -168,8 +168,8 @@ def ladder(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, base: float, rto
     """X by `integrate_turn` at tolerances LADDER_START, / LADDER_FACTOR, ... down to `rtol` (of
     the volume: X's atol at a tolerance t what t x `base` [m^3], (L / 2 pi) |W_P|, leaves after
     `taken` [m^3], the full turn's share of the error, and at least a quarter of t x base), each
-    run on the budget's rest, the next started only while at least twice the last run's searches
-    remain. The run with the smallest error estimate is the answer (a run cut short keeps its
+    run on the budget's rest, the next started only while at least the last run's searches remain
+    (it may be cut short). The run with the smallest error estimate is the answer (a run cut short keeps its
     honest estimate: it may still beat the last complete one); with `top` (the check run: the
     tolerance the first run reached) one run at it. Returns X [m^3], its error, converged at
     `rtol`, columns and searches spent (all runs), the tightest tolerance completed."""
@@ -186,7 +186,7 @@ def ladder(g: Any, lo: np.ndarray, hi: np.ndarray, step: float, base: float, rto
         if best is None or e < best[1]:
             best = (x, e, ok and tol <= rtol * (1 + 1e-12))
         last = tol <= max(rtol, top if top is not None else 0.0) * (1 + 1e-12)
-        if last or not ok or budget - searches < 2 * used:
+        if last or not ok or budget - searches < used:
             return best[0], best[1], best[2], columns, searches, reached
         tol = max(rtol, tol / LADDER_FACTOR)
 
