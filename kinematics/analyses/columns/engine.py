@@ -65,6 +65,8 @@ class ColumnVolume:
         root_tol: sampled columns: the width [m] every root was bracketed to.
         fixed_error: (T,) the part of `error` that no finer step reduces, or None (a partial base
             turn's cover bound sets it, `turned.cover_bound`, only where it meets the tolerance).
+        out_of_budget: (T,) the target stopped on a search budget rather than on its tolerance (a
+            partial base turn's circles' integral, `turned.SEARCHES`), or None.
     """
 
     estimate: np.ndarray
@@ -81,6 +83,7 @@ class ColumnVolume:
     check_agrees: np.ndarray
     root_tol: float = ROOT_TOL
     fixed_error: np.ndarray | None = None
+    out_of_budget: np.ndarray | None = None
 
 
 def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:

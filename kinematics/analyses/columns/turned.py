@@ -234,7 +234,9 @@ def add_turn(res: Any, turn: Any, lo: np.ndarray, hi: np.ndarray, step: float, c
     estimate = np.array([base + x])
     error = np.array([f * float(res.error[-1]) + err])
     ok = bool(res.target_converged[-1]) and conv and agrees and bool(error[0] <= res.rtol * estimate[0] * (1 + 1e-12))
+    spent_out = not conv and points >= budget  # X stopped on its budget, not on its tolerance
     return replace(res, estimate=estimate, error=error, converged=bool(res.converged) and ok,
                    target_converged=np.array([ok]), check_agrees=np.array([bool(res.check_agrees[-1]) and agrees]),
                    check_difference=np.array([f * float(res.check_difference[-1]) + diff]),
-                   points_evaluated=res.points_evaluated + points, columns=res.columns + columns)
+                   points_evaluated=res.points_evaluated + points, columns=res.columns + columns,
+                   out_of_budget=np.array([spent_out and not ok]))
