@@ -5,7 +5,13 @@ Rows (ROWS): the SCARA as a generic open chain (exact area 0.9729265761857 m^2),
 test arm (exact volume by Pappus, tests/test_serial_workspace.py), the UR5 at the CLI's default
 rtol 1e-3 and at 1e-4 (its error against the 1e-4 run is reported as `true_error`, the 1e-4 run's
 own estimate beside it), the panda and the kinova (example-robot-data) at the CLI's defaults (step
-1 cm, rtol 1e-3) and the SCARA's closed-form margin at rtol 1e-5. Every run is
+1 cm, rtol 1e-3), the z1 and the so100 (example-robot-data: base revolutes turning part of a
+turn, `kinematics.mechanisms.serial.turn`) at the defaults (their circles' integral stops on its
+search budget, `kinematics.analyses.columns.turned.SEARCHES`, reported as `search_budget`, and
+says `converged: false` there), and the SCARA's closed-form margin at
+rtol 1e-5. With `--monte-carlo N` a partial turn's row also gets an independent count of N points
+(`monte_carlo`: each point turned back by 121 base angles and searched with the base held at 0;
+another seed; no profile, no circles) as `monte_carlo` [volume, standard error]. Every run is
 `measure_workspace(..., check=True)` (the half-step run, with twice the search's seeds, compared
 with the first). The kernels are compiled on a small run first. The machine
 (cores, uptime load, `_timing.calibration()`) is recorded beside the figures: the CPU is shared.
@@ -24,6 +30,7 @@ from typing import Any
 
 from _timing import calibration, dump, machine_line, parse
 
+from kinematics.analyses.columns.turned import SEARCHES
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.serial.mechanism import SerialArm
@@ -56,9 +63,38 @@ ROWS: dict[str, tuple[str, bool, float, float, float]] = {
     "ur5-1e-4": ("ur5", True, 0.005, 1e-4, 1e-4),
     "panda": ("panda", True, 0.01, 1e-3, 1e-3),
     "kinova": ("kinova", True, 0.01, 1e-3, 1e-3),
+    "z1": ("z1", True, 0.01, 1e-3, 1e-3),
+    "so100": ("so100", True, 0.01, 1e-3, 1e-3),
     "scara-closed-form": ("scara", False, 0.01, 1e-5, 1e-5),
 }
 QUICK = {"scara-serial": (0.05, 1e-2), "arm3r": (0.05, 1e-2)}
+
+
+def monte_carlo(robot_name: str, n: int, seed: int = 7, angles: int = 121) -> tuple[float, float]:
+    """The volume [m^3] and its standard error by n points uniform in the cylinder about the base
+    axis around the reach ball, each turned back by `angles` base angles evenly over the base's
+    range and searched with the base held at 0 (a point is in W iff some turn of it is in W0; every
+    hit is a reached configuration), with seed `seed`: no profile, no circles. (The world search,
+    the base bounded by its limits, misses ~2-6 % of the z1's and the so100's volume.)"""
+    import numpy as np
+
+    from kinematics.mechanisms.serial.reach import Reach
+
+    reach = Reach(load_robot(robot_name), seed=seed)
+    assert reach.turn is not None
+    R, c = reach.setup.reach, reach.reach_centre
+    rng = np.random.default_rng(seed)
+    r, phi, z = R * np.sqrt(rng.random(n)), rng.uniform(-np.pi, np.pi, n), rng.uniform(-R, R, n)
+    finite = np.isfinite(reach.lo_base0) & np.isfinite(reach.hi_base0)
+    mid = np.tile(np.where(finite, 0.5 * (np.where(finite, reach.lo_base0, 0) + np.where(finite, reach.hi_base0, 0)), 0.0),
+                  (n, 1))
+    hit = np.zeros(n, bool)
+    for t in np.linspace(reach.turn[0], reach.turn[1], angles):
+        p0 = c + np.column_stack([r * np.cos(phi - t), r * np.sin(phi - t), z]) @ reach.basis
+        hit |= reach.distance(p0, (reach.lo_base0, reach.hi_base0), first_seed=mid)[0] >= 0
+    box = math.pi * R * R * 2 * R
+    f = float(hit.mean())
+    return box * f, box * math.sqrt(f * (1 - f) / n)
 
 
 def run_row(name: str, quick: bool) -> dict[str, Any]:
@@ -77,6 +113,8 @@ def run_row(name: str, quick: bool) -> dict[str, Any]:
         "true_error": None if exact is None else abs(ws.total - exact),
         "converged": bool(r.target_converged[-1]) and r.converged, "rtol": rtol, "goal_relative": goal,
         "step_m": step, "points_evaluated": r.points_evaluated, "seconds": seconds,
+        **({"search_budget": SEARCHES} if getattr(mech, "reach", None) is not None and mech.reach.turn is not None
+           else {}),
     }
 
 
@@ -84,6 +122,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--row", action="append", choices=list(ROWS), help="rows to run (default: all)")
     ap.add_argument("--json", action="store_true", help="print the figures as JSON")
+    ap.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+                    help="also count N points turned back over the base's range for the partial turns' rows (z1, so100)")
     args = parse(ap, {})
     machine = calibration()
     names = args.row or (list(QUICK) if args.quick else list(ROWS))
@@ -92,6 +132,11 @@ def main() -> None:
     arm = SerialArm(load_robot(str(ARM3R)))  # compile the search kernels before timing
     arm.margin()(arm.bounding_box()[0][None])
     rows = [run_row(n, args.quick) for n in names]
+    for r in rows:
+        if args.monte_carlo and r["robot"] in ("z1", "so100"):
+            t0 = time.perf_counter()
+            r["monte_carlo"] = list(monte_carlo(ROWS[r["robot"]][0], args.monte_carlo))
+            r["monte_carlo_seconds"] = time.perf_counter() - t0
     by = {r["robot"]: r for r in rows}
     if "ur5" in by and "ur5-1e-4" in by:  # the default run against the tighter one
         by["ur5"]["true_error"] = abs(by["ur5"]["volume"] - by["ur5-1e-4"]["volume"])
@@ -103,6 +148,8 @@ def main() -> None:
         return
     for r in rows:
         true = "" if r["true_error"] is None else f", true error {r['true_error'] / r['volume']:.2g} relative"
+        if "monte_carlo" in r:
+            true += f", Monte Carlo {r['monte_carlo'][0]:.6g} +/- {r['monte_carlo'][1]:.2g}"
         print(f"{r['robot']:>18}: {r['volume']:.10g} {r['unit']} +/- {r['error_estimate']:.3g} "
               f"({r['error_estimate'] / r['volume']:.2g} relative{true}; goal {r['goal_relative']:g}; "
               f"{'converged' if r['converged'] else 'NOT converged'}); {r['points_evaluated']:,} points, "

@@ -47,6 +47,9 @@ class Workspace:
         result: the measurement, one entry per target (ColumnVolume; VolumeEstimate for the
             "cells" engine).
         seconds: wall time of the measurement.
+        measure_zero: why the set has zero measure when it has (a serial tool point with fewer
+            freedoms than the task space, `SerialArm.measure_zero`): the result is then an exact 0,
+            converged, with no evaluation; None otherwise.
     """
 
     robot: str
@@ -58,6 +61,7 @@ class Workspace:
     parameters: dict[str, Any] = field(default_factory=dict)
     branch_key: str = "modes"
     planes: tuple[str, ...] = ()
+    measure_zero: str | None = None
 
     def unconverged(self) -> dict[str, str]:
         """Targets (branches, union) whose own estimate failed, each with the reason (empty for the
@@ -72,8 +76,11 @@ class Workspace:
             if not r.check_agrees[k]:
                 return "the run at half the step disagreed beyond the error estimates"
             if fixed[k]:
-                return (f"a bound no finer step reduces ({bound[k]:.2g} m^3 of the error estimate: a partial "
-                        "base turn whose circles the cover test cannot prove whole) exceeds the tolerance")
+                return (f"a bound no finer step reduces ({bound[k]:.2g} of the error estimate) exceeds the "
+                        "tolerance")
+            if r.out_of_budget is not None and r.out_of_budget[k]:
+                return ("the partial base turn's search budget ran out (its circles' integral): the estimate "
+                        "and its error are the answer at this budget")
             return "error estimate above the tolerance"
 
         return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}
@@ -123,6 +130,7 @@ class Workspace:
             **({"union_rule": (f"the sum of the parallel planes' areas ({', '.join(self.planes)}; they do not "
                                "overlap), each plane's area the union of its branches")} if self.planes else {}),
             "parameters": self.parameters,
+            **({"measure_zero": self.measure_zero} if self.measure_zero is not None else {}),
         }
         if isinstance(r, ColumnVolume):
             out.update(method="columns", columns=r.columns)
@@ -188,15 +196,24 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     if planes:
         margin = _plane_unions(margin, len(chosen), [idx for _, idx in planes])
     t0 = time.perf_counter()
+    zero = getattr(mech, "measure_zero", None)
+    why = zero() if zero is not None and engine == "columns" else None
+    if why is not None:  # no sampling can find a set of measure zero: say so rather than "not converged"
+        return Workspace(mech.name, mech.task_dim == 2, (UNION,), limits, _zero(lo.shape[0], rtol, step),
+                         time.perf_counter() - t0, mech.parameters(), measure_zero=why)
     res = _measure(margin, lo, hi, step, rtol, engine, progress, max_points, check)
-    finish = getattr(margin, "finish", None)
-    if finish is not None and isinstance(res, ColumnVolume):  # targets that make one measure (a serial
-        res = finish(res)                                      # arm's partial base turn: its `ReachMargin`)
     names = tuple(name for name, _ in planes)
     if planes:
         res = _sum_planes(res, len(chosen), len(planes))  # type: ignore[arg-type]
     return Workspace(mech.name, mech.task_dim == 2, (*chosen, *names, UNION), limits, res, time.perf_counter() - t0,
                      mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes", names)
+
+
+def _zero(d: int, rtol: float | None, step: float) -> ColumnVolume:
+    """An exact zero measure (no evaluation): converged, no error."""
+    one = np.ones(1, bool)
+    return ColumnVolume(np.zeros(1), np.zeros(1), True, 1e-2 if rtol is None else rtol, step, step, 0, 0, np.zeros(1),
+                        np.full((2, d), np.nan), one, one)
 
 
 def _plane_unions(margin: Callable[[np.ndarray], np.ndarray], B: int, planes: Sequence[Sequence[int]]

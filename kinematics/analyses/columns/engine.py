@@ -63,8 +63,10 @@ class ColumnVolume:
             budget to last and the last target to be non-empty).
         check_agrees: (T,) per target: the two runs agree within their estimates (True without check).
         root_tol: sampled columns: the width [m] every root was bracketed to.
-        fixed_error: (T,) the part of `error` that no finer step reduces (a bound a margin's own
-            `finish` adds, e.g. a serial arm's partial base turn), or None.
+        fixed_error: (T,) the part of `error` that no finer step reduces, or None (a partial base
+            turn's cover bound sets it, `turned.cover_bound`, only where it meets the tolerance).
+        out_of_budget: (T,) the target stopped on a search budget rather than on its tolerance (a
+            partial base turn's circles' integral, `turned.SEARCHES`), or None.
     """
 
     estimate: np.ndarray
@@ -81,6 +83,7 @@ class ColumnVolume:
     check_agrees: np.ndarray
     root_tol: float = ROOT_TOL
     fixed_error: np.ndarray | None = None
+    out_of_budget: np.ndarray | None = None
 
 
 def _within(estimate: np.ndarray, error: np.ndarray, rtol: float, floor: float) -> np.ndarray:
@@ -130,7 +133,8 @@ def column_volume(
 
     Two optional attributes of the margin change the run: `profile` (3D margins of a solid of
     revolution: `margin`, `lo`, `hi`, `axis`, `weight` and `world_box` of its (rho, z) profile,
-    measured instead with the weight 2 pi rho, Pappus) and `for_check()` (the margin the check run
+    measured instead with the weight 2 pi rho, Pappus; with a `turn`, a partial turn's, by
+    `turned.add_turn`) and `for_check()` (the margin the check run
     uses, e.g. a search with more restarts, so that the check also compares two searches).
     """
     profile = getattr(margin, "profile", None)
@@ -138,7 +142,13 @@ def column_volume(
         res = column_volume(profile.margin, profile.lo, profile.hi, step=step, rtol=rtol, order=order,
                             pieces=pieces, axis=profile.axis, check=check, max_points=max_points, progress=progress,
                             floor=floor, root_tol=root_tol, weight=profile.weight)
-        return replace(res, box=profile.world_box(res.box))
+        res = replace(res, box=profile.world_box(res.box))
+        turn = getattr(profile, "turn", None)
+        if turn is not None:  # a partial turn: (L / 2 pi) x the solid + the circles' integral
+            from .turned import add_turn
+
+            res = add_turn(res, turn, profile.lo, profile.hi, step, check, max_points, root_tol)
+        return res
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
     d = lo.shape[0]

@@ -29,7 +29,8 @@ integer signature (N, T) that changes where the integrand may be non-smooth (a t
 
 def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float | np.ndarray, *, order: int = 4,
                 pieces: int = 8, max_evals: int = 10**8, max_depth: int = 50, group: np.ndarray | None = None,
-                floor: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                floor: float = 0.0, cost: Callable[[], int] | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Integrals over [a_p, b_p] of f(p, .) for many problems p at once, adaptively.
 
     Every interval carries the Gauss-Legendre rule of `order` nodes on itself and on its two
@@ -45,6 +46,14 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     of their integrals, and the results are per group. With `floor` > 0 every target's tolerance
     is at least rtol x floor x |the last target's integral| (the union's, in a workspace
     measurement): a target far smaller than the last is not chased to a relative tolerance of its own.
+
+    With `cost` (a counter of what f has spent so far, e.g. searches, when an evaluation's price
+    varies) `max_evals` bounds that count instead of the evaluations: a round is priced at the
+    mean cost per evaluation so far, and when the next round would overrun it only the intervals
+    with the largest estimates that fit are halved (the rest accepted as they stand: the mean
+    cost and the last round's, whichever is dearer, price a round), so the
+    budget is spent where the error is; when not even one fits, every interval is accepted with
+    its estimate and the run ends, not converged.
 
     Returns:
         integrals (G, T), error estimates (G, T), converged (G,), evaluations (G = P without groups).
@@ -91,6 +100,7 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     done_e = np.zeros((P, T))
     done_in = np.zeros((P, T))
     converged = np.zeros(P, bool)
+    last_round = (0, 0)  # (cost, evaluations) when the last round's evaluations began
     while len(lo):
         kid = q_half.sum(axis=1)
         diff = np.abs(q_self - kid) + var  # refinable
@@ -118,7 +128,17 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
         accept, refine = idx[ok], idx[~ok]
         stuck = refine[depth[refine] >= max_depth]
         refine = refine[depth[refine] < max_depth]
-        last = len(refine) == 0 or evals + 4 * order * len(refine) > max_evals
+        if cost is None:
+            last = len(refine) == 0 or evals + 4 * order * len(refine) > max_evals
+        else:
+            now = cost()
+            # priced at the dearer of the mean and the last round's (refined intervals lie where
+            # evaluations cost most)
+            per = max(now / max(evals, 1), (now - last_round[0]) / max(evals - last_round[1], 1))
+            last_round = (now, evals)
+            refine, spill = _affordable(refine, bad, per, now, 4 * order, max_evals)
+            accept = np.concatenate([accept, spill])
+            last = len(refine) == 0
         if last:
             converged = good
             accept, refine = np.arange(len(lo)), refine[:0]
@@ -137,6 +157,18 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     return done_q, done_e + done_in, converged, evals
 
 
+def _affordable(refine: np.ndarray, bad: np.ndarray, per: float, spent: int, per_interval: int, budget: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The intervals `refine` split into those the budget can still halve (the largest `bad`
+    first, each priced per_interval evaluations at `per` apiece, `spent` spent) and the rest."""
+    price = per_interval * per
+    fit = int((budget - spent) // price) if price > 0 else len(refine)
+    if fit >= len(refine):
+        return refine, refine[:0]
+    order = refine[np.argsort(-bad[refine], kind="stable")]
+    return order[:max(fit, 0)], order[max(fit, 0):]
+
+
 def _smoothstep(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """s(t) = 3 t^2 - 2 t^3 on [0, 1] and s'(t): near either end s - s_end ~ 3 t^2, so a
     square-root edge sqrt(x - a) of the integrand becomes analytic in t (the Jacobian 6 t (1 - t)
@@ -147,7 +179,8 @@ def _smoothstep(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]],
                  a: np.ndarray, b: np.ndarray, n0: int, rtol: float, atol: float | np.ndarray, *,
                  order: int = 4, xtol: float = 1e-10, brk_tol: float | np.ndarray = 0.0,
-                 max_evals: int = 10**8, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+                 max_evals: int = 10**8, floor: float = 0.0, cost: Callable[[], int] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Integrals over [a_p, b_p] of piecewise smooth f(p, .): breaks located, pieces by Gauss rules.
 
     f returns values (N, T), their own errors (N, T) and a signature (N,) int64 that is constant
@@ -165,12 +198,18 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
        two nodes with equal signatures) shows up as a signature change among an interval's nodes
        and is charged its variation bound; one missed by every node is not seen.
 
+    With `cost` (a counter of what f has spent, as `adaptive_1d`'s) `max_evals` bounds that count.
+
     Returns:
         integrals (P, T), error estimates (P, T), converged (P,), evaluations.
     """
     P = len(a)
-    width = b - a
     evals = 0
+
+    def count() -> int:
+        return evals if cost is None else cost()
+
+    width = b - a
     prob = np.repeat(np.arange(P), n0 + 1)
     x = (a[:, None] + width[:, None] * (np.arange(n0 + 1) / n0)[None]).ravel()
     x[n0::n0 + 1] = b
@@ -185,7 +224,7 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
     near = BREAK_WIDTH * width / n0
     btol = np.broadcast_to(np.asarray(brk_tol, dtype=float), (P,))
     done: list[tuple[np.ndarray, ...]] = []
-    while len(bp) and evals < max_evals:
+    while len(bp) and count() < max_evals:
         fine = ((xb - xa) <= tol[bp]) | (((xb - xa) * np.abs(va - vb).max(axis=1) <= btol[bp])
                                          & ((xb - xa) <= near[bp]))
         if fine.any():
@@ -225,12 +264,14 @@ def piecewise_1d(f: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndar
 
     # the pieces of a problem share its tolerance (a piece with a small integral is not held to a
     # relative tolerance of its own)
+    before = count()
     out_q, out_e, ok, ev = adaptive_1d(g, np.zeros(len(u)), np.ones(len(u)), rtol,
                                        np.broadcast_to(np.asarray(atol, dtype=float), (P,)), order=order, pieces=1,
-                                       max_evals=max(1, max_evals - evals), group=sprob, floor=floor)
+                                       max_evals=max(1, max_evals - before), group=sprob, floor=floor,
+                                       cost=None if cost is None else (lambda: cost() - before))
     evals += ev
     if len(bp):
         np.add.at(out_e, bp, (xb - xa)[:, None] * np.abs(va - vb))
-    return out_q, out_e, ok & (evals < max_evals), evals
+    return out_q, out_e, ok & (count() < max_evals), evals
 
 

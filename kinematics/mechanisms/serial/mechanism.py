@@ -100,6 +100,19 @@ class SerialArm(Mechanism):
         self.check_limits(limits)
         return ReachMargin(self.reach)
 
+    def measure_zero(self) -> str | None:
+        """Why the reachable set has zero area or volume (the tool point has fewer freedoms than the
+        task space: `Reach.task_rank`), or None."""
+        d, rank = self.task_dim, self.reach.task_rank()
+        if rank >= d:
+            return None
+        s = self.reach.setup
+        held = f"; {', '.join(s.fixed)} never move{'s' if len(s.fixed) == 1 else ''} it" if s.fixed else ""
+        what = "a point" if rank == 0 else "a curve" if rank == 1 else "a surface"
+        return (f"the frame {self.robot.tool_frame!r} has {rank} freedom{'s' if rank != 1 else ''} in a "
+                f"{d}-D task space (its position Jacobian has rank {rank} at every configuration probed{held}): "
+                f"it reaches {what}, of zero {'area' if d == 2 else 'volume'}")
+
     def _rows(self) -> list[int]:
         return list(self.plane) if self.plane is not None else [0, 1, 2]
 

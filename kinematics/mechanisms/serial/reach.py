@@ -47,6 +47,7 @@ from kinematics.generic.batched import compile_frame
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
 from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup, reduced
+from kinematics.mechanisms.serial.turn import partial_turn
 from kinematics.model.robot import Robot
 
 REACH_TOL = 1e-10
@@ -64,9 +65,6 @@ it gets no more restarts: with tens of thousands of samples the nearest one lies
 millimetres of any reached point, so a target that far is outside; the restarts are spent where
 the sign is at stake, near the boundary."""
 
-
-COVER_SAMPLES = 10_000
-"""Profile points of the Monte-Carlo count of a partial turn's uncovered circles (`ReachMargin.finish`)."""
 
 SERIAL_BELOW = 512
 """Fewer targets than this are searched on one thread: starting a parallel region costs
@@ -99,6 +97,9 @@ class Profile:
     axis: int
     origin: np.ndarray
     direction: np.ndarray
+    turn: Any = None
+    """A partial base turn's circle measure (`kinematics.mechanisms.serial.turn.TurnExtent`): the
+    volume is then (L / 2 pi) x the solid's plus its integral over the profile; None: a full turn."""
 
     def weight(self, base: np.ndarray) -> np.ndarray:
         """2 pi rho [m] for columns at base (M, 1) = rho."""
@@ -126,7 +127,7 @@ class Reach:
             orientation = reduced(robot, self.kin, orientation, REACH_TOL, self.setup.reach)
             self.orientation = orientation
             self.setup = oriented_setup(robot, self.kin, self.setup, orientation, REACH_TOL)
-        self.setup, self.turn = _partial_turn(robot, self.kin, self.setup, orientation)
+        self.setup, self.turn = partial_turn(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
         self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
         self.restarts, self.seed = restarts, seed
@@ -159,9 +160,12 @@ class Reach:
         self.lo_free, self.hi_free = lo.copy(), hi.copy()
         self.lo_cover, self.hi_cover = lo.copy(), hi.copy()
         if self.turn is not None:
-            slack = self.turn[1] - self.turn[0] - math.pi
+            slack = max(self.turn[1] - self.turn[0] - math.pi, 0.0)
             self.lo_free[0], self.hi_free[0] = -np.inf, np.inf
             self.lo_cover[0], self.hi_cover[0] = -slack, slack
+        # W0: the set the rest of the chain reaches with the base held at 0 (`turn`)
+        self.lo_base0, self.hi_base0 = lo.copy(), hi.copy()
+        self.lo_base0[0] = self.hi_base0[0] = 0.0
         self.args = (kin.kind, kin.axis, kin.rotation, kin.translation, kin.frame_translation)
         if orientation is None:
             self.vec, self.dirs, self.scale = np.zeros((0, 3)), np.zeros((0, 3)), 0.0
@@ -175,6 +179,11 @@ class Reach:
             e1 /= np.linalg.norm(e1)
             self.basis = np.stack([e1, np.cross(d, e1), d])  # rows e1, e2, axis (right-handed)
             self.origin = np.asarray(s.axis_origin, dtype=float)
+
+    @cached_property
+    def checker(self) -> Reach:
+        """The check run's search (`with_effort(2)`), built once."""
+        return self.with_effort(2)
 
     def with_effort(self, factor: int) -> Reach:
         """The same search with `factor` x the samples and restarts."""
@@ -221,6 +230,15 @@ class Reach:
         return cKDTree(self._key(P)), Q, az
 
     @cached_property
+    def _fixed_base_table(self) -> Any:
+        """A k-d tree over the seed table's frame positions in 3-D (revolved mode: the base at 0),
+        for searches with the base held at 0 (W0 of `kinematics.mechanisms.serial.turn`), whose
+        seeds must lie near the target itself, not only on its circle."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.chain_fk(self._table[1]))
+
+    @cached_property
     def reach_centre(self) -> np.ndarray:
         """The first chain joint's origin (3,) [m], fixed in the world: the reach ball's centre."""
         return np.asarray(self.kin.translation[0], dtype=float)
@@ -233,10 +251,11 @@ class Reach:
         return self.chain_fk(0.5 * (lo + hi)[None])[0]
 
     # -- search ---------------------------------------------------------------------------------
-    def distance(self, targets: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def distance(self, targets: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None = None,
+                 first_seed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Margins (N,) [m] (see the module docstring) and best chain values (N, n) at world targets
-        (N, 3), within the chain bounds `bounds` (default: the joint limits)."""
+        (N, 3), within the chain bounds `bounds` (default: the joint limits); `first_seed` (N, n):
+        a seed tried before the samples' (after the warm start)."""
         targets = np.ascontiguousarray(targets, dtype=float)
         lo, hi = (self.lo, self.hi) if bounds is None else bounds
         # beyond the reach ball nothing is reached: its signed distance (<= minus the true
@@ -247,9 +266,17 @@ class Reach:
             m = -gap
             q = np.full((len(targets), len(self.lo)), np.nan)
             if (~far).any():
-                m[~far], q[~far] = self.distance(targets[~far], (lo, hi))
+                near = None if first_seed is None else first_seed[~far]
+                m[~far], q[~far] = self.distance(targets[~far], (lo, hi), near)
             return m, q
-        seeds = self._seeds(targets, lo, hi)
+        if first_seed is not None and self.setup.mode == "revolved" and lo[0] == hi[0] == 0.0:
+            k = min(self.restarts, self.samples)  # the base held at 0: the nearest samples in 3-D
+            _, idx = self._fixed_base_table.query(targets, k=k, workers=-1 if len(targets) > 20_000 else 1)
+            seeds = self._table[1][np.asarray(idx).reshape(len(targets), k)]
+        else:
+            seeds = self._seeds(targets, lo, hi)
+        if first_seed is not None:
+            seeds = np.ascontiguousarray(np.concatenate([np.asarray(first_seed, float)[:, None, :], seeds], axis=1))
         with _threads(1 if len(targets) < SERIAL_BELOW else None):
             return kernels.search(targets, seeds, lo, hi, *self.args, self.vec, self.dirs, self.scale, REACH_TOL,
                                   ITERATIONS, kernels.CHUNK, FAR)
@@ -343,7 +370,7 @@ class Reach:
         by -(q_0 + pi) about the axis with the base within +-(L - pi); elsewhere m. Where it is >= 0
         the arm with its base at 0 reaches two azimuths alpha, alpha' of the circle through the
         point with |alpha - alpha'| in [2 pi - L, pi], so the base's range turns them over the whole
-        circle (`ReachMargin.finish`)."""
+        circle (`kinematics.mechanisms.serial.turn`: where it succeeds no circle sampling is needed)."""
         out = m.copy()
         hit = np.flatnonzero(m >= 0)
         if len(hit):
@@ -353,6 +380,21 @@ class Reach:
                 (rho * np.sin(th))[:, None] * self.basis[1] + z[:, None] * self.basis[2]
             out[hit] = self.distance(world, (self.lo_cover, self.hi_cover))[0]
         return out
+
+    def task_rank(self, probes: int = 64) -> int:
+        """The largest rank (singular values above 1e-9 x the largest, or 1e-12) of the task
+        Jacobian over the searched joints at `probes` of the seed table's configurations (on the
+        fixed orientation's set with one): the number of freedoms the task point has. Below the
+        task's dimension the reachable set has measure zero (the image of a map of lower rank
+        everywhere, Sard); a probe of an analytic map sees the generic rank."""
+        Q = self._table[1]
+        Q = Q[np.linspace(0, len(Q) - 1, min(probes, len(Q))).astype(int)]
+        J = self.task_jacobians(Q)[:, list(self.setup.rows) if self.setup.mode == "planar" else [0, 1, 2]]
+        J = J[:, :, self.searched]
+        if J.shape[2] == 0:
+            return 0
+        sv = np.linalg.svd(J, compute_uv=False)
+        return int((sv > np.maximum(1e-9 * sv[:, :1], 1e-12)).sum(axis=1).max())
 
     def box(self) -> tuple[np.ndarray, np.ndarray]:
         """A task box [m] holding every reached point: the reach ball |p - p_1| <= R_1 (planar: its
@@ -373,66 +415,17 @@ class ReachMargin:
         self.profile: Profile | None = None
         if s.mode == "revolved" and not on_profile:
             R = s.reach
+            turn = None
+            if reach.turn is not None:
+                from kinematics.mechanisms.serial.turn import TurnExtent
+
+                turn = TurnExtent(reach)
             self.profile = Profile(ReachMargin(reach, True), np.array([0.0, -R]), np.array([R, R]), 1,
-                                   reach.origin, reach.basis[2])
+                                   reach.origin, reach.basis[2], turn)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         return self.reach.profile_margin(points) if self.on_profile else self.reach.margin(points)
 
     def for_check(self) -> ReachMargin:
-        return ReachMargin(self.reach.with_effort(2), self.on_profile)
+        return ReachMargin(self.reach.checker, self.on_profile)
 
-    def finish(self, res: Any) -> Any:
-        """A partial base turn's volume from the free turn's, V_P (the engine's `res`, a
-        `ColumnVolume`, returned unchanged for any other margin): each circle of the profile P lies
-        in W for an arc of at least L (the base's range) and wholly where the cover test succeeds
-        (`Reach.cover`), so with D the measure of the rest (P outside C, weight 2 pi rho) and
-        k = (1 - L / 2 pi) / 2, V_P - 2 k D <= V <= V_P: the result is V_P - k D within k D. D is
-        small (the cover test fails in thin bands) and enters only times k, so a Monte-Carlo count
-        of COVER_SAMPLES profile points, weighted by rho, estimates it (with twice its standard
-        error added to the bound)."""
-        import dataclasses
-
-        reach = self.reach
-        if reach.turn is None or reach.setup.mode != "revolved" or len(res.estimate) != 1:
-            return res
-        R, lo = reach.setup.reach, reach.turn[0]
-        rng = np.random.default_rng(reach.seed)
-        pts = np.column_stack([R * np.sqrt(rng.random(COVER_SAMPLES)), rng.uniform(-R, R, COVER_SAMPLES)])
-        pts = pts[np.lexsort((pts[:, 1], np.round(pts[:, 0], 2)))]  # neighbours in turn: warm starts
-        m, q = reach.profile_search(pts)
-        uncovered = (m >= 0) & (reach.cover(pts, m, q) < 0)
-        f = float(uncovered.mean())
-        box = 2 * math.pi * R * R * R  # the weighted measure of the sampled profile box
-        D, sd = box * f, box * math.sqrt(max(f * (1 - f), 1.0 / COVER_SAMPLES) / COVER_SAMPLES)
-        k = 0.5 * (1.0 - (reach.turn[1] - lo) / (2 * math.pi))
-        volume = res.estimate - k * D
-        error = res.error + k * (D + 4 * sd)
-        ok = res.target_converged & (error <= res.rtol * np.abs(volume) * (1.0 + 1e-12))
-        return dataclasses.replace(res, estimate=volume, error=error, converged=bool(res.converged and ok.all()),
-                                   target_converged=ok, fixed_error=np.full_like(error, k * (D + 4 * sd)))
-
-
-def _partial_turn(robot: Robot, kin: Any, s: Setup, orientation: ToolOrientation | None
-                  ) -> tuple[Setup, tuple[float, float] | None]:
-    """A spatial setup whose first chain joint is a revolute moving the point through a range
-    L in [pi, 2 pi) (and leaving a fixed orientation unchanged): the revolved setup and the range
-    (lo, hi); otherwise (s, None). The reachable set W is then the turns by [lo, hi] of the set W0
-    the rest of the chain reaches: on each circle about the axis, A + [lo, hi] with A the
-    azimuths of W0 there, which is the whole circle as soon as A holds two azimuths at least
-    2 pi - L apart, and at least an arc of length L wherever A is not empty."""
-    import dataclasses
-
-    from kinematics.generic.batched import PRISMATIC
-    from kinematics.mechanisms.serial.joint_box import dof_of
-
-    if (s.mode != "spatial" or kin.kind[0] == PRISMATIC or not len(s.active) or bool(s.periodic[0])
-            or int(s.active[0]) != dof_of(robot, int(kin.idx_v[0]))):
-        return s, None
-    lo, hi = float(s.lo[0]), float(s.hi[0])
-    direction = kin.rotation[0] @ kin.axis[0]
-    if hi - lo < math.pi or (orientation is not None and not orientation.invariant_about(direction)):
-        return s, None
-    return dataclasses.replace(s, mode="revolved", active=s.active[1:], lo=s.lo[1:], hi=s.hi[1:],
-                               periodic=s.periodic[1:], axis_origin=kin.translation[0].copy(),
-                               axis_direction=direction), (lo, hi)
