@@ -15,7 +15,11 @@ neighbour outside the workspace leaves its end at a fold, from which Newton can 
 angles) where another slot of the block's same assembly (locked joints' half-turn bits) was found
 or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
 (a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
-where it was tried and not found means no restarts). Blocks are solved in a dependency order,
+where it was tried and not found means no restarts). Before the restarts, a slot whose best start
+stalled next to closure, no slot of its assembly found, is started from the roots its fold model
+predicts (`compiled.fold_roots`); where the model predicts none and the target's warm starts came
+from a point within FOLD_SOURCE x the continuation radius (a root refinement's probes, `source` of
+`_solve_slots`), that verdict replaces the restarts. Blocks are solved in a dependency order,
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
@@ -225,7 +229,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
                 far = ~near & ~np.isfinite(best[a:b]) & (d < np.linalg.norm(q[a:b] - self._anchor, axis=1))
                 starts[a:b][far] = np.where(slots.found[src[far]][..., None], slots.end[src[far]], np.nan)
             level_slots = _Slots(*(v[a:b] for v in slots))
-            self._solve_slots(q[a:b], starts[a:b], level_slots, every_block)
+            self._solve_slots(q[a:b], starts[a:b], level_slots, every_block, best[a:b])
             level_slots.record_outcome()
             a = b
         x = np.empty((N, B, n))
@@ -242,19 +246,22 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
                                end_x)
 
-    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, out: _Slots, every_block: bool = False) -> None:
+    def _solve_slots(self, p: np.ndarray, starts: np.ndarray, out: _Slots, every_block: bool = False,
+                     source: np.ndarray | None = None) -> None:
         """Every block slot at targets p from warm starts (N, K, S, cmax + 1) (NaN: none; the last
         entry: the outcome of the slot at the start's source point, `_Slots.record_outcome`), written to
         `out` (rows of the caller's arrays); a slot no live branch needs is skipped unless
-        every_block."""
+        every_block. source: (N,) distance [m] from each target to its warm starts' source point
+        (inf: none; the default), which decides where a fold's verdict replaces restarts."""
         tb = self._block_tables
         N, B = len(p), len(self.labels)
         alive = np.ones((N, B), dtype=np.bool_)
         starts = np.ascontiguousarray(starts)
+        source = np.full(N, np.inf) if source is None else np.ascontiguousarray(source, dtype=float)
         for k in tb["order"] if N else ():
             if every_block:
                 alive[:] = True
             gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
             jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
-                     tb["atlas"], starts, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
+                     tb["atlas"], starts, source, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
                      WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)

@@ -30,6 +30,15 @@ Jacobian columns w x (p_f - o_j) / w) are evaluated in the same kernel, not by p
 calls; a rejected trial evaluates the residual only, an accepted one adds the Jacobian from the
 trial's placements.
 
+**Folds.** A start that stalls next to closure usually sits at a least-squares point on a fold of a
+limb's reach (the target a little beyond it, or a little inside with the start stalled on the
+fold's flat residual). `fold_roots` reads the fold there: the Jacobian's near-null direction v,
+the Gauss-Newton step with v held, and a quadratic model of the residual along v, whose roots are
+the two nearly double roots when the target is inside and which has none when it is beyond.
+`block_kernel` starts from those roots before its quasi-random restarts and, where the model says
+beyond and the target's warm starts came from a point closer than FOLD_SOURCE x the continuation
+radius (a root refinement's probes), skips the restarts.
+
 Every compiled function that another one calls lives in this file, with its callers: Numba's
 on-disk cache (`cache=True`) is invalidated only by a change of the file that defines a kernel, so
 a kernel that compiled in a helper from another file would keep the old helper's code after that
@@ -354,7 +363,7 @@ def _maxabs(r):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _workspace(gi, m):  # pragma: no cover - compiled
+def scratch(gi, m):  # pragma: no cover - compiled
     """Scratch arrays of one Levenberg-Marquardt row (`_lm_row`) for model gi and m residual rows."""
     n = gi[0]
     return (np.empty(_ws_size(gi)), np.empty(m), np.empty(m), np.empty((m, n)), np.empty((m, n)), np.empty((n, n)),
@@ -367,7 +376,7 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
     """Levenberg-Marquardt from x (overwritten with where it ends) towards target t (see the module
     docstring). Returns (max |weighted residual| [m], iterations); r and J then hold the weighted
     residual and Jacobian at x (J: unless final_jac is False and the last step converged, when it
-    is the previous step's); the other arrays are scratch (`_workspace`). The stall rule applies
+    is the previous step's); the other arrays are scratch (`scratch`). The stall rule applies
     from step `settle` on. adapt: Nielsen's damping update (a descent towards the nearest root or
     least-squares point); else lam / 10 after every accepted step (long Gauss-Newton steps)."""
     n = x.shape[0]
@@ -483,6 +492,119 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
     return res, it
 
 
+FOLD_SINGULAR = 1e-3
+"""A stalled start is at a fold when the smallest eigenvalue of J^T J (its free unknowns) is below
+this fraction of their mean (`fold_roots`)."""
+
+FOLD_SOURCE = 1e-2
+"""A fold's verdict that the target lies beyond it replaces the restarts only where the target's
+warm starts came from a point within this fraction of the continuation radius (`block_kernel`):
+a root refinement's probes. Farther (a column's samples, a step apart) the verdict was wrong for
+0.3-2 % of the slots the restarts then found (the iso five-bar), closer for 8 in 95,000."""
+
+FOLD_STEP = 1e-3
+"""Step [rad or m] of the central difference that gives the residual's curvature along the fold."""
+
+
+@njit(cache=True)
+def fold_roots(t, x, gi, gf, m, centre, free, roww, pinned, ws, r, rt, J, Jt, A, D, gr, dx, v, s12):  # pragma: no cover - compiled
+    """Where a start that stalled at x (next to a least-squares point at a fold of the reach) finds
+    its roots, if any. v: the near-null direction of the Jacobian J (inverse iteration on J^T J);
+    x moves by the Gauss-Newton step with v held (what the other directions can close), to x1 where
+    the residual r1 is normal to J's range; along v, r(x1 + s v) ~ r1 + s J v + s^2 c / 2 (c by
+    central differences), whose component along r1 vanishes where |r1|^2 + s r1.Jv + s^2 r1.c / 2
+    = 0. Returns 0 where J is not near-singular (not a fold: nothing is said), 1 where that
+    quadratic has no real root (the target lies beyond the fold: no root next to x), 2 with its
+    roots in s12, x1 in x and v (unit) written: the starts x1 + s v."""
+    n = x.shape[0]
+    pin_j = _pin_pose(gi, gf, ws, t) if pinned else -1
+    _wrap(x, gi, centre)
+    _residual(x, t, gi, gf, ws, r, J, True, pin_j, True)
+    _weigh(roww, r, J, True)
+    trace = 0.0
+    nfree = 0
+    for a in range(n):
+        for b in range(a + 1):
+            q = 0.0
+            if free[a] and free[b]:
+                for i in range(m):
+                    q += J[i, a] * J[i, b]
+            A[a, b] = q
+            A[b, a] = q
+        if free[a]:
+            trace += A[a, a]
+            nfree += 1
+    if not trace > 0.0:
+        return 0
+    for a in range(n):
+        v[a] = (1.0 + 0.37 * a) if free[a] else 0.0
+        if not free[a]:
+            A[a, a] = trace  # a frozen unknown: far from the smallest eigenvalue
+    for _ in range(6):
+        for a in range(n):
+            for b in range(n):
+                D[a, b] = A[a, b]
+            D[a, a] += 1e-12 * trace + 1e-300
+        if not cholesky_solve(D, v, dx):
+            return 0
+        norm = 0.0
+        for a in range(n):
+            norm += dx[a] * dx[a]
+        norm = math.sqrt(norm)
+        if not norm > 0.0:
+            return 0
+        for a in range(n):
+            v[a] = dx[a] / norm if free[a] else 0.0
+    lam = 0.0
+    for a in range(n):
+        for b in range(n):
+            lam += v[a] * A[a, b] * v[b]
+    if lam > FOLD_SINGULAR * trace / nfree:
+        return 0
+    for a in range(n):
+        q = 0.0
+        if free[a]:
+            for i in range(m):
+                q -= J[i, a] * r[i]
+        gr[a] = q
+        for b in range(n):
+            D[a, b] = A[a, b] + trace * v[a] * v[b]
+        D[a, a] += 1e-12 * trace + 1e-300
+    if not cholesky_solve(D, gr, dx):
+        return 0
+    for a in range(n):
+        x[a] += dx[a]
+    _wrap(x, gi, centre)
+    _residual(x, t, gi, gf, ws, r, J, True, pin_j, True)
+    _weigh(roww, r, J, True)
+    # r(x +- h v) into rt and Jt's first column
+    for side in range(2):
+        sg = FOLD_STEP if side == 0 else -FOLD_STEP
+        for a in range(n):
+            dx[a] = x[a] + sg * v[a]
+        _wrap(dx, gi, centre)
+        _residual(dx, t, gi, gf, ws, rt, Jt, False, pin_j, True)
+        _weigh(roww, rt, Jt, False)
+        if side == 0:
+            for i in range(m):
+                Jt[i, 0] = rt[i]
+    c0, b1, a2 = 0.0, 0.0, 0.0
+    for i in range(m):
+        jv = 0.0
+        for a in range(n):
+            jv += J[i, a] * v[a]
+        c0 += r[i] * r[i]
+        b1 += r[i] * jv
+        a2 += r[i] * (Jt[i, 0] + rt[i] - 2.0 * r[i]) / (FOLD_STEP * FOLD_STEP)
+    disc = b1 * b1 - 2.0 * a2 * c0
+    if a2 == 0.0 or not disc >= 0.0:
+        return 1
+    root = math.sqrt(disc)
+    s12[0] = (-b1 + root) / a2
+    s12[1] = (-b1 - root) / a2
+    return 2
+
+
 # lm_kernel calls `_lm_row` compiled on its own rather than inlined: inlining it into both parallel
 # kernels doubled the solver's first compilation (lm_kernel ~110 of ~280 s under load, ~40 s this
 # way) for no measurable gain in lm_kernel's callers (Gepetto's five-bar workspace: the same CPU
@@ -497,7 +619,7 @@ def lm_kernel(targets, x0, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, 
     n = gi[0]
     BLK = 16
     for blk in prange((nrows + BLK - 1) // BLK):
-        ws, r, rt, J, Jt, A, D, gr, dx, xt = _workspace(gi, m)
+        ws, r, rt, J, Jt, A, D, gr, dx, xt = scratch(gi, m)
         x = np.empty(n)
         for row in range(blk * BLK, min(nrows, (blk + 1) * BLK)):
             for j in range(n):
@@ -550,7 +672,7 @@ def _flip(x, flips, nflip, k):  # pragma: no cover - compiled
 
 
 @njit(cache=True, parallel=True)
-def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, lo, hi, alpha,
+def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslot, bslot, atlas, warm, source, lo, hi, alpha,
                   restarts, near, alive, found, dist, res, end, counts):  # pragma: no cover - compiled
     """Block k of the block solver (`LoopBatch._solve_slots`) at every target row.
 
@@ -577,12 +699,17 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
     oK = gi[7]
     BLK = 16
     for chunk in prange((N + BLK - 1) // BLK):
-        ws, r, rt, J, Jt, A, D, gr, dx, xt = _workspace(gi, m)
+        ws, r, rt, J, Jt, A, D, gr, dx, xt = scratch(gi, m)
         x = np.empty(n)
         t = np.empty(targets.shape[1])
         M = np.empty((nc, nc))
         need = np.empty(S, dtype=np.bool_)
         again = np.empty(S, dtype=np.bool_)  # the slot gets restarts
+        fold = np.zeros(S, dtype=np.int64)  # `fold_roots`'s verdict per slot (0: none)
+        fold_x = np.empty((S, n))  # the stalled point
+        fold_v = np.empty((S, n))  # its fold direction
+        fold_s = np.empty((S, 2))  # the predicted roots along it
+        s12 = np.empty(2)
         held_locks = free.copy()  # restarts hold the locked joints at their slot's angles
         for q in range(nlock[k]):
             held_locks[lock_idx[k, q]] = False
@@ -595,7 +722,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 if alive[i, b]:
                     need[bslot[b, k]] = True
             idx0 = (i * nslot.shape[0] + k) * S * restarts
-            for attempt in range(S * (2 + restarts)):
+            for attempt in range(S * (4 + restarts)):
                 if S <= attempt < 2 * S:
                     # a warm start that stalled within `near` of closure gets its slot's atlas
                     # start too: the neighbour's end can lie across a fold (the neighbour outside,
@@ -641,15 +768,56 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                         some = some or (grp and need[g] and not found[i, k, g])
                     if not some:
                         break
-                s = attempt if attempt < S else attempt - S if attempt < 2 * S else (attempt - 2 * S) // restarts
-                if not need[s] or found[i, k, s] or (attempt >= 2 * S and not again[s]):
+                    # a missing slot whose best start stalled next to closure while no slot of its
+                    # assembly closed: the fold model at the stalled point (`fold_roots`) gives two
+                    # starts where it predicts roots, and, where it predicts none and the start
+                    # stalled within near / 10, replaces the quasi-random restarts (on the iso
+                    # five-bars 99.8 % of these restarts found nothing: the target was outside)
+                    for g in range(S):
+                        fold[g] = 0
+                        if not (again[g] and need[g] and not found[i, k, g] and res[i, k, g] < near):
+                            continue
+                        grp = False
+                        for q in range(S):
+                            grp = grp or (slot_lock[k, q] == slot_lock[k, g] and found[i, k, q])
+                        if grp:
+                            continue
+                        usable = True
+                        for j in range(n):
+                            fold_x[g, j] = 0.0
+                        for c in range(nc):
+                            fold_x[g, cols[k, c]] = end[i, k, g, c]
+                        for h in range(nheld[k]):
+                            o, so = held_owner[k, h], held_slot[k, g, h]
+                            fold_x[g, held[k, h]] = end[i, o, so, held_pos[k, h]]
+                            usable = usable and found[i, o, so]
+                        if not usable:
+                            continue
+                        fold[g] = fold_roots(t, fold_x[g], gi, gf, m, centre, free, weights, pinned[k], ws, r, rt, J, Jt,
+                                              A, D, gr, dx, fold_v[g], s12)
+                        fold_s[g, 0], fold_s[g, 1] = s12[0], s12[1]
+                        if fold[g] == 1 and res[i, k, g] < 0.1 * near and source[i] <= FOLD_SOURCE * near:
+                            again[g] = False
+                if 2 * S <= attempt < 4 * S:
+                    s = (attempt - 2 * S) // 2
+                    if fold[s] != 2 or not need[s] or found[i, k, s]:
+                        continue
+                if attempt < 2 * S:
+                    s = attempt % S
+                elif attempt >= 4 * S:
+                    s = (attempt - 4 * S) // restarts
+                if not need[s] or found[i, k, s] or (attempt >= 4 * S and not again[s]):
                     continue
                 # the start: the block's unknowns, then the held joints of this slot's branch choice
                 for j in range(n):
                     x[j] = 0.0
                 iters = 20
                 settle = 3
-                if attempt < 2 * S:
+                if 2 * S <= attempt < 4 * S:
+                    # the fold's predicted root (held joints as at the stalled point)
+                    for j in range(n):
+                        x[j] = fold_x[s, j] + fold_s[s, (attempt - 2 * S) % 2] * fold_v[s, j]
+                elif attempt < 2 * S:
                     cold = attempt >= S or not np.isfinite(warm[i, k, s, 0])
                     iters = 40 if cold else 20
                     # from a neighbour's end Newton converges at once or the start is stalling
@@ -657,7 +825,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                     for c in range(nc):
                         x[cols[k, c]] = atlas[k, s, c] if cold else warm[i, k, s, c]
                 else:
-                    q = idx0 + attempt - 2 * S + 1
+                    q = idx0 + attempt - 4 * S + 1
                     for c in range(nc):
                         x[cols[k, c]] = lo[k, c] + ((0.5 + q * alpha[k, c]) % 1.0) * (hi[k, c] - lo[k, c])
                     # a locked joint (`LoopStructure.locked_joints`) at its slot's assembly angle,
@@ -678,7 +846,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 # a slot's first start descends (Nielsen); the atlas retry (a target next to a fold,
                 # its roots nearly double) and the restarts (exploration) keep lam / 10 per step,
                 # whose long Gauss-Newton steps close near-double roots and reach more basins
-                rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, held_locks if attempt >= 2 * S else free, weights,
+                rr, _ = _lm_row(t, x, gi, gf, m, nzc, nzn, centre, held_locks if attempt >= 4 * S else free, weights,
                                 iters, tol, pinned[k], ws, r, rt, J, Jt, A, D, gr, dx, xt, settle, label[k] >= 0,
                                 attempt < S)
                 if rr < res[i, k, s]:
