@@ -92,6 +92,12 @@ def test_workspace_volume_serial(capsys, tmp_path):
                   & (r <= math.sqrt(0.4**2 + 0.25**2 + 0.2 * math.cos(0.3)) + 1e-9))
 
 
+def test_workspace_volume_serial_report_does_not_claim_a_singular_scan(capsys):
+    """A serial arm's volume run scans no singular locus: the report says so instead of '0 inside'."""
+    code, out, _ = run(capsys, "workspace-volume", REVOLVED, "--step", "0.05", "--rtol", "1e-2")
+    assert code == 0 and "not scanned" in out and "singular points inside" not in out
+
+
 def test_singularities_serial(capsys):
     """The sample's positions are the images of its joint values (base joint at 0 for the UR5's
     solid of revolution: distance to the base axis z and height agree with forward kinematics)."""

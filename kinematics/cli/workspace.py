@@ -281,9 +281,12 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
         *([("not converged", _not_converged(ws))] if not r.converged else []),
         ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
         ("points evaluated", f"{r.points_evaluated:,}"),
-        ("singular points inside", len(payload["singular_points"])),
-        ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())
-                                    for k, v in payload["singularities"].items())),
+        *([("singular points inside", len(payload["singular_points"])),
+           ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())
+                                       for k, v in payload["singularities"].items()))]
+          if payload["singularities"] else
+          [("singularities", (f"not scanned for this robot here (`kinematics singularities {ws.robot}` "
+                              "bounds its singular joint boxes)"))]),
         ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
     ], digits=None))
     if paper:
