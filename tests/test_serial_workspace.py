@@ -283,3 +283,26 @@ def test_scara_area_through_the_serial_path(scara):
     ws = measure_workspace(SerialArm(scara), step=0.01, rtol=1e-5, check=True)
     assert ws.planar and abs(ws.total - exact) <= ws.error
     assert abs(ws.total - exact) <= 1e-4 * exact
+
+
+def test_3d_search_budget_stops_honestly(monkeypatch):
+    """The 3-D path (the wedge arm: base range 1.2 rad < pi) on a search budget far below what
+    rtol 1e-5 needs: it stops, not converged, the budget named as the reason, and its error
+    estimate still covers the exact volume V = (4 D / 3)(r(0.5)^3 - r(2.0)^3) of the shell test."""
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.serial import reach as reach_module
+    from kinematics.mechanisms.serial.mechanism import SerialArm
+
+    def r(e: float) -> float:
+        return math.sqrt(L2**2 + L3**2 + 2 * L2 * L3 * math.cos(e))
+
+    exact = 4 * 1.2 / 3 * (r(0.5) ** 3 - r(2.0) ** 3)
+    budget = 300_000  # the start (~1.2e5 searches at 4 cm) and a few rounds; 1e-5 needs millions
+    monkeypatch.setattr(reach_module, "SEARCHES", budget)
+    ws = measure_workspace(SerialArm(load_robot(MODELS / "arm3r_wedge.urdf")), step=0.04, rtol=1e-5)
+    res = ws.result
+    assert not res.converged and res.out_of_budget is not None and res.out_of_budget[-1]
+    assert "search budget" in ws.unconverged()["union"]
+    # the slices may finish a round begun: up to twice the budget (engine's `_run_sampled`)
+    assert res.points_evaluated <= 2 * budget + 200_000
+    assert abs(ws.total - exact) <= float(res.error[-1])

@@ -79,8 +79,8 @@ class Workspace:
                 return (f"a bound no finer step reduces ({bound[k]:.2g} of the error estimate) exceeds the "
                         "tolerance")
             if r.out_of_budget is not None and r.out_of_budget[k]:
-                return ("the partial base turn's search budget ran out (its circles' integral): the estimate "
-                        "and its error are the answer at this budget")
+                return ("the search budget ran out (a serial arm's reach searches: a partial base turn's circles' "
+                        "integral, or its columns in 3-D): the estimate and its error are the answer at this budget")
             return "error estimate above the tolerance"
 
         return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}
