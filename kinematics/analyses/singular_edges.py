@@ -140,7 +140,9 @@ def edge_crossings(disc: np.ndarray, det: np.ndarray, margin: np.ndarray, modes:
         det: (N, M) per mode's type II field.
         margin: (N, M) per mode's margin [m] (>= 0 inside its workspace).
         modes: the chosen modes' columns (type II is looked for in these, in this order).
-        planes, nx, ny: the block's shape.
+        planes: the block's number of planes.
+        nx: points per plane along x.
+        ny: points per plane along y.
         z_only: only the edges between planes (e.g. a block of two planes from two scans).
 
     Returns:
