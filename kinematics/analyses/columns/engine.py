@@ -32,6 +32,13 @@ CHECK_SEARCHES = 2
 """Sampled columns of a margin with a `search_budget`: each check run may spend this many times
 the first run's budget (twice the samples per column; as `turned.CHECK_BUDGET`)."""
 
+START_SHARE = 0.5
+"""Sampled 3D columns on a search budget: the starting grid (3 x order columns per starting
+interval in each direction across the columns, each sampled every `step`) may cost at most this
+share of the run's budget; a dearer one starts from wider intervals (`start_cell`), the
+refinement then spending the rest where the error is. Without it a 1 cm start over the wedge
+arm's 1.7 m reach box cost ~9e6 searches before the budget was first looked at."""
+
 OUTER_SPAN = 6
 """Exact columns: the volume's outer integral starts from intervals of this many node spacings;
 the 12 slices of each (the whole interval's 4-node rule and its halves') then leave no gap wider
@@ -60,7 +67,8 @@ class ColumnVolume:
             check, the two runs agree within their estimates.
         step: sampling step along the columns [m]; cell: starting quadrature interval [m].
         columns: columns measured; points_evaluated: margin evaluations.
-        check_difference: (T,) |this run - the check run| (NaN without check).
+        check_difference: (T,) |this run - the check run| (NaN without check, or when the first
+            run stopped on its search budget: no check run then).
         box: (2, d) [min, max] of the inside points found for the last target (NaN if none).
         target_converged: (T,) per target: its error estimate is within its tolerance and, with
             check, the two runs agree on it within their estimates (`converged` also needs the
@@ -185,7 +193,11 @@ def column_volume(
         searches = getattr(margin, "search_budget", None) if d == 3 else None
         run = partial(_run_sampled, weight=weight, root_tol=root_tol, searches=searches)
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
-    if not check:
+    if not check or (first.out_of_budget is not None and bool(first.out_of_budget.any())):
+        # a run stopped on its search budget is not converged whatever a check says, and its
+        # error (the unrefined intervals', ~1e-2 relative there) dwarfs what a check finds (a
+        # second search at half the step: 6e-4 and 3e-3 of it on the wedge arm and talos's arm);
+        # its time (CHECK_SEARCHES x the budget) buys nothing
         return first
     for_check = getattr(margin, "for_check", None)
     if for_check is not None:
@@ -328,8 +340,11 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
 
         bar = tqdm(desc="volume", unit="col", unit_scale=True, delay=1.0, leave=False)
 
+    cell = 8 * step if searches is None or d != 3 or pieces else start_cell(
+        step, hi - lo, ax, order, int(START_SHARE * searches))
+
     def n_pieces(k: int) -> int:
-        return pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step)))
+        return pieces or max(1, math.ceil((hi[k] - lo[k]) / cell))
 
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter, root_tol)
@@ -384,9 +399,27 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
         # finding nothing cannot be told from sampling past everything: never a confident 0
         estimate=q[0], error=e[0], converged=bool(np.all(conv)) and in_budget and bool(q[0, -1] > 0),
         rtol=rtol,
-        step=step, cell=8 * step, columns=counter.columns,
+        step=step, cell=cell, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
         target_converged=within, check_agrees=np.ones(q.shape[1], bool), root_tol=root_tol,
         out_of_budget=spent_out,
     )
+
+
+def start_cell(step: float, span: np.ndarray, axis: int, order: int, budget: int) -> float:
+    """The sampled 3D columns' starting interval [m]: 8 x step, or wider until the starting grid,
+    (3 order ceil(span_i / cell)) (3 order ceil(span_j / cell)) columns of span_axis / step + 1
+    samples each (i, j the directions across the columns), costs at most `budget` margin
+    evaluations (the roots' refinement not counted: a few per column), or one interval spans
+    each direction."""
+    per_column = math.ceil(span[axis] / step) + 1
+    across = [float(span[k]) for k in range(len(span)) if k != axis]
+
+    def cost(cell: float) -> int:
+        return per_column * math.prod(3 * order * max(1, math.ceil(s / cell)) for s in across)
+
+    cell = 8 * step
+    while cost(cell) > budget and cell < max(across):
+        cell *= 1.05  # (at most ~60 steps from a 1 cm step to a metre-sized box)
+    return cell
