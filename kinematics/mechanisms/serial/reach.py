@@ -68,10 +68,11 @@ the sign is at stake, near the boundary."""
 
 SEARCHES = 10_000_000
 """The volume engine's budget in searches for the first run over the spatial margin
-(`ReachMargin.search_budget`; each check run twice it): each evaluation is a search with
-restarts, so the engine's `max_points` (2e8) bounds nothing like the time. finger_edu converges
-at the defaults on ~2e7 evaluations in all (first run and check), which this leaves untouched;
-the wedge arm's main run alone spent 2.2e7 (298 s at load 6.7)."""
+(`ReachMargin.search_budget`; each check run twice it; a first run that stops on it gets no
+check run): each evaluation is a search with restarts, so the engine's `max_points` (2e8) bounds
+nothing like the time. finger_edu converges at the defaults on 7.1e6 searches in its first run
+and 1.3e7 in its check run, which this leaves room for; the wedge arm's first run stops on it
+after 9.1e6 (~80 s of CPU)."""
 
 
 SERIAL_BELOW = 512
