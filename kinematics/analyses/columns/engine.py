@@ -147,7 +147,10 @@ def column_volume(
     Three optional attributes of the margin change the run: `search_budget` (an int: each of its
     evaluations is a search with restarts, e.g. a serial arm's reach in 3D; sampled 3D columns
     then stop on that many evaluations, each check run on CHECK_SEARCHES x as many, instead of on
-    `max_points`, `out_of_budget` saying so), `profile` (3D margins of a solid of
+    `max_points`, `out_of_budget` saying so; their start costs at most START_SHARE of it, from
+    intervals wider than 8 x step if need be, `start_cell`, so a feature between its wider nodes
+    is seen only where the refinement goes; a first run that stops on it is returned
+    unchecked), `profile` (3D margins of a solid of
     revolution: `margin`, `lo`, `hi`, `axis`, `weight` and `world_box` of its (rho, z) profile,
     measured instead with the weight 2 pi rho, Pappus; with a `turn`, a partial turn's, by
     `turned.add_turn`) and `for_check()` (the margin the check run
