@@ -182,9 +182,7 @@ def column_volume(
         raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
                                         f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
-    per_column = math.ceil((hi[ax] - lo[ax]) / step) + 1
-    start = per_column * math.prod(3 * order * (pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step))))
-                                   for k in range(d) if k != ax)
+    start = start_cost(step, hi - lo, ax, order, 8 * step, pieces)
     if start > max_points:
         raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
                                         "use a larger step")
@@ -416,13 +414,16 @@ def start_cell(step: float, span: np.ndarray, axis: int, order: int, budget: int
     samples each (i, j the directions across the columns), costs at most `budget` margin
     evaluations (the roots' refinement not counted: a few per column), or one interval spans
     each direction."""
-    per_column = math.ceil(span[axis] / step) + 1
-    across = [float(span[k]) for k in range(len(span)) if k != axis]
-
-    def cost(cell: float) -> int:
-        return per_column * math.prod(3 * order * max(1, math.ceil(s / cell)) for s in across)
-
     cell = 8 * step
-    while cost(cell) > budget and cell < max(across):
+    while start_cost(step, span, axis, order, cell) > budget and cell < max(np.delete(span, axis)):
         cell *= 1.05  # (at most ~60 steps from a 1 cm step to a metre-sized box)
     return cell
+
+
+def start_cost(step: float, span: np.ndarray, axis: int, order: int, cell: float, pieces: int | None = None) -> int:
+    """Margin samples of the columns' starting grid: per direction across the columns, `pieces`
+    (or span / cell rounded up) starting intervals of 3 x order columns (the Gauss rule on each and
+    on its halves), every column sampled every `step` along `axis`."""
+    per_column = math.ceil(span[axis] / step) + 1
+    return per_column * math.prod(3 * order * (pieces or max(1, math.ceil(span[k] / cell)))
+                                  for k in range(len(span)) if k != axis)
