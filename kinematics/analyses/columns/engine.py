@@ -196,9 +196,9 @@ def column_volume(
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
     if not check or (first.out_of_budget is not None and bool(first.out_of_budget.any())):
         # a run stopped on its search budget is not converged whatever a check says, and its
-        # error (the unrefined intervals', ~1e-2 relative there) dwarfs what a check finds (a
-        # second search at half the step: 6e-4 and 3e-3 of it on the wedge arm and talos's arm);
-        # its time (CHECK_SEARCHES x the budget) buys nothing
+        # error (the unrefined intervals', 2-4 % relative on the wedge arm and talos's arm at the
+        # CLI's defaults) dwarfs what a check finds (a second search at half the step: 6e-4 and
+        # 3e-3 of the error on budgets of 1e6); its time (CHECK_SEARCHES x the budget) buys nothing
         return first
     for_check = getattr(margin, "for_check", None)
     if for_check is not None:
