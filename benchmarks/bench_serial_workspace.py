@@ -8,7 +8,10 @@ own estimate beside it), the panda and the kinova (example-robot-data) at the CL
 1 cm, rtol 1e-3), the z1 and the so100 (example-robot-data: base revolutes turning part of a
 turn, `kinematics.mechanisms.serial.turn`) at the defaults (their circles' integral stops on its
 search budget, `kinematics.analyses.columns.turned.SEARCHES`, reported as `search_budget`, and
-says `converged: false` there), and the SCARA's closed-form margin at
+says `converged: false` there), the wedge arm (tests/models/arm3r_wedge.urdf: a base range of
+1.2 rad, measured in 3-D; exact volume derived in tests/test_serial_workspace.py) at the defaults,
+whose first run stops on the 3-D search budget (`kinematics.mechanisms.serial.reach.SEARCHES`,
+reported as `search_budget`; no check run then), and the SCARA's closed-form margin at
 rtol 1e-5. With `--monte-carlo N` a partial turn's row also gets an independent count of N points
 (`monte_carlo`: each point turned back by 121 base angles and searched with the base held at 0;
 another seed; no profile, no circles) as `monte_carlo` [volume, standard error]. Every run is
@@ -34,10 +37,12 @@ from kinematics.analyses.columns.turned import SEARCHES
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.serial.mechanism import SerialArm
+from kinematics.mechanisms.serial.reach import SEARCHES as SEARCHES_3D
 from kinematics.model.robot import load_robot
 
 HERE = Path(__file__).resolve().parent
 ARM3R = HERE.parent / "tests" / "models" / "arm3r_revolved.urdf"
+WEDGE = HERE.parent / "tests" / "models" / "arm3r_wedge.urdf"
 JSON_KEYS = ("results", "machine")
 ROW_KEYS = ("robot", "volume", "unit", "error_estimate", "true_error", "converged", "rtol", "step_m",
             "points_evaluated", "seconds")
@@ -55,6 +60,15 @@ def arm3r_exact() -> float:
                                     + l3 * (g(a2) - g(a1)))
 
 
+def wedge_exact() -> float:
+    """The wedge arm's volume [m^3] (tests/test_serial_workspace.py: two spherical-shell wedges of
+    width 1.2 rad, (4 D / 3)(r(0.5)^3 - r(2.0)^3))."""
+    def r(e: float) -> float:
+        return math.sqrt(0.4**2 + 0.25**2 + 2 * 0.4 * 0.25 * math.cos(e))
+
+    return 4 * 1.2 / 3 * (r(0.5) ** 3 - r(2.0) ** 3)
+
+
 # name -> (robot, serial path, step [m], rtol, goal on the relative error)
 ROWS: dict[str, tuple[str, bool, float, float, float]] = {
     "scara-serial": ("scara", True, 0.005, 1e-6, 1e-6),
@@ -65,6 +79,7 @@ ROWS: dict[str, tuple[str, bool, float, float, float]] = {
     "kinova": ("kinova", True, 0.01, 1e-3, 1e-3),
     "z1": ("z1", True, 0.01, 1e-3, 1e-3),
     "so100": ("so100", True, 0.01, 1e-3, 1e-3),
+    "wedge": (str(WEDGE), True, 0.01, 1e-3, 1e-3),
     "scara-closed-form": ("scara", False, 0.01, 1e-5, 1e-5),
 }
 QUICK = {"scara-serial": (0.05, 1e-2), "arm3r": (0.05, 1e-2)}
@@ -106,15 +121,18 @@ def run_row(name: str, quick: bool) -> dict[str, Any]:
     t0 = time.perf_counter()
     ws = measure_workspace(mech, step=step, rtol=rtol, check=True)
     seconds = time.perf_counter() - t0
-    exact = {"scara-serial": SCARA_AREA, "scara-closed-form": SCARA_AREA, "arm3r": arm3r_exact()}.get(name)
+    exact = {"scara-serial": SCARA_AREA, "scara-closed-form": SCARA_AREA, "arm3r": arm3r_exact(),
+             "wedge": wedge_exact()}.get(name)
     r = ws.result
+    reach = getattr(mech, "reach", None)  # a partial turn's circles, or the 3-D path, stop on a search budget
+    budget = None if reach is None else (SEARCHES if reach.turn is not None else
+                                         SEARCHES_3D if reach.setup.mode == "spatial" else None)
     return {
         "robot": name, "volume": ws.total, "unit": "m2" if ws.planar else "m3", "error_estimate": ws.error,
         "true_error": None if exact is None else abs(ws.total - exact),
         "converged": bool(r.target_converged[-1]) and r.converged, "rtol": rtol, "goal_relative": goal,
         "step_m": step, "points_evaluated": r.points_evaluated, "seconds": seconds,
-        **({"search_budget": SEARCHES} if getattr(mech, "reach", None) is not None and mech.reach.turn is not None
-           else {}),
+        **({"search_budget": budget} if budget is not None else {}),
     }
 
 

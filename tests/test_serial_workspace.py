@@ -283,3 +283,31 @@ def test_scara_area_through_the_serial_path(scara):
     ws = measure_workspace(SerialArm(scara), step=0.01, rtol=1e-5, check=True)
     assert ws.planar and abs(ws.total - exact) <= ws.error
     assert abs(ws.total - exact) <= 1e-4 * exact
+
+
+def test_3d_search_budget_stops_honestly(monkeypatch):
+    """The 3-D path (the wedge arm: base range 1.2 rad < pi) with the check run, at the CLI's
+    rtol, on a search budget far below what it needs: it stops in the first run, not converged,
+    the budget named as the reason, within about twice its budget, and its error estimate still
+    covers the exact volume V = (4 D / 3)(r(0.5)^3 - r(2.0)^3) of the shell test. At 2 cm the
+    usual start (8 cm intervals: 132 x 132 columns of 86 samples, ~1.5e6 searches) alone is 7x
+    the budget: the start must be coarsened (engine.START_SHARE), and no check run follow."""
+    from kinematics.analyses.workspace import measure_workspace
+    from kinematics.mechanisms.serial import reach as reach_module
+    from kinematics.mechanisms.serial.mechanism import SerialArm
+
+    def r(e: float) -> float:
+        return math.sqrt(L2**2 + L3**2 + 2 * L2 * L3 * math.cos(e))
+
+    exact = 4 * 1.2 / 3 * (r(0.5) ** 3 - r(2.0) ** 3)
+    budget = 200_000
+    monkeypatch.setattr(reach_module, "SEARCHES", budget)
+    ws = measure_workspace(SerialArm(load_robot(MODELS / "arm3r_wedge.urdf")), step=0.02, rtol=1e-3, check=True)
+    res = ws.result
+    assert not res.converged and res.out_of_budget is not None and res.out_of_budget[-1]
+    why = ws.unconverged()["union"]
+    assert "search budget" in why and "no check run" in why
+    # the slices may finish a round begun: up to twice the budget (engine's `_run_sampled`), plus
+    # one round of the roots' refinement; a check run would add up to 4x the budget
+    assert res.points_evaluated <= 2.2 * budget
+    assert abs(ws.total - exact) <= float(res.error[-1])

@@ -79,8 +79,10 @@ class Workspace:
                 return (f"a bound no finer step reduces ({bound[k]:.2g} of the error estimate) exceeds the "
                         "tolerance")
             if r.out_of_budget is not None and r.out_of_budget[k]:
-                return ("the partial base turn's search budget ran out (its circles' integral): the estimate "
-                        "and its error are the answer at this budget")
+                unchecked = "; no check run at half the step" if np.isnan(r.check_difference[k]) else ""
+                return ("the search budget ran out (a serial arm's reach searches: a partial base turn's circles' "
+                        f"integral, or its columns in 3-D{unchecked}): the estimate and its error are the answer at "
+                        "this budget")
             return "error estimate above the tolerance"
 
         return {name: why(k) for k, name in enumerate(self.targets) if not r.target_converged[k]}

@@ -245,7 +245,7 @@ def _not_converged(ws: Any) -> str:
     elif ws.fixed_error_binds()[-1]:
         advice = "a smaller --step cannot help; the estimate and its error are the answer at this --rtol"
     elif "search budget" in failed[ws.targets[-1]]:
-        advice = "a smaller --step costs more searches; a larger --rtol (e.g. 1e-2) needs fewer"
+        advice = "a smaller --step costs more searches; a larger --step or --rtol (e.g. 1e-2) needs fewer"
     else:
         advice = "try a smaller --step"
     return f"not converged on {len(failed)} of {len(ws.targets)} targets ({detail}); {advice}"

@@ -28,6 +28,17 @@ RTOL_FLOOR = 1e-9
 """Tightest relative tolerance accepted: 1000 x the root brackets over a metre-sized box, so
 neither the brackets nor double-precision sums of ~1e6 columns (~1e-10) dominate the estimate."""
 
+CHECK_SEARCHES = 2
+"""Sampled columns of a margin with a `search_budget`: each check run may spend this many times
+the first run's budget (twice the samples per column; as `turned.CHECK_BUDGET`)."""
+
+START_SHARE = 0.5
+"""Sampled 3D columns on a search budget: the starting grid (3 x order columns per starting
+interval in each direction across the columns, each sampled every `step`) may cost at most this
+share of the run's budget; a dearer one starts from wider intervals (`start_cell`), the
+refinement then spending the rest where the error is. Without it a 1 cm start over the wedge
+arm's 1.7 m reach box cost ~9e6 searches before the budget was first looked at."""
+
 OUTER_SPAN = 6
 """Exact columns: the volume's outer integral starts from intervals of this many node spacings;
 the 12 slices of each (the whole interval's 4-node rule and its halves') then leave no gap wider
@@ -56,7 +67,8 @@ class ColumnVolume:
             check, the two runs agree within their estimates.
         step: sampling step along the columns [m]; cell: starting quadrature interval [m].
         columns: columns measured; points_evaluated: margin evaluations.
-        check_difference: (T,) |this run - the check run| (NaN without check).
+        check_difference: (T,) |this run - the check run| (NaN without check, or when the first
+            run stopped on its search budget: no check run then).
         box: (2, d) [min, max] of the inside points found for the last target (NaN if none).
         target_converged: (T,) per target: its error estimate is within its tolerance and, with
             check, the two runs agree on it within their estimates (`converged` also needs the
@@ -66,7 +78,8 @@ class ColumnVolume:
         fixed_error: (T,) the part of `error` that no finer step reduces, or None (a partial base
             turn's cover bound sets it, `turned.cover_bound`, only where it meets the tolerance).
         out_of_budget: (T,) the target stopped on a search budget rather than on its tolerance (a
-            partial base turn's circles' integral, `turned.SEARCHES`), or None.
+            partial base turn's circles' integral, `turned.SEARCHES`; a margin's `search_budget`
+            on sampled 3D columns), or None.
     """
 
     estimate: np.ndarray
@@ -131,7 +144,13 @@ def column_volume(
         weight: (M, d - 1) columns' other coordinates -> (M,) factor on their lengths (sampled
             columns): the measure becomes the integral of weight x length.
 
-    Two optional attributes of the margin change the run: `profile` (3D margins of a solid of
+    Three optional attributes of the margin change the run: `search_budget` (an int: each of its
+    evaluations is a search with restarts, e.g. a serial arm's reach in 3D; sampled 3D columns
+    then stop on that many evaluations, each check run on CHECK_SEARCHES x as many, instead of on
+    `max_points`, `out_of_budget` saying so; their start costs at most START_SHARE of it, from
+    intervals wider than 8 x step if need be, `start_cell`, so a feature between its wider nodes
+    is seen only where the refinement goes; a first run that stops on it is returned
+    unchecked), `profile` (3D margins of a solid of
     revolution: `margin`, `lo`, `hi`, `axis`, `weight` and `world_box` of its (rho, z) profile,
     measured instead with the weight 2 pi rho, Pappus; with a `turn`, a partial turn's, by
     `turned.add_turn`) and `for_check()` (the margin the check run
@@ -163,9 +182,7 @@ def column_volume(
         raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
                                         f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
-    per_column = math.ceil((hi[ax] - lo[ax]) / step) + 1
-    start = per_column * math.prod(3 * order * (pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step))))
-                                   for k in range(d) if k != ax)
+    start = start_cost(step, hi - lo, ax, order, 8 * step, pieces)
     if start > max_points:
         raise InvalidInputError("step", f"{step:g} m needs {start:,} points to start, over the {max_points:,} limit; "
                                         "use a larger step")
@@ -174,9 +191,14 @@ def column_volume(
             raise InvalidInputError("weight", "exact columns take no weight")
         run: Callable[..., ColumnVolume] = _run_exact
     else:
-        run = partial(_run_sampled, weight=weight, root_tol=root_tol)
+        searches = getattr(margin, "search_budget", None) if d == 3 else None
+        run = partial(_run_sampled, weight=weight, root_tol=root_tol, searches=searches)
     first = run(margin, lo, hi, step, rtol, order, pieces, ax, max_points, progress, floor=floor)
-    if not check:
+    if not check or (first.out_of_budget is not None and bool(first.out_of_budget.any())):
+        # a run stopped on its search budget is not converged whatever a check says, and its
+        # error (the unrefined intervals', 2-4 % relative on the wedge arm and talos's arm at the
+        # CLI's defaults) dwarfs what a check finds (a second search at half the step: 6e-4 and
+        # 3e-3 of the error on budgets of 1e6); its time (CHECK_SEARCHES x the budget) buys nothing
         return first
     for_check = getattr(margin, "for_check", None)
     if for_check is not None:
@@ -187,7 +209,9 @@ def column_volume(
         if run is _run_exact:
             return _run_exact(margin, lo, hi, step / 2**level, rtol, order, pieces, ax, max_points, progress,
                               min_nodes=2**level * MIN_NODES, floor=floor)
-        return run(margin, lo, hi, step / 2**level, rtol, order, pieces, ax, max_points, progress, floor=floor)
+        more = {} if searches is None else {"searches": CHECK_SEARCHES * searches}
+        return run(margin, lo, hi, step / 2**level, rtol, order, pieces, ax, max_points, progress, floor=floor,
+                   **more)
 
     columns, points = first.columns, first.points_evaluated
     for level in range(1, CHECK_HALVINGS + 1):
@@ -199,13 +223,15 @@ def column_volume(
         # tolerance the finer run alone can still meet it (a grazing sliver the coarser run missed)
         settled = agrees.all() and bool(_within(second.estimate, diff, rtol, floor)[-1])
         # a finer run costs about twice the last (sampled columns: twice the samples per column)
-        if settled or level == CHECK_HALVINGS or points + 2 * second.points_evaluated > max_points:
+        spent_out = second.out_of_budget is not None and bool(second.out_of_budget.any())
+        if settled or spent_out or level == CHECK_HALVINGS or points + 2 * second.points_evaluated > max_points:
             break
         first = second
     error = np.maximum(second.error, diff)
     # every target's own verdict: the runs agree, and the reported error (which includes their
     # difference) is within the tolerance
     per_target = agrees & _within(first.estimate, first.error, rtol, floor) & _within(second.estimate, error, rtol, floor)
+    budgets = [r.out_of_budget for r in (first, second) if r.out_of_budget is not None]
     return ColumnVolume(
         estimate=second.estimate, error=error,
         converged=first.converged and second.converged and bool(per_target.all()), rtol=rtol, step=second.step,
@@ -213,6 +239,7 @@ def column_volume(
         check_difference=diff,
         box=np.stack([np.fmin(first.box[0], second.box[0]), np.fmax(first.box[1], second.box[1])]),
         target_converged=per_target, check_agrees=agrees, root_tol=second.root_tol,
+        out_of_budget=np.logical_or.reduce(budgets) & ~per_target if budgets else None,
     )
 
 
@@ -300,7 +327,10 @@ def _run_exact(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: n
 def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, step: float, rtol: float,
          order: int, pieces: int | None, axis: int | None, max_points: int, progress: bool,
          floor: float = 0.0, root_tol: float = ROOT_TOL,
-         weight: Callable[[np.ndarray], np.ndarray] | None = None) -> ColumnVolume:
+         weight: Callable[[np.ndarray], np.ndarray] | None = None, searches: int | None = None) -> ColumnVolume:
+    """Sampled columns, nested `adaptive_1d`: with `searches` (3D) both rules price their rounds in
+    margin evaluations (`adaptive_1d`'s `cost`) and stop on that many (the slices' inner rules
+    may finish a round begun, up to twice it in all), not converged, `out_of_budget` set."""
     d = lo.shape[0]
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     others = [k for k in range(d) if k != ax]
@@ -311,8 +341,11 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
 
         bar = tqdm(desc="volume", unit="col", unit_scale=True, delay=1.0, leave=False)
 
+    cell = 8 * step if searches is None or d != 3 or pieces else start_cell(
+        step, hi - lo, ax, order, int(START_SHARE * searches))
+
     def n_pieces(k: int) -> int:
-        return pieces or max(1, math.ceil((hi[k] - lo[k]) / (8 * step)))
+        return pieces or max(1, math.ceil((hi[k] - lo[k]) / cell))
 
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter, root_tol)
@@ -340,23 +373,57 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
             def inner(p: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 return columns(np.stack([x[p], y], axis=1))
 
+            before = counter.points
+            # the slices' rules in searches: what is left of twice the budget (a slice cut short
+            # carries its first rules' errors into the volume's, so it may overrun the outer's)
+            priced = {} if searches is None else {"max_evals": max(1, 2 * searches - before),
+                                                  "cost": lambda: counter.points - before}
             a, ea, c, _evals = adaptive_1d(inner, np.full(P, lo[k_in]), np.full(P, hi[k_in]), inner_rtol, atol_in,
-                                      order=order, pieces=n_pieces(k_in), max_evals=budget, floor=floor)
+                                      order=order, pieces=n_pieces(k_in), **({"max_evals": budget} | priced),
+                                      floor=floor)
             all_conv[0] &= bool(c.all())
             return a, ea, (a > 0).astype(np.int64)
 
+        outer = {"max_evals": budget} if searches is None else {"max_evals": searches,
+                                                                "cost": lambda: counter.points}
         q, e, conv, _ = adaptive_1d(slice_area, lo[[k_out]], hi[[k_out]], rtol, 0.0, order=order,
-                                    pieces=n_pieces(k_out), max_evals=budget, floor=floor)
+                                    pieces=n_pieces(k_out), floor=floor, **outer)
         conv = conv & all_conv[0]
     if bar is not None:
         bar.close()
     box = np.stack([counter.lo, counter.hi])
+    within = _within(q[0], e[0], rtol, floor)
+    # with a search budget the rules stop unconverged only on it (or on a slice cut short by it)
+    spent_out = None if searches is None or d != 3 else ~within
+    in_budget = spent_out is not None or counter.columns <= budget  # (searches: the rules kept to them)
     return ColumnVolume(
         # finding nothing cannot be told from sampling past everything: never a confident 0
-        estimate=q[0], error=e[0], converged=bool(np.all(conv)) and counter.columns <= budget and bool(q[0, -1] > 0),
+        estimate=q[0], error=e[0], converged=bool(np.all(conv)) and in_budget and bool(q[0, -1] > 0),
         rtol=rtol,
-        step=step, cell=8 * step, columns=counter.columns,
+        step=step, cell=cell, columns=counter.columns,
         points_evaluated=counter.points, check_difference=np.full(q.shape[1], np.nan),
         box=np.where(np.isfinite(box), box, np.nan),
-        target_converged=_within(q[0], e[0], rtol, floor), check_agrees=np.ones(q.shape[1], bool), root_tol=root_tol,
+        target_converged=within, check_agrees=np.ones(q.shape[1], bool), root_tol=root_tol,
+        out_of_budget=spent_out,
     )
+
+
+def start_cell(step: float, span: np.ndarray, axis: int, order: int, budget: int) -> float:
+    """The sampled 3D columns' starting interval [m]: 8 x step, or wider until the starting grid,
+    (3 order ceil(span_i / cell)) (3 order ceil(span_j / cell)) columns of span_axis / step + 1
+    samples each (i, j the directions across the columns), costs at most `budget` margin
+    evaluations (the roots' refinement not counted: a few per column), or one interval spans
+    each direction."""
+    cell = 8 * step
+    while start_cost(step, span, axis, order, cell) > budget and cell < max(np.delete(span, axis)):
+        cell *= 1.05  # (at most ~60 steps from a 1 cm step to a metre-sized box)
+    return cell
+
+
+def start_cost(step: float, span: np.ndarray, axis: int, order: int, cell: float, pieces: int | None = None) -> int:
+    """Margin samples of the columns' starting grid: per direction across the columns, `pieces`
+    (or span / cell rounded up) starting intervals of 3 x order columns (the Gauss rule on each and
+    on its halves), every column sampled every `step` along `axis`."""
+    per_column = math.ceil(span[axis] / step) + 1
+    return per_column * math.prod(3 * order * (pieces or max(1, math.ceil(span[k] / cell)))
+                                  for k in range(len(span)) if k != axis)

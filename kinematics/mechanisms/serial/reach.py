@@ -66,6 +66,15 @@ millimetres of any reached point, so a target that far is outside; the restarts 
 the sign is at stake, near the boundary."""
 
 
+SEARCHES = 10_000_000
+"""The volume engine's budget in searches for the first run over the spatial margin
+(`ReachMargin.search_budget`; each check run twice it; a first run that stops on it gets no
+check run): each evaluation is a search with restarts, so the engine's `max_points` (2e8) bounds
+nothing like the time. finger_edu converges at the defaults on 7.1e6 searches in its first run
+and 1.3e7 in its check run, which this leaves room for; the wedge arm's first run stops on it
+after 9.1e6 (~80 s of CPU)."""
+
+
 SERIAL_BELOW = 512
 """Fewer targets than this are searched on one thread: starting a parallel region costs
 milliseconds on a loaded machine (4-8 ms against 0.1 ms on one thread for 20 targets, load ~6 on
@@ -413,6 +422,8 @@ class ReachMargin:
         self.reach, self.on_profile = reach, on_profile
         s = reach.setup
         self.profile: Profile | None = None
+        # sampled 3-D columns of this margin stop on this many searches (a profile's are 2-D)
+        self.search_budget: int | None = SEARCHES if s.mode == "spatial" else None
         if s.mode == "revolved" and not on_profile:
             R = s.reach
             turn = None
