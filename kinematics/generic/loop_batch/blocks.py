@@ -38,6 +38,7 @@ from kinematics.generic.loop_batch.atlas import BranchSolutions, LoopAtlas
 from kinematics.generic.loop_batch.compiled import TOL, block_kernel, eval_kernel, pack
 from kinematics.generic.loop_batch.margins import LoopMargins, assemble_kernel
 from kinematics.generic.loop_batch.spheres import sphere_angles, wrap
+from kinematics.generic.loop_batch.structure import BlockModel
 from kinematics.generic.loop_batch.warm import WARM_RADIUS_FACTOR, WarmStarts
 
 
@@ -73,22 +74,23 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         branch uses, the starts, and the sub-model indices padded to the largest block. Blocks with
         spherical triples in closed form (`BlockModel.cuts`) where their roots' labels follow from
         the reduced block's (`_cut_signs`); else every block whole."""
-        tables = self._tables()
+        tables = self._tables(self.block_models)
         if tables is None:
             self.spheres = False
-            for name in ("block_models", "sphere_cuts"):
-                self.__dict__.pop(name, None)
-            tables = self._tables()
+            self.__dict__.pop("block_models", None)
+            tables = self._tables(self.block_models)
         assert tables is not None  # without cuts every root's slot is its label's
+        if any(bm.cuts for bm in self.block_models):
+            tables["whole"] = self._tables(self.sub_models(False))
         return tables
 
-    def _cut_signs(self) -> list[int] | None:
+    def _cut_signs(self, models: tuple[BlockModel, ...]) -> list[int] | None:
         """Per block, the sign s with full label = s x the reduced block's (its determinant times
         sign(cos) of its middle angles, as `block_kernel` computes it), read at every atlas pose:
         1 for a block without cuts or without a label; None where the atlas poses disagree or a
         reduced block is singular there (the cut is then not used)."""
         out = []
-        for bm in self.block_models:
+        for bm in models:
             if not bm.cuts or bm.label < 0:
                 out.append(1)
                 continue
@@ -106,10 +108,10 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
             out.append(int(s[0]))
         return out
 
-    def _tables(self) -> dict[str, Any] | None:
-        """`_block_tables`, or None where a block's cuts leave a root's slot undecided."""
-        models = self.block_models
-        signs = self._cut_signs()
+    def _tables(self, models: tuple[BlockModel, ...]) -> dict[str, Any] | None:
+        """`_block_tables` of these block models, or None where a block's cuts leave a root's slot
+        undecided."""
+        signs = self._cut_signs(models)
         if signs is None:
             return None
         K, B = len(models), len(self.labels)
@@ -240,6 +242,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
             full_cols[k, : len(bm.ends)] = bm.ends
         return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "atlas": atlas,
                 "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax, "triple_locks": triple_locks,
+                "ends": [bm.ends for bm in models],
                 "nend": np.array([len(bm.ends) for bm in models], dtype=np.int64)}
 
     def _ik_blocks(self, p: np.ndarray, warm: bool, every_block: bool = False) -> BranchSolutions:
@@ -320,12 +323,65 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         for k in tb["order"] if N else ():
             if every_block:
                 alive[:] = True
-            gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
-            jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
-                     tb["atlas"], starts, source, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
-                     WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)
+            before = alive.copy()
+            self._run_block(tb, k, p, starts, source, alive, out)
             if self.block_models[k].cuts:
                 self._close_triples(k, out, alive)
+                self._retry_whole(k, p, starts, source, before, alive, out)
+
+    def _run_block(self, tb: dict[str, Any], k: int, p: np.ndarray, starts: np.ndarray, source: np.ndarray,
+                   alive: np.ndarray, out: _Slots) -> None:
+        """`block_kernel` on block k of tables tb (`_block_tables`, or its "whole" tables)."""
+        gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
+        jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
+                 tb["atlas"], starts, source, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
+                 WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)
+
+    def _retry_whole(self, k: int, p: np.ndarray, starts: np.ndarray, source: np.ndarray, before: np.ndarray,
+                     alive: np.ndarray, out: _Slots) -> None:
+        """Block k (with cuts) once more without them, at the targets where a slot a live branch
+        needs had no warm start (a cold start: the atlas configuration only), was not found, its
+        best start stalled within the continuation radius of closure, and no slot of its assembly
+        was found: from the atlas start the reduced equations can stall where the whole block's
+        close (Gepetto's iso6d: 2 of 10,700 inside grid points missed without this, one cold start
+        and its neighbour; 0 with it or whole). Warm starts are not retried: on iso6d's workspace
+        (rtol 1e-3) that retried half the targets, for one slot found in 222,000 targets. The
+        whole block's kernel runs as it would without cuts (`before`: the live branches before
+        block k), keeping the slots found."""
+        tb = self._block_tables
+        whole = tb["whole"]
+        S = int(tb["nslot"][k])
+        bslot = tb["bslot"][:, k]
+        need = np.zeros((len(p), S), dtype=bool)
+        for s in range(S):
+            need[:, s] = before[:, bslot == s].any(axis=1)
+        found = out.found[:, k, :S]
+        lock = tb["T"][21][k, :S]
+        same = lock[:, None] == lock[None, :]
+        assembly = (found.astype(np.int64) @ same.astype(np.int64)) > 0
+        cold = ~np.isfinite(starts[:, k, :S, 0])
+        miss = need & ~found & cold & (out.res[:, k, :S] < WARM_RADIUS_FACTOR * self.scale) & ~assembly
+        rows = np.flatnonzero(miss.any(axis=1))
+        if not len(rows):
+            return
+        # each block's values in `end` and the starts: its unknowns then the triples (cut), its
+        # columns (whole); the last entry (the outcome) stays
+        width = out.end.shape[-1]
+        perm = [np.array([cut.index(j) for j in full] + list(range(len(full), width)))
+                for cut, full in zip(tb["ends"], whole["ends"], strict=True)]
+
+        def relaid(a: np.ndarray, back: bool) -> np.ndarray:
+            a = a.copy()
+            for q, pq in enumerate(perm):
+                a[:, q] = a[:, q][..., np.argsort(pq) if back else pq]
+            return a
+
+        sub = _Slots(out.found[rows], out.dist[rows], out.res[rows], relaid(out.end[rows], False), out.counts[rows])
+        go = before[rows]
+        self._run_block(whole, k, p[rows], relaid(starts[rows], False), source[rows], go, sub)
+        out.found[rows], out.dist[rows], out.res[rows], out.counts[rows] = sub.found, sub.dist, sub.res, sub.counts
+        out.end[rows] = relaid(sub.end, True)
+        alive[rows] = go
 
     def _close_triples(self, k: int, out: _Slots, alive: np.ndarray) -> None:
         """Block k's cut triples (`BlockModel.cuts`) in closed form (`spheres.sphere_angles`) at every

@@ -229,15 +229,19 @@ class LoopStructure(LoopModel):
 
     @functools.cached_property
     def sphere_cuts(self) -> dict[int, SphereCut]:
-        """The 6D closures that end in a spherical triple (`spheres`), by closure index; none unless
-        `spheres`."""
-        return sphere_cuts(self._g, self.concurrent_groups) if self.spheres else {}
+        """The 6D closures that end in a spherical triple (`spheres`), by closure index."""
+        return sphere_cuts(self._g, self.concurrent_groups)
 
     @functools.cached_property
     def block_models(self) -> tuple[BlockModel, ...]:
         """Each block of `blocks` as a small model of its own (`BlockModel`), for the block solver;
-        a 6D closure of `sphere_cuts` whose triple the block determines (the platform not placed)
-        as the point closure at the triple's centre, the triple solved after it in closed form."""
+        where `spheres`, a 6D closure of `sphere_cuts` whose triple the block determines (the
+        platform not placed) as the point closure at the triple's centre, the triple solved after
+        it in closed form."""
+        return self.sub_models(self.spheres)
+
+    def sub_models(self, cut: bool) -> tuple[BlockModel, ...]:
+        """`block_models` with (cut) or without the cuts."""
         parent, kind, axis, jR, jt, fparent, _, _, _, ctype, cf1, cf2, ee, taxes, R0, orient, scale = self._g
         groups = self._row_groups()
         nc = len(ctype)
@@ -252,7 +256,7 @@ class LoopStructure(LoopModel):
             closures = [c for c in range(nc) if rows & set(groups[c])]
             task = bool(rows & task_rows)
             pinned = self.can_pin and not task
-            cuts = [self.sphere_cuts[c] for c in closures if c in self.sphere_cuts and not pinned
+            cuts = [self.sphere_cuts[c] for c in closures if cut and c in self.sphere_cuts and not pinned
                     and set(self.sphere_cuts[c].joints) <= set(blk.cols)]
             cut_of = {cut.closure: cut for cut in cuts}
             spec, frames = self._block_frames(closures, task or pinned, cuts)
