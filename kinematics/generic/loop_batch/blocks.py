@@ -23,6 +23,9 @@ from a point within FOLD_SOURCE x the continuation radius (a root refinement's p
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
+A block with a spherical joint behind a 6D closure (`BlockModel.cuts`) is solved with the point
+closure at the joint's centre, the joint's angles written after each solve in closed form
+(`spheres`); its cold starts that stall are solved again as the whole block (`_retry_whole`).
 """
 
 from __future__ import annotations
