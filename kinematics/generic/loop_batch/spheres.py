@@ -32,6 +32,7 @@ import math
 from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from kinematics.generic.loop_batch.compiled import REVOLUTE
 
@@ -93,36 +94,90 @@ def sphere_cuts(g: tuple[Any, ...], groups: tuple[tuple[int, ...], ...]) -> dict
     return cuts
 
 
-def _rotations(g: tuple[Any, ...], x: np.ndarray, links: tuple[int, ...]) -> list[np.ndarray]:
-    """World rotations (R, 3, 3) of the links of joints `links` (-1: the base) at joint values x (R, n)."""
-    parent, kind, axis, jR = g[0], g[1], g[2], g[3]
-    memo: dict[int, np.ndarray] = {-1: np.broadcast_to(np.eye(3), (len(x), 3, 3))}
+@njit(cache=True, inline="always")
+def _link_rotation(x, r, parent_chain, nchain, turns, axis, jR, R, tmp):  # pragma: no cover - compiled
+    """R (3 x 3) = the world rotation of the link at the end of parent_chain[:nchain] (joints from
+    the root down; none: the base) at joint values x[r]: R_j = R_parent jR_j Rot(axis_j, x_j) (turns[j]:
+    a revolute; else jR_j only)."""
+    for a in range(3):
+        for b in range(3):
+            R[a, b] = 1.0 if a == b else 0.0
+    for q in range(nchain):
+        j = parent_chain[q]
+        for a in range(3):
+            for b in range(3):
+                tmp[a, b] = R[a, 0] * jR[j, 0, b] + R[a, 1] * jR[j, 1, b] + R[a, 2] * jR[j, 2, b]
+        if turns[j]:
+            ax, ay, az = axis[j, 0], axis[j, 1], axis[j, 2]
+            c, s = math.cos(x[r, j]), math.sin(x[r, j])
+            d = 1.0 - c
+            e00, e01, e02 = c + d * ax * ax, d * ax * ay - s * az, d * ax * az + s * ay
+            e10, e11, e12 = d * ay * ax + s * az, c + d * ay * ay, d * ay * az - s * ax
+            e20, e21, e22 = d * az * ax - s * ay, d * az * ay + s * ax, c + d * az * az
+            for a in range(3):
+                t0, t1, t2 = tmp[a, 0], tmp[a, 1], tmp[a, 2]
+                R[a, 0] = t0 * e00 + t1 * e10 + t2 * e20
+                R[a, 1] = t0 * e01 + t1 * e11 + t2 * e21
+                R[a, 2] = t0 * e02 + t1 * e12 + t2 * e22
+        else:
+            for a in range(3):
+                for b in range(3):
+                    R[a, b] = tmp[a, b]
 
-    def rot(j: int) -> np.ndarray:
-        if j not in memo:
-            R = rot(int(parent[j])) @ jR[j]
-            if kind[j] == REVOLUTE:
-                a = axis[j]
-                K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-                s, c = np.sin(x[:, j])[:, None, None], np.cos(x[:, j])[:, None, None]
-                R = R @ (np.eye(3) + s * K + (1.0 - c) * (K @ K))
-            memo[j] = R
-        return memo[j]
 
-    return [rot(j) for j in links]
+@njit(cache=True)
+def angles_kernel(x, turns, axis, jR, chain_p, np_, chain_o, no, left, right, basis, hand, out):  # pragma: no cover - compiled
+    """`sphere_angles` per row of x: Q = (R_p left)^T R_o right, M = E^T Q E, the angles into out."""
+    Rp = np.empty((3, 3))
+    Ro = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    Q = np.empty((3, 3))
+    M = np.empty((3, 3))
+    for r in range(x.shape[0]):
+        _link_rotation(x, r, chain_p, np_, turns, axis, jR, Rp, tmp)
+        _link_rotation(x, r, chain_o, no, turns, axis, jR, Ro, tmp)
+        for a in range(3):  # tmp = (R_p left)^T, Q = tmp R_o right
+            for b in range(3):
+                tmp[a, b] = Rp[b, 0] * left[0, a] + Rp[b, 1] * left[1, a] + Rp[b, 2] * left[2, a]
+        for a in range(3):
+            for b in range(3):
+                M[a, b] = tmp[a, 0] * Ro[0, b] + tmp[a, 1] * Ro[1, b] + tmp[a, 2] * Ro[2, b]
+        for a in range(3):
+            for b in range(3):
+                Q[a, b] = M[a, 0] * right[0, b] + M[a, 1] * right[1, b] + M[a, 2] * right[2, b]
+        for a in range(3):  # M = E^T Q E
+            for b in range(3):
+                tmp[a, b] = Q[a, 0] * basis[0, b] + Q[a, 1] * basis[1, b] + Q[a, 2] * basis[2, b]
+        for a in range(3):
+            for b in range(3):
+                M[a, b] = basis[0, a] * tmp[0, b] + basis[1, a] * tmp[1, b] + basis[2, a] * tmp[2, b]
+        out[r, 0] = math.atan2(-M[1, 2], M[2, 2])
+        out[r, 1] = math.atan2(M[0, 2], math.hypot(M[1, 2], M[2, 2]))
+        out[r, 2] = hand * math.atan2(-M[0, 1], M[0, 0])
+
+
+def _chain(parent: np.ndarray, j: int) -> np.ndarray:
+    """Joint j's ancestors and j, from the root down (empty for the base, -1)."""
+    out = []
+    while j >= 0:
+        out.append(j)
+        j = int(parent[j])
+    return np.array(out[::-1], dtype=np.int64)
 
 
 def sphere_angles(g: tuple[Any, ...], cut: SphereCut, x: np.ndarray) -> np.ndarray:
     """(R, 3) the triple's angles [rad] (module docstring; cos x_2 >= 0, each in (-pi, pi]) that
     close the 6D closure at joint values x (R, n) of every joint above the triple and of the other
     chain (the triple's own entries are not read)."""
-    Rp, Ro = _rotations(g, x, (cut.centre[0], cut.other[0]))
-    Q = np.swapaxes(Rp @ cut.head, 1, 2) @ Ro @ cut.other[1] @ cut.tail.T
-    M = cut.basis.T @ Q @ cut.basis
-    x2 = np.arctan2(M[:, 0, 2], np.hypot(M[:, 1, 2], M[:, 2, 2]))
-    x1 = np.arctan2(-M[:, 1, 2], M[:, 2, 2])
-    x3 = cut.hand * np.arctan2(-M[:, 0, 1], M[:, 0, 0])
-    return np.stack([x1, x2, x3], axis=1)
+    parent, kind, axis, jR = g[0], g[1], g[2], g[3]
+    cp, co = _chain(parent, cut.centre[0]), _chain(parent, cut.other[0])
+    x = np.ascontiguousarray(x, dtype=float)
+    out = np.empty((len(x), 3))
+    if len(x):
+        angles_kernel(x, np.asarray(kind) == REVOLUTE, np.ascontiguousarray(axis, dtype=float),
+                      np.ascontiguousarray(jR, dtype=float), cp, len(cp), co, len(co), np.ascontiguousarray(cut.head),
+                      np.ascontiguousarray(cut.other[1] @ cut.tail.T), np.ascontiguousarray(cut.basis), float(cut.hand), out)
+    return out
 
 
 def wrap(x: np.ndarray, centre: np.ndarray) -> np.ndarray:
