@@ -28,6 +28,7 @@ One concept per module:
 * `atlas`: the branches found at the reference position, `BranchSolutions`;
 * `blocks`, `whole`: the block solver and the whole-system solver;
 * `warm`: the warm-start cache of solved points;
+* `spheres`: spherical joints behind 6D closures in closed form;
 * `margins`: joint-limit margins;
 * `singular`: velocities and singularity measures (`Singularities`).
 """
@@ -44,9 +45,10 @@ from kinematics.generic.loop_batch.singular import Singularities as Singularitie
 from kinematics.generic.loop_batch.solver import SOLVERS as SOLVERS
 from kinematics.generic.loop_batch.solver import LoopBatch as LoopBatch
 from kinematics.generic.loop_batch.solver import loop_batch as loop_batch
+from kinematics.generic.loop_batch.spheres import angles_kernel
 from kinematics.generic.singularity import SINGULAR_TOL as SINGULAR_TOL
 
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels of this package (for `kinematics.jit`)."""
-    return (lm_kernel, eval_kernel, block_kernel, assemble_kernel, slack_kernel)
+    return (lm_kernel, eval_kernel, block_kernel, assemble_kernel, slack_kernel, angles_kernel)

@@ -23,6 +23,9 @@ from a point within FOLD_SOURCE x the continuation radius (a root refinement's p
 the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
+A block with a spherical joint behind a 6D closure (`BlockModel.cuts`) is solved with the point
+closure at the joint's centre, the joint's angles written after each solve in closed form
+(`spheres`); its cold starts that stall are solved again as the whole block (`_retry_whole`).
 """
 
 from __future__ import annotations
@@ -35,8 +38,10 @@ import numpy as np
 
 from kinematics import jit
 from kinematics.generic.loop_batch.atlas import BranchSolutions, LoopAtlas
-from kinematics.generic.loop_batch.compiled import block_kernel, pack
+from kinematics.generic.loop_batch.compiled import TOL, block_kernel, eval_kernel, pack
 from kinematics.generic.loop_batch.margins import LoopMargins, assemble_kernel
+from kinematics.generic.loop_batch.spheres import sphere_angles, wrap
+from kinematics.generic.loop_batch.structure import BlockModel
 from kinematics.generic.loop_batch.warm import WARM_RADIUS_FACTOR, WarmStarts
 
 
@@ -69,11 +74,52 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
     def _block_tables(self) -> dict[str, Any]:
         """The block solver's packed arrays (`block_kernel`): per block its slots (one per choice
         of the labels it depends on, times its own sign for a labelling block), the slot each
-        branch uses, the starts, and the sub-model indices padded to the largest block."""
-        models = self.block_models
+        branch uses, the starts, and the sub-model indices padded to the largest block. Blocks with
+        spherical triples in closed form (`BlockModel.cuts`) where their roots' labels follow from
+        the reduced block's (`_cut_signs`); else every block whole."""
+        tables = self._tables(self.block_models)
+        if tables is None:
+            self.spheres = False
+            self.__dict__.pop("block_models", None)
+            tables = self._tables(self.block_models)
+        assert tables is not None  # without cuts every root's slot is its label's
+        if any(bm.cuts for bm in self.block_models):
+            tables["whole"] = self._tables(self.sub_models(False))
+        return tables
+
+    def _cut_signs(self, models: tuple[BlockModel, ...]) -> list[int] | None:
+        """Per block, the sign s with full label = s x the reduced block's (its determinant times
+        sign(cos) of its middle angles, as `block_kernel` computes it), read at every atlas pose:
+        1 for a block without cuts or without a label; None where the atlas poses disagree or a
+        reduced block is singular there (the cut is then not used)."""
+        out = []
+        for bm in models:
+            if not bm.cuts or bm.label < 0:
+                out.append(1)
+                continue
+            x = np.ascontiguousarray(self.atlas[:, bm.joints])
+            R, nf = len(x), len(bm.g[5])
+            r, J = np.empty((R, bm.m)), np.empty((R, bm.m, len(bm.joints)))
+            eval_kernel(np.repeat(self._anchor[None], R, axis=0), x, *pack(bm.g), r, J,
+                        np.empty((R, len(bm.joints) + nf, 3)))
+            sign = np.sign(np.linalg.det(J[:, bm.rows][:, :, bm.cols]))
+            for j in bm.middles:
+                sign = sign * np.sign(np.cos(x[:, j]))
+            s = sign * np.array(self.labels, dtype=float).reshape(R, -1)[:, bm.label]
+            if not (np.all(s == 1.0) or np.all(s == -1.0)):
+                return None
+            out.append(int(s[0]))
+        return out
+
+    def _tables(self, models: tuple[BlockModel, ...]) -> dict[str, Any] | None:
+        """`_block_tables` of these block models, or None where a block's cuts leave a root's slot
+        undecided."""
+        signs = self._cut_signs(models)
+        if signs is None:
+            return None
         K, B = len(models), len(self.labels)
         labels = np.array(self.labels, dtype=np.int64).reshape(B, -1)
-        cmax = max(len(bm.cols) for bm in models)
+        cmax = max(len(bm.ends) for bm in models)
         keys: list[list[tuple[int, ...]]] = []
         bslot = np.zeros((B, K), dtype=np.int64)
         locks = [self.lock_columns[bm.label] if bm.label >= 0 else () for bm in models]
@@ -90,24 +136,41 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
             for s in range(nslot[k]):
                 rep[k, s] = int(np.flatnonzero(bslot[:, k] == s)[0])
         # a root's slot: its own sign (-1, 0, 1) and its locked joints' half-turn bits (code, bit q
-        # set where locked joint q of the block is half a turn from its reference angle)
-        lmax = max([len(c) for c in locks] + [0])
+        # set where locked joint q of the block's unknowns is half a turn from its reference
+        # angle); a cut's triple's locked joints are not in the code: the slot of the matching key
+        # where one matches (`_close_triples` checks their bits)
+        L = len(self.label_blocks)
+        mine = [[q for q, c in enumerate(locks[k]) if self.locked_joints[c - L] in bm.ends[: len(bm.cols)]]
+                for k, bm in enumerate(models)]
+        lmax = max([len(c) for c in mine] + [0])
         land = np.full((K, S, 3, 2 ** lmax), -1, dtype=np.int64)
         lock_idx = np.zeros((K, max(lmax, 1)), dtype=np.int64)
         lock_ref = np.zeros((K, max(lmax, 1)))
+        triple_locks: list[list[tuple[int, float, np.ndarray]]] = []
         for k, bm in enumerate(models):
-            nl = len(locks[k])
-            lock_idx[k, :nl] = bm.locks
-            lock_ref[k, :nl] = self._reference[[self.locked_joints[c - len(self.label_blocks)] for c in locks[k]]]
+            nl, nk = len(locks[k]), len(mine[k])
+            lock_idx[k, :nk] = bm.locks
+            lock_ref[k, :nk] = self._reference[[self.locked_joints[locks[k][q] - L] for q in mine[k]]]
+            triple_locks.append([])
+            for q, c in enumerate(locks[k]):
+                j = self.locked_joints[c - L]
+                if q not in mine[k]:
+                    want = np.array([key[len(key) - nl + q] for key in keys[k]] + [0] * (S - nslot[k]))
+                    triple_locks[k].append((bm.ends.index(j), float(self._reference[j]), want))
             for s, slot_key in enumerate(keys[k]):
                 if bm.label < 0:
                     land[k, s] = s
                     continue
                 head = slot_key[: len(slot_key) - 1 - nl]
                 for sign in (-1, 0, 1):
-                    for code in range(2 ** nl):
-                        other = head + (sign, *(-1 if code >> q & 1 else 1 for q in range(nl)))
-                        land[k, s, sign + 1, code] = keys[k].index(other) if other in keys[k] else -1
+                    for code in range(2 ** nk):
+                        bits = {p: -1 if code >> q & 1 else 1 for q, p in enumerate(mine[k])}
+                        match = [i for i, key in enumerate(keys[k]) if key[: len(head)] == head
+                                 and key[len(head)] == signs[k] * sign
+                                 and all(key[len(head) + 1 + p] == v for p, v in bits.items())]
+                        if len(match) > 1:
+                            return None
+                        land[k, s, sign + 1, code] = match[0] if match else -1
         # each slot's assembly: its locked joints' half-turn bits (-1: a block without locked joints)
         slot_lock = np.full((K, S), -1, dtype=np.int64)
         for k, bm in enumerate(models):
@@ -142,12 +205,12 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         r_lo = np.where(self.limited, self.robot.lower - 0.5 * span, self._centre - math.pi)
         r_hi = np.where(self.limited, self.robot.upper + 0.5 * span, self._centre + math.pi)
         for k, bm in enumerate(models):
-            full = np.array(bm.block.cols, dtype=np.int64)
-            nc = len(full)
+            nc = len(bm.cols)
+            full = np.array(bm.ends[:nc], dtype=np.int64)
             where = {int(j): i for i, j in enumerate(bm.joints)}
             q = 0
             for grp in flippable:
-                if all(j in bm.block.cols for j in grp):
+                if all(j in full for j in grp):
                     flips[k, q, : len(grp)] = [where[j] for j in grp]
                     q += 1
             nflip[k] = q
@@ -169,7 +232,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
              np.array([len(bm.middles) for bm in models], dtype=np.int64), flips, nflip, held,
              np.array([len(bm.held) for bm in models], dtype=np.int64), held_owner, held_pos, held_slot, land, ref, act,
              np.array([any(o == k for m_ in models for o, _ in m_.owner) for k in range(K)], dtype=np.bool_),
-             lock_idx, lock_ref, np.array([len(c) for c in locks], dtype=np.int64), slot_lock)
+             lock_idx, lock_ref, np.array([len(c) for c in mine], dtype=np.int64), slot_lock)
         kernel_models = tuple((*pack(bm.g), bm.m, bm.nzc, bm.nzn, bm.centre, bm.free, bm.weights) for bm in models)
         # solve order: every block after the blocks it holds joints of, the smallest sub-model first
         # among those ready (a target that one limb cannot reach is dropped before the costlier ones)
@@ -179,9 +242,11 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
             order.append(min(ready, key=lambda k: (len(models[k].joints), k)))
         full_cols = np.zeros((K, cmax), dtype=np.int64)
         for k, bm in enumerate(models):
-            full_cols[k, : len(bm.block.cols)] = bm.block.cols
+            full_cols[k, : len(bm.ends)] = bm.ends
         return {"models": kernel_models, "T": T, "full_cols": full_cols, "order": order, "nslot": nslot, "bslot": bslot, "atlas": atlas,
-                "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax}
+                "lo": lo, "hi": hi, "alpha": alpha, "S": S, "cmax": cmax, "triple_locks": triple_locks,
+                "ends": [bm.ends for bm in models],
+                "nend": np.array([len(bm.ends) for bm in models], dtype=np.int64)}
 
     def _ik_blocks(self, p: np.ndarray, warm: bool, every_block: bool = False) -> BranchSolutions:
         """`ik` block by block (`block_models`, `block_kernel`): each block's roots once per choice
@@ -240,7 +305,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         if N:
             lo, hi, use, unit, pairs, paired, centre = self._slack_args("all")
             assemble_kernel(order, slots.end, slots.found, slots.res, tb["bslot"], tb["full_cols"],
-                             tb["T"][1], lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
+                             tb["nend"], lo, hi, use, unit, pairs, paired, centre, x, end_x, ok, residual, margin)
         if warm:
             self._remember(q, slots.end)
         return BranchSolutions(x, ok, residual, margin, int(slots.counts[:, 0].sum()), int(slots.counts[:, 1].sum()),
@@ -261,7 +326,96 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         for k in tb["order"] if N else ():
             if every_block:
                 alive[:] = True
-            gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
-            jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
-                     tb["atlas"], starts, source, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
-                     WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)
+            before = alive.copy()
+            self._run_block(tb, k, p, starts, source, alive, out)
+            if self.block_models[k].cuts:
+                self._close_triples(k, out, alive)
+                self._retry_whole(k, p, starts, source, before, alive, out)
+
+    def _run_block(self, tb: dict[str, Any], k: int, p: np.ndarray, starts: np.ndarray, source: np.ndarray,
+                   alive: np.ndarray, out: _Slots) -> None:
+        """`block_kernel` on block k of tables tb (`_block_tables`, or its "whole" tables)."""
+        gi, gf, m, nzc, nzn, centre, free, weights = tb["models"][k]
+        jit.call(block_kernel, k, p, gi, gf, m, nzc, nzn, centre, free, weights, tb["T"], tb["nslot"], tb["bslot"],
+                 tb["atlas"], starts, source, tb["lo"], tb["hi"], tb["alpha"], int(self.restarts),
+                 WARM_RADIUS_FACTOR * self.scale, alive, out.found, out.dist, out.res, out.end, out.counts)
+
+    def _retry_whole(self, k: int, p: np.ndarray, starts: np.ndarray, source: np.ndarray, before: np.ndarray,
+                     alive: np.ndarray, out: _Slots) -> None:
+        """Block k (with cuts) once more without them, at the targets where a slot a live branch
+        needs had no warm start (a cold start: the atlas configuration only), was not found, its
+        best start stalled within the continuation radius of closure, and no slot of its assembly
+        was found: from the atlas start the reduced equations can stall where the whole block's
+        close (Gepetto's iso6d: 2 of 10,700 inside grid points missed without this, one cold start
+        and its neighbour; 0 with it or whole). Warm starts are not retried: on iso6d's workspace
+        (rtol 1e-3) that retried half the targets, for one slot found in 222,000 targets. The
+        whole block's kernel runs as it would without cuts (`before`: the live branches before
+        block k), keeping the slots found."""
+        tb = self._block_tables
+        whole = tb["whole"]
+        S = int(tb["nslot"][k])
+        bslot = tb["bslot"][:, k]
+        need = np.zeros((len(p), S), dtype=bool)
+        for s in range(S):
+            need[:, s] = before[:, bslot == s].any(axis=1)
+        found = out.found[:, k, :S]
+        lock = tb["T"][21][k, :S]
+        same = lock[:, None] == lock[None, :]
+        assembly = (found.astype(np.int64) @ same.astype(np.int64)) > 0
+        cold = ~np.isfinite(starts[:, k, :S, 0])
+        miss = need & ~found & cold & (out.res[:, k, :S] < WARM_RADIUS_FACTOR * self.scale) & ~assembly
+        rows = np.flatnonzero(miss.any(axis=1))
+        if not len(rows):
+            return
+        # each block's values in `end` and the starts: its unknowns then the triples (cut), its
+        # columns (whole); the last entry (the outcome) stays
+        width = out.end.shape[-1]
+        perm = [np.array([cut.index(j) for j in full] + list(range(len(full), width)))
+                for cut, full in zip(tb["ends"], whole["ends"], strict=True)]
+
+        def relaid(a: np.ndarray, back: bool) -> np.ndarray:
+            a = a.copy()
+            for q, pq in enumerate(perm):
+                a[:, q] = a[:, q][..., np.argsort(pq) if back else pq]
+            return a
+
+        sub = _Slots(out.found[rows], out.dist[rows], out.res[rows], relaid(out.end[rows], False), out.counts[rows])
+        go = before[rows]
+        self._run_block(whole, k, p[rows], relaid(starts[rows], False), source[rows], go, sub)
+        out.found[rows], out.dist[rows], out.res[rows], out.counts[rows] = sub.found, sub.dist, sub.res, sub.counts
+        out.end[rows] = relaid(sub.end, True)
+        alive[rows] = go
+
+    def _close_triples(self, k: int, out: _Slots, alive: np.ndarray) -> None:
+        """Block k's cut triples (`BlockModel.cuts`) in closed form (`spheres.sphere_angles`) at every
+        slot end the kernel left (roots and least-squares points), written after its unknowns in
+        `out.end`; a root whose triple's locked joints are not its slot's (no atlas label: the
+        kernel's unlabelled roots) is dropped and counted unlabelled, its branches dead."""
+        tb = self._block_tables
+        bm = self.block_models[k]
+        nc, S = len(bm.cols), int(tb["nslot"][k])
+        end = out.end[:, k, :S]
+        rows, slot = np.nonzero(np.all(np.isfinite(end[..., :nc]), axis=-1))
+        if not len(rows):
+            return
+        x = np.zeros((len(rows), self.n))
+        x[:, bm.ends[:nc]] = end[rows, slot, :nc]
+        T = tb["T"]
+        for h, i in enumerate(bm.held):
+            o, pos = int(T[11][k, h]), int(T[12][k, h])
+            x[:, bm.joints[i]] = out.end[rows, o, T[13][k, slot, h], pos]
+        q = nc
+        for cut in bm.cuts:
+            js = list(cut.joints)
+            x[:, js] = wrap(sphere_angles(self._g, cut, x), self._centre[js])
+            end[rows, slot, q: q + 3] = x[:, js]
+            q += 3
+        wrong = np.zeros(len(rows), dtype=bool)
+        for e, ref, want in tb["triple_locks"][k]:
+            bit = np.where(np.cos(end[rows, slot, e] - ref) < 0.0, -1, 1)
+            wrong |= out.found[rows, k, slot] & (bit != want[slot])
+        if wrong.any():
+            out.found[rows[wrong], k, slot[wrong]] = False
+            out.res[rows[wrong], k, slot[wrong]] = TOL
+            np.add.at(out.counts[:, 0], rows[wrong], 1)
+            alive &= out.found[:, k, :][:, tb["bslot"][:, k]]

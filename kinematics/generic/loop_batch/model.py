@@ -52,7 +52,8 @@ class LoopModel:
 
     Attributes: robot; task_axes, translational and scale (the task and the model's length, chosen
     by `LoopBatch.from_robot`); labels and atlas (the branches, `atlas`); blocks (`structure`);
-    restarts and solver (`LoopBatch.ik`); frames, the closure and end-effector frames in the
+    restarts and solver (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D
+    closures in closed form (`spheres`); frames, the closure and end-effector frames in the
     kernels' order; _g, the model tuple (`pack` flattens it for the kernels);
     _m, the number of residual rows; _nzc, _nzn, each row's structurally non-zero columns; _centre,
     the middle of each joint's limits (0 without); _reference, the sidecar's closed reference
@@ -68,6 +69,7 @@ class LoopModel:
     blocks: tuple[Block, ...] = ()
     restarts: int = 8
     solver: str = "blocks"
+    spheres: bool = True
     frames: tuple[str, ...] = ()
     _g: tuple[Any, ...] = ()
     _m: int = 0

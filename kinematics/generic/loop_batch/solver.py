@@ -73,8 +73,8 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
     # -- construction ----------------------------------------------------------------------------
     @classmethod
     def from_robot(cls, robot: Robot, *, task_axes: tuple[int, ...] | None = None, seeds: int = 512,
-                   restarts: int = 8, rng: int | np.random.Generator | None = 0, solver: str = "blocks"
-                   ) -> LoopBatch:
+                   restarts: int = 8, rng: int | np.random.Generator | None = 0, solver: str = "blocks",
+                   spheres: bool = True) -> LoopBatch:
         """Compile a closed-loop robot and find its branches at the reference position.
 
         Args:
@@ -84,6 +84,8 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
             restarts: random starts per target that misses some branch (`ik`).
             rng: seed of the random starts (the result is deterministic for a fixed seed).
             solver: one of SOLVERS (`ik`).
+            spheres: the block solver solves a spherical triple behind a 6D closure in closed form
+                (the module `spheres`); False solves every block's unknowns by Levenberg-Marquardt.
 
         Raises:
             UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, or a task
@@ -134,7 +136,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                                             "the batched solver handles position tasks only")
             task_axes = tuple(axes)
         self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), translational=translational,
-                   scale=_length(robot, q), restarts=restarts, solver=solver)
+                   scale=_length(robot, q), restarts=restarts, solver=solver, spheres=spheres)
         self._compile(q)
         self._reference = robot.values_from_configuration(q)
         pin.framesForwardKinematics(model, robot.data, q)

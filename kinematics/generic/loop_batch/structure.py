@@ -36,6 +36,7 @@ import numpy as np
 from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.loop_batch.compiled import REVOLUTE
 from kinematics.generic.loop_batch.model import LoopModel, row_pattern, sparsity
+from kinematics.generic.loop_batch.spheres import SphereCut, sphere_cuts
 
 
 class Block(NamedTuple):
@@ -77,8 +78,12 @@ class BlockModel(NamedTuple):
         label: index among `LoopBatch.label_blocks`, -1 for a block that labels no working mode.
         depends: label-block indices whose branch choice the held values depend on (transitively).
         pinned: the end effector's joint is placed at the target.
-        locks: sub-model indices of the block's locked joints (`LoopStructure.locked_joints`),
-            whose label columns are `LoopStructure.lock_columns[label]`.
+        locks: sub-model indices of the block's locked joints (`LoopStructure.locked_joints`)
+            among its unknowns, whose label columns are among `LoopStructure.lock_columns[label]`.
+        ends: the block's joints (degree-of-freedom indices) in the order the block solver keeps
+            their values: its unknowns (`cols`), then each cut's triple.
+        cuts: the block's 6D closures solved as point closures (`spheres.SphereCut`), their
+            triples in closed form.
     """
 
     block: Block
@@ -99,6 +104,8 @@ class BlockModel(NamedTuple):
     centre: np.ndarray
     weights: np.ndarray
     locks: np.ndarray
+    ends: tuple[int, ...]
+    cuts: tuple[SphereCut, ...]
 
 
 class LoopStructure(LoopModel):
@@ -221,9 +228,21 @@ class LoopStructure(LoopModel):
         return out
 
     @functools.cached_property
+    def sphere_cuts(self) -> dict[int, SphereCut]:
+        """The 6D closures that end in a spherical triple (`spheres`), by closure index."""
+        return sphere_cuts(self._g, self.concurrent_groups)
+
+    @functools.cached_property
     def block_models(self) -> tuple[BlockModel, ...]:
-        """Each block of `blocks` as a small model of its own (`BlockModel`), for the block solver."""
-        parent, kind, axis, jR, jt, fparent, fR, ft, anc, ctype, cf1, cf2, ee, taxes, R0, orient, scale = self._g
+        """Each block of `blocks` as a small model of its own (`BlockModel`), for the block solver;
+        where `spheres`, a 6D closure of `sphere_cuts` whose triple the block determines (the
+        platform not placed) as the point closure at the triple's centre, the triple solved after
+        it in closed form."""
+        return self.sub_models(self.spheres)
+
+    def sub_models(self, cut: bool) -> tuple[BlockModel, ...]:
+        """`block_models` with (cut) or without the cuts."""
+        parent, kind, axis, jR, jt, fparent, _, _, _, ctype, cf1, cf2, ee, taxes, R0, orient, scale = self._g
         groups = self._row_groups()
         nc = len(ctype)
         carrier = int(fparent[ee])
@@ -237,12 +256,14 @@ class LoopStructure(LoopModel):
             closures = [c for c in range(nc) if rows & set(groups[c])]
             task = bool(rows & task_rows)
             pinned = self.can_pin and not task
-            frames = sorted({int(cf1[c]) for c in closures} | {int(cf2[c]) for c in closures}
-                            | ({int(ee)} if task or pinned else set()))
+            cuts = [self.sphere_cuts[c] for c in closures if cut and c in self.sphere_cuts and not pinned
+                    and set(self.sphere_cuts[c].joints) <= set(blk.cols)]
+            cut_of = {cut.closure: cut for cut in cuts}
+            spec, frames = self._block_frames(closures, task or pinned, cuts)
             joints: set[int] = set()
             for f in frames:
-                chain = set(np.flatnonzero(anc[f]).tolist())
-                if pinned and anc[f, carrier]:  # carried by the placed joint: the path below it only
+                chain = set(self._chain(spec[f][0]))
+                if pinned and carrier in chain:  # carried by the placed joint: the path below it only
                     chain = {j for j in chain if self._descends(j, carrier)}
                 joints |= chain
             js = np.array(sorted(joints), dtype=np.int64)
@@ -251,25 +272,27 @@ class LoopStructure(LoopModel):
                                    for j in js], dtype=np.int64)
             sub_anc = np.zeros((len(frames), len(js)), dtype=np.bool_)
             for i, f in enumerate(frames):
-                j = where[int(fparent[f])]
+                j = where[spec[f][0]]
                 while j >= 0:
                     sub_anc[i, j] = True
                     j = int(sub_parent[j])
             fi = {f: i for i, f in enumerate(frames)}
             # an end effector the block does not use points at its first frame; its rows weigh 0
             sub_ee = fi.get(int(ee), 0)
-            sub_fparent = np.array([where[int(fparent[f])] for f in frames], dtype=np.int64)
+            sub_fparent = np.array([where[spec[f][0]] for f in frames], dtype=np.int64)
             held_orient = bool(orient) and task
-            sub_ctype = np.array([ctype[c] for c in closures], dtype=np.int64)
-            g = (sub_parent, kind[js], axis[js], jR[js], jt[js], sub_fparent, fR[frames], ft[frames], sub_anc,
-                 sub_ctype, np.array([fi[int(cf1[c])] for c in closures], dtype=np.int64),
-                 np.array([fi[int(cf2[c])] for c in closures], dtype=np.int64), int(sub_ee), taxes, R0,
-                 held_orient, float(scale))
-            # full row -> sub-model row
+            sub_ctype = np.array([0 if c in cut_of else ctype[c] for c in closures], dtype=np.int64)
+            ends1 = [("centre", c) if c in cut_of else int(cf1[c]) for c in closures]
+            ends2 = [("other", c) if c in cut_of else int(cf2[c]) for c in closures]
+            g = (sub_parent, kind[js], axis[js], jR[js], jt[js], sub_fparent,
+                 np.array([spec[f][1] for f in frames]).reshape(-1, 3, 3), np.array([spec[f][2] for f in frames]).reshape(-1, 3),
+                 sub_anc, sub_ctype, np.array([fi[f] for f in ends1], dtype=np.int64),
+                 np.array([fi[f] for f in ends2], dtype=np.int64), int(sub_ee), taxes, R0, held_orient, float(scale))
+            # full row -> sub-model row (a cut closure: its position rows only)
             to_sub: dict[int, int] = {}
             r = 0
             for c in closures:
-                for i in groups[c]:
+                for i in groups[c][: 3 if c in cut_of else None]:
                     to_sub[i] = r
                     r += 1
             if held_orient:
@@ -280,8 +303,9 @@ class LoopStructure(LoopModel):
                 to_sub[i] = r
                 r += 1
             m = r
+            sub_rows = [to_sub[i] for i in blk.rows if i in to_sub]
             weights = np.zeros(m)
-            weights[[to_sub[i] for i in blk.rows]] = 1.0
+            weights[sub_rows] = 1.0
             pattern = row_pattern(sub_anc, g[9], g[10], g[11], int(sub_ee), m - sum(3 if t == 0 else 6
                                                                                        for t in sub_ctype))
             pattern[weights == 0.0] = False
@@ -292,7 +316,8 @@ class LoopStructure(LoopModel):
             # leaves it at 0, which changes nothing the block measures
             held = np.array([i for i, j in enumerate(js) if not free[i] and not (pinned and j == carrier)
                              and (owner[j] >= 0 or self._pattern[list(blk.rows), j].any())], dtype=np.int64)
-            own = tuple((int(owner[js[i]]), self.blocks[int(owner[js[i]])].cols.index(int(js[i]))) for i in held)
+            own = tuple((int(owner[js[i]]), models[int(owner[js[i]])].ends.index(int(js[i]))) if owner[js[i]] >= 0
+                        else (-1, -1) for i in held)
             if any(o < 0 for o, _ in own):
                 raise UnsupportedRobotError(self.robot.name, f"block {k} of the loop equations uses a joint that no "
                                             "earlier block determines")
@@ -302,16 +327,46 @@ class LoopStructure(LoopModel):
                 if models[o].label >= 0:
                     depends.add(models[o].label)
                     depends |= set(self.lock_columns[models[o].label])
+            solved = [c for c in blk.cols if c in where]
             models.append(BlockModel(
                 block=blk, joints=js, free=free, held=held, owner=own,
-                rows=np.array([to_sub[i] for i in blk.rows], dtype=np.int64),
-                cols=np.array([where[c] for c in blk.cols], dtype=np.int64),
-                middles=np.array([where[c] for c in blk.cols if c in middle], dtype=np.int64),
+                rows=np.array(sub_rows, dtype=np.int64),
+                cols=np.array([where[c] for c in solved], dtype=np.int64),
+                middles=np.array([where[c] for c in solved if c in middle], dtype=np.int64),
                 label=label_index.get(blk, -1), depends=tuple(sorted(depends)), pinned=pinned, g=g, m=m,
                 nzc=nzc, nzn=nzn, centre=self._centre[js], weights=weights,
-                locks=np.array([where[j] for j in self.locked_joints if j in blk.cols], dtype=np.int64)))
+                locks=np.array([where[j] for j in self.locked_joints if j in solved], dtype=np.int64),
+                ends=tuple(solved) + tuple(j for cut in cuts for j in cut.joints), cuts=tuple(cuts)))
             owner[list(blk.cols)] = k
         return tuple(models)
+
+    def _block_frames(self, closures: list[int], with_ee: bool, cuts: list[SphereCut]
+                      ) -> tuple[dict[Any, tuple[int, np.ndarray, np.ndarray]], list[Any]]:
+        """A block sub-model's frames, each (parent joint, R, t): the model's own (by index: the
+        closures' that are not cut, the end effector's if with_ee, sorted), then each cut's two (by
+        key ("centre", closure) and ("other", closure)); and their order."""
+        fparent, fR, ft, cf1, cf2, ee = (self._g[i] for i in (5, 6, 7, 10, 11, 12))
+        cut = {c.closure for c in cuts}
+        spec: dict[Any, tuple[int, np.ndarray, np.ndarray]] = {}
+        for c in closures:
+            if c not in cut:
+                for f in (int(cf1[c]), int(cf2[c])):
+                    spec[f] = (int(fparent[f]), fR[f], ft[f])
+        if with_ee:
+            spec[int(ee)] = (int(fparent[ee]), fR[ee], ft[ee])
+        frames: list[Any] = sorted(spec)
+        for sc in cuts:
+            spec[("centre", sc.closure)], spec[("other", sc.closure)] = sc.centre, sc.other
+            frames += [("centre", sc.closure), ("other", sc.closure)]
+        return spec, frames
+
+    def _chain(self, j: int) -> list[int]:
+        """Joint j and its ancestors (none for the base, -1)."""
+        out = []
+        while j >= 0:
+            out.append(j)
+            j = int(self._g[0][j])
+        return out
 
     @functools.cached_property
     def concurrent_groups(self) -> tuple[tuple[int, ...], ...]:
