@@ -53,6 +53,10 @@ from kinematics.generic.obstacles import Obstacles
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import MAX_POINTS
 
+SERIAL_PRESCAN_CELLS = 24
+"""Grid points per axis of a serial arm's pre-scan in 3-D (each point runs the reach search and,
+inside, every pair's distance: 24^3 points against 48^2 on a revolved arm's profile)."""
+
 MAX_WATCHED = 8
 """Binding pairs measured one by one (each adds a target to the volume run)."""
 
@@ -306,6 +310,14 @@ class CollisionWorkspace:
         return out
 
 
+def _binding(scan: Prescan, watch: int) -> tuple[list[tuple[int, int]], list[int]]:
+    """The pairs negative somewhere in the pre-scan, most often first, with their counts, and the
+    first `watch` of them (measured alone)."""
+    order = np.argsort(-scan.counts, kind="stable")
+    found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
+    return found, [k for k, _ in found[:watch]]
+
+
 def _take(r: ColumnVolume, idx: list[int]) -> ColumnVolume:
     """The targets `idx` of a column measurement."""
     return dataclasses.replace(r, estimate=r.estimate[idx], error=r.error[idx], check_difference=r.check_difference[idx],
@@ -350,11 +362,21 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
-    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
-    order = np.argsort(-scan.counts, kind="stable")
-    found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
-    watched = [k for k, _ in found[:watch]]
-    margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
+    margin: Any
+    if mech.family == "serial":  # the reach search's configurations (`analyses.serial_collisions`)
+        from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
+
+        plain = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+        on = plain.profile  # a solid of revolution: its profile is scanned
+        scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None
+                else Prescan(on.margin, on.lo, on.hi, PRESCAN_CELLS))
+        watched = _binding(scan, watch)[1]
+        margin = plain.with_prescan(watched, scan)
+    else:
+        scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
+        watched = _binding(scan, watch)[1]
+        margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
+    found = _binding(scan, watch)[0]
     rtol = 1e-2 if rtol is None else rtol
     budget = MAX_POINTS if max_points is None else max_points
     B, W = len(chosen), len(watched)
