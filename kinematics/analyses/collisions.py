@@ -208,9 +208,15 @@ class CollisionMargin:
 
 def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: str = "all"
                    ) -> Callable[[Sequence[str]], CollisionMargin]:
-    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first), for
-    analyses that take a margin in place of the mechanism's (`usable.usable(margin_of=...)`)."""
+    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first; a serial
+    arm's `SerialCollisionMargin`, the union's last), for analyses that take a margin in place of
+    the mechanism's (`usable.usable(margin_of=...)`, `--points`)."""
     dist = AnalyticDistances(model)
+    if mech.family == "serial":  # one margin, the union's (`analyses.serial_collisions`)
+        from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
+
+        reach = collision_reach(mech, robot, dist)
+        return lambda branches: SerialCollisionMargin(mech, robot, dist, reach)  # type: ignore[return-value]
     return lambda branches: CollisionMargin(mech, robot, dist, branches, limits)
 
 
@@ -363,15 +369,18 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
     margin: Any
+    extra: dict[str, Any] = {}
     if mech.family == "serial":  # the reach search's configurations (`analyses.serial_collisions`)
         from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
 
         plain = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
-        on = plain.profile  # a solid of revolution: its profile is scanned
-        scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None
-                else Prescan(on.margin, on.lo, on.hi, PRESCAN_CELLS))
+        on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
+        scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
+                else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
         watched = _binding(scan, watch)[1]
         margin = plain.with_prescan(watched, scan)
+        r = plain.reach
+        extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts}}
     else:
         scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
         watched = _binding(scan, watch)[1]
@@ -400,4 +409,4 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], removed, error, count)
                   for (k, count), (removed, error) in zip(found[:watch], removals, strict=True))
     return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]),
-                              {**summary(cm, dist), "pairs_that_can_bind": int(scan.active.sum())})
+                              {**summary(cm, dist), "pairs_that_can_bind": int(scan.active.sum()), **extra})

@@ -88,10 +88,11 @@ class SerialCollisionMargin:
         self.watched = np.asarray(watched, dtype=np.int64)
         self.prescan, self.on_profile = prescan, on_profile
         self.kinematic = ReachMargin(reach, on_profile)
-        self.profile = None
+        self.profile, self.profile_margin = None, None
         if reach.setup.mode == "revolved" and not on_profile:
             assert self.kinematic.profile is not None
-            self.profile = dataclasses.replace(self.kinematic.profile, margin=self.on_the_profile())
+            self.profile_margin = self.on_the_profile()
+            self.profile = dataclasses.replace(self.kinematic.profile, margin=self.profile_margin)
 
     def on_the_profile(self) -> SerialCollisionMargin:
         """The same margin on the (rho, z) profile (revolved mode)."""
@@ -124,8 +125,8 @@ class SerialCollisionMargin:
         not evaluated: k <= 0 or outside the pre-scan's close cells), each watched pair's best
         distance (N, W), and every pair's distances at the best configuration (N, P)."""
         pts = np.asarray(points, dtype=float)
-        if self.profile is not None:  # unchanged by the base's turn: the profile's
-            return self.profile.margin.evaluate(self.reach.profile_of(pts), signs)
+        if self.profile_margin is not None:  # unchanged by the base's turn: the profile's
+            return self.profile_margin.evaluate(self.reach.profile_of(pts), signs)
         world = self._world(pts)
         k, Q0 = (self.reach.profile_search(pts) if self.on_profile else self.reach.distance(world))
         P, W = len(self.distances.kinds), len(self.watched)

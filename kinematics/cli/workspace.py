@@ -101,10 +101,12 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
-        if "ik" not in mech.capabilities:  # the collision margin needs each point's configurations
-            raise InvalidInputError("--collisions/--obstacles", "a serial arm's workspace is not collision-aware "
-                                    "yet (its reachability search does not exclude colliding configurations); "
-                                    "p2us, delta, the planar arm and closed loops are")
+        if "ik" not in mech.capabilities and mech.family != "serial":  # the margin needs each point's configurations
+            raise InvalidInputError("--collisions/--obstacles", f"{mech.family}: no configurations at task points "
+                                    "to check; p2us, delta, the planar arm, closed loops and serial arms are "
+                                    "collision-aware")
+        if args.plot and mech.family == "serial":
+            raise InvalidInputError("--plot", "a serial arm's collision-free workspace is not drawn yet (use --points)")
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
@@ -170,7 +172,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
     checks = collision_checks(args, robot)
-    cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
+    cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches or None, limits=args.limits,
                                      progress=show_progress(args), collision_model=checks)
     margin_of = margin_builder(mech, robot, checks, args.limits)
     if args.points:  # the collision-aware union: CollisionMargin's last column
@@ -195,7 +197,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
         rows = [(f"{a} - {b}", f"{fmt(p.removed, 4)} +/- {fmt(p.error, 2)}", str(p.prescan_points))
                 for p in cw.pairs for a, b in [p.links]]
         return "\n".join([
-            f"{robot.name}: collision-free {key} ({', '.join(branches)}; limits {args.limits})",
+            f"{robot.name}: collision-free {key} ({', '.join([*branches, f'limits {args.limits}'])})",
             key_values([
                 (f"{key} [{unit}]", (f"{fmt(ws.total, 6)} +/- {fmt(ws.error, 2)} "
                                      f"({'converged' if ws.result.converged else 'NOT converged'})")),
