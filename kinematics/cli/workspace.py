@@ -41,7 +41,8 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops)")
+    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
+                      "serial arms: the best configuration their search finds)")
     orientation_args(p, "the volume of tool positions reachable")
 
 
