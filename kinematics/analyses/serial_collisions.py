@@ -51,6 +51,11 @@ from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.mechanisms.serial.reach import Reach, ReachMargin
 
+ESCALATE = 4
+"""Where every restart's configuration collides, the next (ESCALATE - 1) x `restarts` nearest
+samples are descended too (the ur5 near its base: 99 of 392 grid points colliding with the 6
+restarts, 37 with 24, 32 with 96)."""
+
 
 def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
     """Whether every checked pair keeps its distances when the first chain joint turns: both of
@@ -139,21 +144,25 @@ class SerialCollisionMargin:
             return k, best, watch, at
         D = self.distances.distances(self.full_configurations(Q0[idx]), signs=signs)
         best[idx], watch[idx], at[idx] = D.min(axis=1), D[:, self.watched], D
-        more = idx[best[idx] <= 0]  # colliding at the first solution: every seed's
-        if len(more):
-            Qs, ok = self.reach.solutions(world[more])
-            K = Qs.shape[1]
+        # colliding at the first solution: each restart's, then (still colliding) ESCALATE x as many
+        n = self.reach.restarts
+        for first, count in ((0, n), (n, (ESCALATE - 1) * n)):
+            more = idx[best[idx] <= 0]
+            if not len(more):
+                break
+            Qs, ok = self.reach.solutions(world[more], first, count)
             rows, cols = np.nonzero(ok)
-            if len(rows):
-                Ds = np.full((len(more), K, P), -np.inf)
-                Ds[rows, cols] = self.distances.distances(self.full_configurations(Qs[rows, cols]), signs=signs)
-                low = Ds.min(axis=2)
-                c = np.argmax(low, axis=1)
-                better = low[np.arange(len(more)), c] > best[more]
-                sel = more[better]
-                best[sel] = low[better, c[better]]
-                at[sel] = Ds[better, c[better]]
-                watch[more] = np.maximum(watch[more], Ds[:, :, self.watched].max(axis=1))
+            if not len(rows):
+                continue
+            Ds = np.full((len(more), Qs.shape[1], P), -np.inf)
+            Ds[rows, cols] = self.distances.distances(self.full_configurations(Qs[rows, cols]), signs=signs)
+            low = Ds.min(axis=2)
+            c = np.argmax(low, axis=1)
+            better = low[np.arange(len(more)), c] > best[more]
+            sel = more[better]
+            best[sel] = low[better, c[better]]
+            at[sel] = Ds[better, c[better]]
+            watch[more] = np.maximum(watch[more], Ds[:, :, self.watched].max(axis=1))
         return k, best, watch, at
 
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:

@@ -285,11 +285,13 @@ class Reach:
             return kernels.search(targets, seeds, lo, hi, *self.args, self.vec, self.dirs, self.scale, REACH_TOL,
                                   ITERATIONS, kernels.CHUNK, FAR)
 
-    def _seeds(self, targets: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> np.ndarray:
-        """(N, K, n) seeds of world targets (N, 3): the `restarts` nearest samples (module docstring),
-        a revolved base's angle turned onto the target's azimuth and brought into [lo_0, hi_0]."""
+    def _seeds(self, targets: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None,
+               count: int | None = None) -> np.ndarray:
+        """(N, K, n) seeds of world targets (N, 3): the `count` (default `restarts`) nearest samples
+        (module docstring), a revolved base's angle turned onto the target's azimuth and brought into
+        [lo_0, hi_0]."""
         tree, Q, az = self._table
-        k = min(self.restarts, len(Q))
+        k = min(count or self.restarts, len(Q))
         _, idx = tree.query(self._key(targets), k=k, workers=-1 if len(targets) > 20_000 else 1)
         idx = np.asarray(idx).reshape(len(targets), k)
         seeds = Q[idx]
@@ -316,14 +318,17 @@ class Reach:
             Q[inside, 1:], ok[inside, 1:] = self.solutions(targets[inside])
         return Q, ok
 
-    def solutions(self, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each of the `restarts` seeds of world targets (N, 3) descended to its end within the
-        joint limits (`kernels.reach_all`, no early stop): chain values (N, K, n) and whether each
-        reaches its target within REACH_TOL (N, K). A redundant arm's are K points of its
-        self-motion set, a non-redundant arm's its distinct solutions whose basins hold a seed."""
+    def solutions(self, targets: np.ndarray, first: int = 0, count: int | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds `first` .. `first + count` (default: the `restarts` nearest samples) of world
+        targets (N, 3), each descended to its end within the joint limits (`kernels.reach_all`, no
+        early stop): chain values (N, K, n) and whether each reaches its target within REACH_TOL
+        (N, K). A redundant arm's are K points of its self-motion set, a non-redundant arm's its
+        distinct solutions whose basins hold a seed."""
         targets = np.ascontiguousarray(targets, dtype=float)
+        seeds = np.ascontiguousarray(self._seeds(targets, count=first + (count or self.restarts))[:, first:])
         with _threads(1 if len(targets) < SERIAL_BELOW else None):
-            return kernels.reach_all(targets, self._seeds(targets), self.lo, self.hi, *self.args, self.vec, self.dirs,
+            return kernels.reach_all(targets, seeds, self.lo, self.hi, *self.args, self.vec, self.dirs,
                                      self.scale, 1.0, REACH_TOL, ITERATIONS)
 
     def jacobians(self, Q: np.ndarray) -> np.ndarray:
