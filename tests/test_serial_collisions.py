@@ -185,7 +185,7 @@ def test_spatial_arm_beside_a_wall_is_measured_in_3d(arm3):
     robot = load_robot(arm3 / "arm3.urdf")
     mech = mechanism_of(robot)
     assert mech.reach.setup.mode == "revolved"  # kinematically a solid of revolution
-    cw = measure_collision_workspace(mech, robot, step=0.05, rtol=1e-2,
+    cw = measure_collision_workspace(mech, robot, step=0.08, rtol=1e-2,
                                      obstacles=load_obstacles(arm3 / "wall.yaml"), self_collisions=False)
     assert cw.collision["search"]["mode"] == "spatial"
     assert cw.workspace.result.converged
