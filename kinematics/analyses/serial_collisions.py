@@ -16,10 +16,12 @@ branch); each watched pair's target is the same with that pair alone (its own be
 
 C(x): first the margin's own search's solution (a warm start along the column, then the nearest
 samples); where some pair is negative there, each of the `restarts` seeds descended to its end
-(`Reach.solutions`), the reaching ones added. A non-redundant arm (3 joints for a 3-D point) has
+(`Reach.solutions`), the reaching ones added; where all of those collide, the next
+(ESCALATE - 1) x `restarts` nearest samples' descents too. A non-redundant arm (3 joints for a 3-D point) has
 finitely many solutions (elbow up / down, shoulder left / right): the restarts find those whose
 basins hold a seed. A redundant arm (6 or 7 joints for a 3-D point) has a self-motion set of
-dimension n - 3 through each solution; the restarts give up to `restarts` + 1 points of it.
+dimension n - 3 through each solution; the restarts give up to ESCALATE x `restarts` + 1 points
+of it (no null-space motion away from contact is attempted).
 
 What it can miss (a low bias of the collision-free set, as the kinematic search's): a point whose
 only collision-free configurations lie in no found basin or, for a redundant arm, in a part of the
@@ -46,9 +48,11 @@ from typing import Any
 import numpy as np
 
 from kinematics.analyses.collision_prescan import Prescan
+from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.batched import configurations
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.mechanisms.serial.mechanism import SerialArm
 from kinematics.mechanisms.serial.reach import Reach, ReachMargin
 
 ESCALATE = 4
@@ -69,12 +73,16 @@ def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bo
 
 
 def collision_reach(mech: Mechanism, robot: Any, distances: AnalyticDistances) -> Reach:
-    """The search a collision-aware margin of `mech` (a `SerialArm`) uses: its own when the checked
-    pairs are unchanged by the base's full turn (module docstring), else one in 3-D."""
-    reach: Reach = mech.reach  # type: ignore[attr-defined]
+    """The search a collision-aware margin of `mech` (a `SerialArm`, else UnsupportedRobotError)
+    uses: its own when the checked pairs are unchanged by the base's full turn (module docstring),
+    else one in 3-D."""
+    if not isinstance(mech, SerialArm):
+        raise UnsupportedRobotError(mech.name, "a serial arm's collision margin is for open chains searched by "
+                                               "their reach search")
+    reach = mech.reach
     if reach.setup.mode == "revolved" and (reach.turn is not None or not turn_invariant(robot, distances, reach)):
-        return Reach(robot, reach.frame, samples=None, restarts=reach.restarts, seed=reach.seed,
-                     orientation=mech.orientation, revolve=False)  # type: ignore[attr-defined]
+        return Reach(robot, reach.frame, restarts=reach.restarts, seed=reach.seed, orientation=mech.orientation,
+                     revolve=False)
     return reach
 
 
