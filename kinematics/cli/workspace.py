@@ -206,6 +206,8 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
                 *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
+                *([("search", _search_text(payload["collisions"]["search"]))] if "search" in payload["collisions"]
+                  else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
@@ -215,6 +217,13 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
 
     out(args, payload, human)
     return 0
+
+
+def _search_text(search: dict[str, Any]) -> str:
+    """A serial arm's search (`analyses.serial_collisions`): where it ran and its effort."""
+    where = {"revolved": "on the profile (every pair turns with the base)",
+             "spatial": "in 3-D", "planar": "in the arm's plane"}.get(search["mode"], search["mode"])
+    return f"{where}; {search['samples']:,} samples, {search['restarts']} restarts"
 
 
 _LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}
