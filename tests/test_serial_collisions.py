@@ -212,14 +212,30 @@ def test_revolved_arm_with_a_post_keeps_its_profile(arm3):
 
 def test_cli_serial_arm_with_obstacles(arm3, capsys):
     """`workspace-volume` of a serial arm with --obstacles answers (JSON: the search's mode, the
-    binding pairs); --plot with it is refused in one line, exit 2."""
+    binding pairs); its --points are the grid points the 3R arm reaches clear of the wall by hand
+    (the tool and one elbow at x < WALL - R, `_wall_volume`'s condition at each point's azimuth),
+    those within 1 mm of a boundary aside; --plot with it is refused in one line, exit 2."""
     from .test_cli import run, run_json
 
-    urdf, wall = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml")
-    code, d, _ = run_json(capsys, "workspace-volume", urdf, "--obstacles", wall, "--step", "0.1", "--rtol", "5e-2")
+    urdf, wall, listed = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml"), arm3 / "free.npy"
+    code, d, _ = run_json(capsys, "workspace-volume", urdf, "--obstacles", wall, "--step", "0.1", "--rtol", "5e-2",
+                          "--points", str(listed))
     assert code == 0
     assert d["collisions"]["search"]["mode"] == "spatial" and d["collisions"]["obstacles"] == ["wall"]
     assert d["volume_m3"] < d["collisions"]["kinematic_volume"]
+    axis = np.arange(-0.65, 0.7, 0.1)  # cell centres of the reach ball's box at the step
+    p = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    rho, r = np.hypot(p[:, 0], p[:, 1]), np.linalg.norm(p, axis=1)
+    g = np.arccos(np.clip((L1 * L1 + r * r - L2 * L2) / (2 * L1 * np.maximum(r, 1e-12)), -1, 1))
+    a, cos_phi = np.arctan2(p[:, 2], rho), p[:, 0] / np.maximum(rho, 1e-12)
+    c = WALL - R
+    elbow = np.maximum(c - L1 * np.cos(a - g) * cos_phi, c - L1 * np.cos(a + g) * cos_phi)
+    clear = np.minimum(np.minimum(c - p[:, 0], elbow), np.minimum(r - (L1 - L2), L1 + L2 - r))
+    sure = np.abs(clear) > 1e-3
+    got = {tuple(np.round(x, 6)) for x in np.load(listed)}
+    expected = {tuple(np.round(x, 6)) for x in p[sure & (clear > 0)]}
+    unsure = {tuple(np.round(x, 6)) for x in p[~sure]}
+    assert got - unsure == expected and len(expected) > 500
     code, _, err = run(capsys, "workspace-volume", urdf, "--obstacles", wall, "--plot", str(arm3 / "x.png"))
     assert code == 2 and "--points" in err and len(err.strip().splitlines()) == 1
 
