@@ -242,10 +242,11 @@ def test_cli_serial_arm_with_obstacles(arm3, capsys):
 
 def test_ur5_self_collisions_through_coal(ur5):
     """ur5 (meshes, example-robot-data): its base link's pairs change with the base's turn, so the
-    search runs in 3-D. On a grid about its base, where the margin says colliding, every
+    search runs in 3-D. On a grid about its base, by coal's own distances
+    (`CollisionModel.distances`, not the closed forms): where the margin says free, its
+    configuration reaches the point with every pair apart; where it says colliding, every
     configuration the search found (its solution and the first 4 x restarts seeds' descents)
-    collides by coal's own distances (`CollisionModel.distances`, not the closed forms); where it
-    says free, one of them is free; both kinds occur (the tool inside the base and shoulder)."""
+    collides; both kinds occur (the tool inside the base and shoulder)."""
     from kinematics.analyses.serial_collisions import ESCALATE
 
     mech = mechanism_of(ur5)
@@ -256,14 +257,33 @@ def test_ur5_self_collisions_through_coal(ur5):
     margin = SerialCollisionMargin(mech, ur5, dist, reach)
     g = np.linspace(-0.15, 0.15, 5)
     pts = np.stack(np.meshgrid(g, g, np.linspace(0.0, 0.3, 4), indexing="ij"), axis=-1).reshape(-1, 3)
-    out = margin(pts)
-    k, m = out[:, 0], out[:, -1]
+    k, _, _, _, q = margin.evaluate(pts)
+    m = margin(pts)[:, -1]
     inside = np.flatnonzero(k > 0)
-    q0 = reach.distance(pts)[1][inside]  # the same batch as the margin's (its warm starts run along it)
-    Qs, ok = reach.solutions(pts[inside], 0, ESCALATE * reach.restarts)
-    free = np.zeros(len(inside), dtype=bool)
-    for n in range(len(inside)):
-        Q = np.vstack([q0[n], Qs[n][ok[n]]])
-        free[n] = (model.distances(margin.full_configurations(Q)).min(axis=1) > 0).any()
-    assert np.array_equal(free, m[inside] > 0)
-    assert 0 < (~free).sum() < len(inside)
+    said_free = inside[m[inside] > 0]
+    assert (np.abs(reach.chain_fk(q[said_free]) - pts[said_free]) <= 1e-9).all()  # REACH_TOL = 1e-10
+    assert (model.distances(margin.full_configurations(q[said_free])).min(axis=1) > 0).all()
+    q0 = reach.distance(pts)[1]  # the same batch as the margin's (its warm starts run along it)
+    said = inside[m[inside] <= 0]
+    Qs, ok = reach.solutions(pts[said], 0, ESCALATE * reach.restarts)
+    for n, at in enumerate(said):
+        Q = np.vstack([q0[at], Qs[n][ok[n]]])
+        assert (model.distances(margin.full_configurations(Q)).min(axis=1) <= 0).all()
+    assert 0 < len(said) < len(inside)
+
+
+def test_ur5_null_space_steps_find_what_a_larger_search_finds(ur5):
+    """Near its base (a 5 cm grid, 392 points) the ur5's default search with its null-space steps
+    calls colliding exactly the points a search from 4 x the restarts (escalating to 96 seeds, its
+    own steps too) does: 32; without the steps the default search missed 5 free ones (37)."""
+    from kinematics.mechanisms.serial.reach import Reach
+
+    mech = mechanism_of(ur5)
+    dist = AnalyticDistances(collision_model_of(ur5))
+    g = np.linspace(-0.15, 0.15, 7)
+    pts = np.stack(np.meshgrid(g, g, np.linspace(-0.05, 0.3, 8), indexing="ij"), axis=-1).reshape(-1, 3)
+    small = SerialCollisionMargin(mech, ur5, dist, collision_reach(mech, ur5, dist))(pts)
+    large = SerialCollisionMargin(mech, ur5, dist, Reach(ur5, restarts=24, revolve=False))(pts)
+    reached = (small[:, 0] > 0) & (large[:, 0] > 0)
+    assert np.array_equal(small[reached, -1] > 0, large[reached, -1] > 0)
+    assert 20 < (small[reached, -1] <= 0).sum() < reached.sum()

@@ -17,16 +17,22 @@ branch); each watched pair's target is the same with that pair alone (its own be
 C(x): first the margin's own search's solution (a warm start along the column, then the nearest
 samples); where some pair is negative there, each of the `restarts` seeds descended to its end
 (`Reach.solutions`), the reaching ones added; where all of those collide, the next
-(ESCALATE - 1) x `restarts` nearest samples' descents too. A non-redundant arm (3 joints for a 3-D point) has
-finitely many solutions (elbow up / down, shoulder left / right): the restarts find those whose
-basins hold a seed. A redundant arm (6 or 7 joints for a 3-D point) has a self-motion set of
-dimension n - 3 through each solution; the restarts give up to ESCALATE x `restarts` + 1 points
-of it (no null-space motion away from contact is attempted).
+(ESCALATE - 1) x `restarts` nearest samples' descents too. A non-redundant arm (3 joints for a
+3-D point) has finitely many solutions (elbow up / down, shoulder left / right): the restarts find
+those whose basins hold a seed. A redundant arm (more searched joints than task coordinates, 6
+or 7 for a 3-D point) has a self-motion set of dimension n - 3 through each solution; the restarts
+give up to ESCALATE x `restarts` + 1 points of it. Where all of them collide, the best one takes up
+to ESCAPE_STEPS null-space steps away from contact: the binding pair's gradient g (forward
+differences of its distance, `AnalyticDistances.pair_distances`) projected onto the null space
+of the position Jacobian J, s = (I - J+ J) g, a Newton step of that distance to
+ESCAPE_CLEARANCE along s (at most ESCAPE_ANGLE), then a descent back onto the target; a step is
+kept where the smallest distance grows, and the steps go on while it is still negative (not
+with a fixed tool orientation).
 
 What it can miss (a low bias of the collision-free set, as the kinematic search's): a point whose
 only collision-free configurations lie in no found basin or, for a redundant arm, in a part of the
-self-motion set none of the descents ends in (the descents end near their seeds, the samples'
-nearest to the target: configurations spread over the joint box). The volume's check run
+self-motion set none of the descents ends in and the null-space steps (local: they follow one
+pair's gradient, and another pair may bind after a step) do not reach. The volume's check run
 (`for_check`) repeats the measurement with twice the samples and restarts (and half the step):
 where more configurations free more of the workspace the two runs disagree, the difference enters
 the error estimate and marks the run not converged when it exceeds the estimates.
@@ -59,6 +65,19 @@ ESCALATE = 4
 """Where every restart's configuration collides, the next (ESCALATE - 1) x `restarts` nearest
 samples are descended too (the ur5 near its base: 99 of 392 grid points colliding with the 6
 restarts, 37 with 24, 32 with 96)."""
+
+
+ESCAPE_STEPS = 4
+"""Null-space steps a redundant arm takes away from contact where every configuration found collides."""
+
+ESCAPE_H = 1e-5
+"""[rad or m] Forward-difference step of the binding pair's gradient."""
+
+ESCAPE_ANGLE = 0.3
+"""[rad] Largest null-space step (before the descent back onto the target)."""
+
+ESCAPE_CLEARANCE = 0.005
+"""[m] The binding pair's distance a step aims at (its linear model's)."""
 
 
 def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
@@ -133,10 +152,12 @@ class SerialCollisionMargin:
         values[:, self.reach.chain_dofs] = Q
         return configurations(self.robot, values)
 
-    def evaluate(self, points: np.ndarray, signs: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, points: np.ndarray, signs: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """At points (N, d): k (N,), the best configuration's smallest distance (N,) (+inf where
         not evaluated: k <= 0 or outside the pre-scan's close cells), each watched pair's best
-        distance (N, W), and every pair's distances at the best configuration (N, P)."""
+        distance (N, W), every pair's distances at the best configuration (N, P) and its chain
+        values (N, n) (the search's solution where not evaluated)."""
         pts = np.asarray(points, dtype=float)
         if self.profile_margin is not None:  # unchanged by the base's turn: the profile's
             return self.profile_margin.evaluate(self.reach.profile_of(pts), signs)
@@ -149,9 +170,10 @@ class SerialCollisionMargin:
             inside &= self.prescan.close[0][self.prescan.cell_index(pts)]
         idx = np.flatnonzero(inside)
         if not len(idx) or not P:
-            return k, best, watch, at
+            return k, best, watch, at, Q0
         D = self.distances.distances(self.full_configurations(Q0[idx]), signs=signs)
         best[idx], watch[idx], at[idx] = D.min(axis=1), D[:, self.watched], D
+        qbest = np.array(Q0)
         # colliding at the first solution: each restart's, then (still colliding) ESCALATE x as many
         n = self.reach.restarts
         for first, count in ((0, n), (n, (ESCALATE - 1) * n)):
@@ -170,8 +192,48 @@ class SerialCollisionMargin:
             sel = more[better]
             best[sel] = low[better, c[better]]
             at[sel] = Ds[better, c[better]]
+            qbest[sel] = Qs[better, c[better]]
             watch[more] = np.maximum(watch[more], Ds[:, :, self.watched].max(axis=1))
-        return k, best, watch, at
+        if self.reach.orientation is None and int(self.reach.searched.sum()) > len(self.reach.setup.rows):  # redundant
+            self._escape(world, idx[best[idx] <= 0], qbest, best, watch, at, signs)
+        return k, best, watch, at, qbest
+
+    def _escape(self, world: np.ndarray, rows: np.ndarray, Q: np.ndarray, best: np.ndarray, watch: np.ndarray,
+                at: np.ndarray, signs: bool) -> None:
+        """Null-space steps of a redundant arm away from contact at the points `rows` (their best
+        configurations Q still colliding), updating Q, best, watch and at in place where a step
+        improves the smallest distance (module docstring)."""
+        reach, dist = self.reach, self.distances
+        moving = np.flatnonzero(reach.searched)
+        for _ in range(ESCAPE_STEPS):
+            if not len(rows):
+                return
+            q = Q[rows]
+            pair = np.argmin(at[rows], axis=1)
+            d0 = dist.pair_distances(self.full_configurations(q), pair)
+            grad = np.zeros_like(q)
+            for j in moving:  # the binding pair's gradient by forward differences
+                qj = q.copy()
+                qj[:, j] += ESCAPE_H
+                grad[:, j] = (dist.pair_distances(self.full_configurations(qj), pair) - d0) / ESCAPE_H
+            J = reach.jacobians(q)
+            J[:, :, ~reach.searched] = 0.0
+            step = grad - np.einsum("mij,mjk,mk->mi", np.linalg.pinv(J), J, grad)  # keeps the tool still
+            norm = np.linalg.norm(step, axis=1)
+            # a Newton step of the binding distance to ESCAPE_CLEARANCE along the projected gradient
+            # (its directional derivative there is |step|), at most ESCAPE_ANGLE
+            length = np.minimum((ESCAPE_CLEARANCE - d0) / np.maximum(norm, 1e-12), ESCAPE_ANGLE)
+            seed = np.clip(q + step / np.maximum(norm, 1e-12)[:, None] * length[:, None], reach.lo, reach.hi)
+            Qn, ok = reach.descend(world[rows], seed[:, None, :])
+            D = np.full((len(rows), at.shape[1]), -np.inf)
+            if ok[:, 0].any():
+                D[ok[:, 0]] = dist.distances(self.full_configurations(Qn[ok[:, 0], 0]), signs=signs)
+            low = D.min(axis=1)
+            better = (low > best[rows]) & (norm > 1e-12)
+            sel = rows[better]
+            best[sel], at[sel], Q[sel] = low[better], D[better], Qn[better, 0]
+            watch[sel] = np.maximum(watch[sel], D[better][:, self.watched])
+            rows = sel[low[better] <= 0]
 
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
         """(M, P) pair distances at the best configuration found at the points `inside` (a mask)
@@ -179,7 +241,7 @@ class SerialCollisionMargin:
         return self.evaluate(np.asarray(points, dtype=float)[inside], signs)[3]
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        k, best, watch, _ = self.evaluate(points)
+        k, best, watch, _, _ = self.evaluate(points)
         m = np.where(k > 0, np.minimum(k, best), k)
         w = np.where(k[:, None] > 0, np.minimum(k[:, None], watch), k[:, None])
         return np.column_stack([k, w, m])

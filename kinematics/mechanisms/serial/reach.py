@@ -326,10 +326,15 @@ class Reach:
         (N, K). A redundant arm's are K points of its self-motion set, a non-redundant arm's its
         distinct solutions whose basins hold a seed."""
         targets = np.ascontiguousarray(targets, dtype=float)
-        seeds = np.ascontiguousarray(self._seeds(targets, count=first + (count or self.restarts))[:, first:])
+        return self.descend(targets, self._seeds(targets, count=first + (count or self.restarts))[:, first:])
+
+    def descend(self, targets: np.ndarray, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds (N, K, n) of world targets (N, 3) each descended to its end within the joint
+        limits: chain values (N, K, n) and whether each reaches its target within REACH_TOL (N, K)."""
+        targets = np.ascontiguousarray(targets, dtype=float)
         with _threads(1 if len(targets) < SERIAL_BELOW else None):
-            return kernels.reach_all(targets, seeds, self.lo, self.hi, *self.args, self.vec, self.dirs,
-                                     self.scale, 1.0, REACH_TOL, ITERATIONS)
+            return kernels.reach_all(targets, np.ascontiguousarray(seeds, dtype=float), self.lo, self.hi, *self.args,
+                                     self.vec, self.dirs, self.scale, 1.0, REACH_TOL, ITERATIONS)
 
     def jacobians(self, Q: np.ndarray) -> np.ndarray:
         """(..., 3, n) position Jacobians [m/rad or m/m] at chain values Q (..., n)."""
