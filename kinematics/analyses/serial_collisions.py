@@ -178,7 +178,7 @@ class SerialCollisionMargin:
         n = self.reach.restarts
         for first, count in ((0, n), (n, (ESCALATE - 1) * n)):
             more = idx[best[idx] <= 0]
-            if not len(more):
+            if not len(more) or not count:
                 break
             Qs, ok = self.reach.solutions(world[more], first, count)
             rows, cols = np.nonzero(ok)
