@@ -78,6 +78,19 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
     return cm
 
 
+def collision_refusal(mech: Mechanism, plot: bool = False) -> tuple[str, str] | None:
+    """(option, reason) where a collision-aware volume of `mech` (with a `--plot`: drawn) cannot be
+    had, else None: the margin needs configurations at task points (`ik`, or a serial arm's
+    reach search), and a serial arm's margin has no branch columns to draw."""
+    serial = mech.family == "serial"
+    if "ik" not in mech.capabilities and not serial:
+        return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
+                                             "delta, the planar arm, closed loops and serial arms are collision-aware"))
+    if plot and serial:
+        return ("--plot", "a serial arm's collision-free workspace is not drawn yet (use --points)")
+    return None
+
+
 def design_options(robot: Any, self_collisions: bool, obstacles: str | None) -> dict[str, Any]:
     """Collision options for designs derived from `robot` (a p2us or delta; plain data, for Dask
     tasks): the collision sizes its sidecar records (the generator's defaults where absent), the

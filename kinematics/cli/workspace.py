@@ -102,12 +102,11 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
-        if "ik" not in mech.capabilities and mech.family != "serial":  # the margin needs each point's configurations
-            raise InvalidInputError("--collisions/--obstacles", f"{mech.family}: no configurations at task points "
-                                    "to check; p2us, delta, the planar arm, closed loops and serial arms are "
-                                    "collision-aware")
-        if args.plot and mech.family == "serial":
-            raise InvalidInputError("--plot", "a serial arm's collision-free workspace is not drawn yet (use --points)")
+        from kinematics.analyses.collisions import collision_refusal
+
+        refused = collision_refusal(mech, plot=bool(args.plot))
+        if refused is not None:
+            raise InvalidInputError(*refused)
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
