@@ -137,6 +137,14 @@ def _collisions(o: dict[str, Any]) -> list[Row]:
               f"{sec(r['collision_seconds'])}, {num(r['time_ratio'], 2)} x the kinematic run")) for r in o["rows"]]
 
 
+def _serial_collisions(o: dict[str, Any]) -> list[Row]:
+    return [((f"{r['robot']} volume with self-collisions (rtol {r['rtol']:g}, step {r['step']:g} m, search "
+              f"{r['search']['mode']}; wall / CPU)"),
+             (f"{num(r['collision_volume'], 4)} +/- {num(r['collision_error'], 2)} m^3 (kinematic "
+              f"{num(r['kinematic_volume'], 4)}) in {sec(r['collision_seconds'])} / {sec(r['collision_cpu_seconds'])} "
+              f"CPU, {num(r['time_ratio'], 2)} x the kinematic run")) for r in o["rows"]]
+
+
 def _cli(o: dict[str, Any]) -> list[Row]:
     return [(f"`{r['command']}` (best of {o['repeats']}, wall / volume)",
              "failed" if r["wall_s"] is None else
@@ -147,6 +155,7 @@ def _cli(o: dict[str, Any]) -> list[Row]:
 HEADLINES: dict[str, Callable[[dict[str, Any]], list[Row]]] = {
     "bench_cli": _cli,
     "bench_collisions": _collisions,
+    "bench_serial_collisions": _serial_collisions,
     "bench_batched_fk": _batched_fk,
     "bench_scara_manipulability": _scara,
     "bench_p2us_kinematics": _p2us_kinematics,

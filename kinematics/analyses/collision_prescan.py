@@ -34,6 +34,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from kinematics.analyses.collisions import CollisionMargin
+    from kinematics.analyses.serial_collisions import SerialCollisionMargin
 
 SAFETY = 2.0
 """Factor on the observed slope x cell diagonal below which a pair distance keeps its cell."""
@@ -51,7 +52,7 @@ class Prescan:
         slopes: (B, P) each pair's observed slope per branch [m/m] (+inf: nothing observed).
     """
 
-    def __init__(self, margin: CollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int) -> None:
+    def __init__(self, margin: CollisionMargin | SerialCollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int) -> None:
         d = len(lo)
         self.lo, self.hi, self.cells = np.asarray(lo, float), np.asarray(hi, float), cells
         self.spacing = (self.hi - self.lo) / (cells - 1)

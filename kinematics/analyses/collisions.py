@@ -53,6 +53,10 @@ from kinematics.generic.obstacles import Obstacles
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import MAX_POINTS
 
+SERIAL_PRESCAN_CELLS = 24
+"""Grid points per axis of a serial arm's pre-scan in 3-D (each point runs the reach search and,
+inside, every pair's distance: 24^3 points against 48^2 on a revolved arm's profile)."""
+
 MAX_WATCHED = 8
 """Binding pairs measured one by one (each adds a target to the volume run)."""
 
@@ -72,6 +76,19 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
         raise InvalidInputError("obstacles", f"{robot.name} has no collision shape on a moving body: "
                                              "nothing can touch the obstacles")
     return cm
+
+
+def collision_refusal(mech: Mechanism, plot: bool = False) -> tuple[str, str] | None:
+    """(option, reason) where a collision-aware volume of `mech` (with a `--plot`: drawn) cannot be
+    had, else None: the margin needs configurations at task points (`ik`, or a serial arm's
+    reach search), and a serial arm's margin has no branch columns to draw."""
+    serial = mech.family == "serial"
+    if "ik" not in mech.capabilities and not serial:
+        return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
+                                             "delta, the planar arm, closed loops and serial arms are collision-aware"))
+    if plot and serial:
+        return ("--plot", "a serial arm's collision-free workspace is not drawn yet (use --points)")
+    return None
 
 
 def design_options(robot: Any, self_collisions: bool, obstacles: str | None) -> dict[str, Any]:
@@ -204,9 +221,15 @@ class CollisionMargin:
 
 def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: str = "all"
                    ) -> Callable[[Sequence[str]], CollisionMargin]:
-    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first), for
-    analyses that take a margin in place of the mechanism's (`usable.usable(margin_of=...)`)."""
+    """Branches -> their collision-aware margin (`CollisionMargin`: each branch's m_b first; a serial
+    arm's `SerialCollisionMargin`, the union's last), for analyses that take a margin in place of
+    the mechanism's (`usable.usable(margin_of=...)`, `--points`)."""
     dist = AnalyticDistances(model)
+    if mech.family == "serial":  # one margin, the union's (`analyses.serial_collisions`)
+        from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
+
+        reach = collision_reach(mech, robot, dist)
+        return lambda branches: SerialCollisionMargin(mech, robot, dist, reach)  # type: ignore[return-value]
     return lambda branches: CollisionMargin(mech, robot, dist, branches, limits)
 
 
@@ -306,6 +329,14 @@ class CollisionWorkspace:
         return out
 
 
+def _binding(scan: Prescan, watch: int) -> tuple[list[tuple[int, int]], list[int]]:
+    """The pairs negative somewhere in the pre-scan, most often first, with their counts, and the
+    first `watch` of them (measured alone)."""
+    order = np.argsort(-scan.counts, kind="stable")
+    found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
+    return found, [k for k, _ in found[:watch]]
+
+
 def _take(r: ColumnVolume, idx: list[int]) -> ColumnVolume:
     """The targets `idx` of a column measurement."""
     return dataclasses.replace(r, estimate=r.estimate[idx], error=r.error[idx], check_difference=r.check_difference[idx],
@@ -350,11 +381,24 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     dist = AnalyticDistances(cm)
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
-    scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
-    order = np.argsort(-scan.counts, kind="stable")
-    found = [(int(k), int(scan.counts[k])) for k in order if scan.counts[k] > 0]
-    watched = [k for k, _ in found[:watch]]
-    margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
+    margin: Any
+    extra: dict[str, Any] = {}
+    if mech.family == "serial":  # the reach search's configurations (`analyses.serial_collisions`)
+        from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
+
+        plain = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+        on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
+        scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
+                else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
+        watched = _binding(scan, watch)[1]
+        margin = plain.with_prescan(watched, scan)
+        r = plain.reach
+        extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts}}
+    else:
+        scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
+        watched = _binding(scan, watch)[1]
+        margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
+    found = _binding(scan, watch)[0]
     rtol = 1e-2 if rtol is None else rtol
     budget = MAX_POINTS if max_points is None else max_points
     B, W = len(chosen), len(watched)
@@ -378,4 +422,4 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], removed, error, count)
                   for (k, count), (removed, error) in zip(found[:watch], removals, strict=True))
     return CollisionWorkspace(ws, kin, kin_err, pairs, tuple(cm.pair_links[k] for k, _ in found[watch:]),
-                              {**summary(cm, dist), "pairs_that_can_bind": int(scan.active.sum())})
+                              {**summary(cm, dist), "pairs_that_can_bind": int(scan.active.sum()), **extra})

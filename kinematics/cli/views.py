@@ -77,8 +77,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         if not args.workspace:
             raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
         if robot.loops is None and "joint_singularities" not in mech.capabilities:
-            raise InvalidInputError("--collisions/--obstacles", "a serial arm's workspace is not collision-aware yet "
-                                    "(its volume neither); p2us, delta, the planar arm and closed loops are")
+            raise InvalidInputError("--collisions/--obstacles", "a serial arm's drawn workspace is not collision-aware "
+                                    "yet (its volume is: workspace-volume --collisions); p2us, delta, the planar "
+                                    "arm and closed loops are drawn")
         checks = collision_checks(args, robot)
     if three_limb:
         unreachable = _parallel_checks(args, robot, mech)

@@ -41,7 +41,8 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops)")
+    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
+                      "serial arms: the best configuration their search finds)")
     orientation_args(p, "the volume of tool positions reachable")
 
 
@@ -101,10 +102,11 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
-        if "ik" not in mech.capabilities:  # the collision margin needs each point's configurations
-            raise InvalidInputError("--collisions/--obstacles", "a serial arm's workspace is not collision-aware "
-                                    "yet (its reachability search does not exclude colliding configurations); "
-                                    "p2us, delta, the planar arm and closed loops are")
+        from kinematics.analyses.collisions import collision_refusal
+
+        refused = collision_refusal(mech, plot=bool(args.plot))
+        if refused is not None:
+            raise InvalidInputError(*refused)
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
@@ -170,7 +172,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
     checks = collision_checks(args, robot)
-    cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches, limits=args.limits,
+    cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches or None, limits=args.limits,
                                      progress=show_progress(args), collision_model=checks)
     margin_of = margin_builder(mech, robot, checks, args.limits)
     if args.points:  # the collision-aware union: CollisionMargin's last column
@@ -195,7 +197,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
         rows = [(f"{a} - {b}", f"{fmt(p.removed, 4)} +/- {fmt(p.error, 2)}", str(p.prescan_points))
                 for p in cw.pairs for a, b in [p.links]]
         return "\n".join([
-            f"{robot.name}: collision-free {key} ({', '.join(branches)}; limits {args.limits})",
+            f"{robot.name}: collision-free {key} ({', '.join([*branches, f'limits {args.limits}'])})",
             key_values([
                 (f"{key} [{unit}]", (f"{fmt(ws.total, 6)} +/- {fmt(ws.error, 2)} "
                                      f"({'converged' if ws.result.converged else 'NOT converged'})")),
@@ -203,6 +205,8 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
                 *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
+                *([("search", _search_text(payload["collisions"]["search"]))] if "search" in payload["collisions"]
+                  else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
@@ -212,6 +216,13 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
 
     out(args, payload, human)
     return 0
+
+
+def _search_text(search: dict[str, Any]) -> str:
+    """A serial arm's search (`analyses.serial_collisions`): where it ran and its effort."""
+    where = {"revolved": "on the profile (every pair turns with the base)",
+             "spatial": "in 3-D", "planar": "in the arm's plane"}.get(search["mode"], search["mode"])
+    return f"{where}; {search['samples']:,} samples, {search['restarts']} restarts"
 
 
 _LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}

@@ -49,10 +49,11 @@ class Setup:
     reach: float
 
 
-def setup(robot: Robot, kin: BatchedKinematics) -> Setup:
+def setup(robot: Robot, kin: BatchedKinematics, revolve: bool = True) -> Setup:
     """The joints that move `kin`'s frame (the others fixed), their ranges (a full turn for a
     periodic one), the derivative bounds, and the mode: planar when the arm moves in a plane,
-    revolved when the first joint is a full-turn revolution, spatial otherwise."""
+    revolved when the first joint is a full-turn revolution (and `revolve`: False measures such
+    an arm in 3-D, for a margin the base's turn changes, e.g. against obstacles), spatial otherwise."""
     nv = robot.nv
     chain_v = [int(v) for v in kin.idx_v]
     dof_idx = [dof_of(robot, v) for v in chain_v]
@@ -92,7 +93,7 @@ def setup(robot: Robot, kin: BatchedKinematics) -> Setup:
     if pl is not None:
         return Setup("planar", pl, active, lo, hi, periodic, base, L, M, Bfull, Bcol, cols, cols, pl, None, None, fixed,
                       o1[list(pl)], reach)
-    if keep[0] == 0 and kin.kind[0] != PRISMATIC and periodic[0]:
+    if revolve and keep[0] == 0 and kin.kind[0] != PRISMATIC and periodic[0]:
         direction = kin.rotation[0] @ kin.axis[0]
         origin = kin.translation[0].copy()
         return Setup("revolved", (0, 1, 2), active[1:], lo[1:], hi[1:], periodic[1:], base, L[1:], M, Bfull[1:, 1:], Bcol[1:], cols,

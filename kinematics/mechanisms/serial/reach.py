@@ -128,15 +128,19 @@ class Reach:
     """The reachability search of `robot`'s frame (see the module docstring)."""
 
     def __init__(self, robot: Robot, frame: str | None = None, *, samples: int | None = None, restarts: int = 6,
-                 seed: int = 0, orientation: ToolOrientation | None = None) -> None:
-        self.robot, self.frame, self.orientation = robot, frame, orientation
+                 seed: int = 0, orientation: ToolOrientation | None = None, revolve: bool = True) -> None:
+        """revolve: False searches in 3-D even where the base turns (a full or partial turn): for
+        margins the base's turn changes (obstacles, shapes fixed to the base)."""
+        self.robot, self.frame, self.orientation, self.revolve = robot, frame, orientation, revolve
         self.kin = compile_frame(robot, frame)
-        self.setup: Setup = setup(robot, self.kin)
+        self.setup: Setup = setup(robot, self.kin, revolve)
         if orientation is not None:
             orientation = reduced(robot, self.kin, orientation, REACH_TOL, self.setup.reach)
             self.orientation = orientation
             self.setup = oriented_setup(robot, self.kin, self.setup, orientation, REACH_TOL)
-        self.setup, self.turn = partial_turn(robot, self.kin, self.setup, orientation)
+        self.turn: tuple[float, float] | None = None
+        if revolve:
+            self.setup, self.turn = partial_turn(robot, self.kin, self.setup, orientation)
         # seeds a few millimetres apart over a plane or a profile, ~2 cm apart in space
         self.samples = samples or (200_000 if self.setup.mode == "spatial" else 40_000)
         self.restarts, self.seed = restarts, seed
@@ -197,7 +201,7 @@ class Reach:
     def with_effort(self, factor: int) -> Reach:
         """The same search with `factor` x the samples and restarts."""
         return Reach(self.robot, self.frame, samples=factor * self.samples, restarts=factor * self.restarts,
-                     seed=self.seed + 1, orientation=self.orientation)
+                     seed=self.seed + 1, orientation=self.orientation, revolve=self.revolve)
 
     # -- geometry -------------------------------------------------------------------------------
     def chain_fk(self, Q: np.ndarray) -> np.ndarray:
@@ -290,11 +294,13 @@ class Reach:
             return kernels.search(targets, seeds, lo, hi, *self.args, self.vec, self.dirs, self.scale, REACH_TOL,
                                   ITERATIONS, kernels.CHUNK, FAR)
 
-    def _seeds(self, targets: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> np.ndarray:
-        """(N, K, n) seeds of world targets (N, 3): the `restarts` nearest samples (module docstring),
-        a revolved base's angle turned onto the target's azimuth and brought into [lo_0, hi_0]."""
+    def _seeds(self, targets: np.ndarray, lo: np.ndarray | None = None, hi: np.ndarray | None = None,
+               count: int | None = None) -> np.ndarray:
+        """(N, K, n) seeds of world targets (N, 3): the `count` (default `restarts`) nearest samples
+        (module docstring), a revolved base's angle turned onto the target's azimuth and brought into
+        [lo_0, hi_0]."""
         tree, Q, az = self._table
-        k = min(self.restarts, len(Q))
+        k = min(count or self.restarts, len(Q))
         _, idx = tree.query(self._key(targets), k=k, workers=-1 if len(targets) > 20_000 else 1)
         idx = np.asarray(idx).reshape(len(targets), k)
         seeds = Q[idx]
@@ -318,10 +324,26 @@ class Reach:
         ok[:, 0] = m >= 0
         inside = np.flatnonzero(ok[:, 0])
         if len(inside):
-            Q[inside, 1:], ok[inside, 1:] = kernels.reach_all(
-                targets[inside], self._seeds(targets[inside]), self.lo, self.hi, *self.args, self.vec, self.dirs,
-                self.scale, 1.0, REACH_TOL, ITERATIONS)
+            Q[inside, 1:], ok[inside, 1:] = self.solutions(targets[inside])
         return Q, ok
+
+    def solutions(self, targets: np.ndarray, first: int = 0, count: int | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds `first` .. `first + count` (default: the `restarts` nearest samples) of world
+        targets (N, 3), each descended to its end within the joint limits (`kernels.reach_all`, no
+        early stop): chain values (N, K, n) and whether each reaches its target within REACH_TOL
+        (N, K). A redundant arm's are K points of its self-motion set, a non-redundant arm's its
+        distinct solutions whose basins hold a seed."""
+        targets = np.ascontiguousarray(targets, dtype=float)
+        return self.descend(targets, self._seeds(targets, count=first + (count or self.restarts))[:, first:])
+
+    def descend(self, targets: np.ndarray, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds (N, K, n) of world targets (N, 3) each descended to its end within the joint
+        limits: chain values (N, K, n) and whether each reaches its target within REACH_TOL (N, K)."""
+        targets = np.ascontiguousarray(targets, dtype=float)
+        with _threads(1 if len(targets) < SERIAL_BELOW else None):
+            return kernels.reach_all(targets, np.ascontiguousarray(seeds, dtype=float), self.lo, self.hi, *self.args,
+                                     self.vec, self.dirs, self.scale, 1.0, REACH_TOL, ITERATIONS)
 
     def jacobians(self, Q: np.ndarray) -> np.ndarray:
         """(..., 3, n) position Jacobians [m/rad or m/m] at chain values Q (..., n)."""
@@ -361,12 +383,19 @@ class Reach:
         """(N, 1) margins [m] at task points (N, d)."""
         return self.distance(self.world(points))[0][:, None]
 
+    def profile_world(self, points: np.ndarray) -> np.ndarray:
+        """World points (N, 3) of profile points (N, 2) = (rho, z) (revolved mode: azimuth 0)."""
+        pts = np.asarray(points, dtype=float)
+        return self.origin + pts[:, :1] * self.basis[0] + pts[:, 1:2] * self.basis[2]
+
+    def profile_of(self, targets: np.ndarray) -> np.ndarray:
+        """Profile points (N, 2) = (rho, z) of world targets (N, 3) (revolved mode)."""
+        return self._key(np.asarray(targets, dtype=float))
+
     def profile_search(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Margins (N,) [m] and chain values (N, n) at profile points (N, 2) = (rho, z) (revolved
         mode), the base turned freely (a partial turn's too: the full turn's solid)."""
-        pts = np.asarray(points, dtype=float)
-        world = self.origin + pts[:, :1] * self.basis[0] + pts[:, 1:2] * self.basis[2]
-        return self.distance(world, (self.lo_free, self.hi_free))
+        return self.distance(self.profile_world(points), (self.lo_free, self.hi_free))
 
     def profile_margin(self, points: np.ndarray) -> np.ndarray:
         """(N, 1) margins [m] at profile points (N, 2) = (rho, z) (`profile_search`)."""

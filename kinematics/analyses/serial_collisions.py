@@ -1,0 +1,250 @@
+"""Collision-aware reach of a serial arm: whether some configuration within the joint limits puts
+the tool at a target with every checked pair apart.
+
+At a task point x the margin is
+
+    m(x) = k(x)                              where k(x) <= 0 (no configuration reaches x),
+    m(x) = min(k(x), max over c in C(x) of min over pairs p of d_p(q_c))   elsewhere,
+
+k the reachability margin (`kinematics.mechanisms.serial.reach`: tol - distance found + a local
+room estimate, > 0 exactly where the search reaches x), C(x) the configurations the search found
+reaching x and d_p the signed distance of pair p [m] (`kinematics.generic.capsules`: closed forms
+for capsules, spheres, plates and half-spaces, coal for boxes and meshes; only signs need be
+right). m > 0 exactly where a found configuration reaches x with every pair apart, so the column
+engine locates its sign changes like any margin's. The union is this margin (an arm has one
+branch); each watched pair's target is the same with that pair alone (its own best configuration).
+
+C(x): first the margin's own search's solution (a warm start along the column, then the nearest
+samples); where some pair is negative there, each of the `restarts` seeds descended to its end
+(`Reach.solutions`), the reaching ones added; where all of those collide, the next
+(ESCALATE - 1) x `restarts` nearest samples' descents too. A non-redundant arm (3 joints for a
+3-D point) has finitely many solutions (elbow up / down, shoulder left / right): the restarts find
+those whose basins hold a seed. A redundant arm (more searched joints than task coordinates, 6
+or 7 for a 3-D point) has a self-motion set of dimension n - 3 through each solution; the restarts
+give up to ESCALATE x `restarts` + 1 points of it. Where all of them collide, the best one takes up
+to ESCAPE_STEPS null-space steps away from contact: the binding pair's gradient g (forward
+differences of its distance, `AnalyticDistances.pair_distances`) projected onto the null space
+of the position Jacobian J, s = (I - J+ J) g, a Newton step of that distance to
+ESCAPE_CLEARANCE along s (at most ESCAPE_ANGLE), then a descent back onto the target; a step is
+kept where the smallest distance grows, and the steps go on while it is still negative (not
+with a fixed tool orientation).
+
+What it can miss (a low bias of the collision-free set, as the kinematic search's): a point whose
+only collision-free configurations lie in no found basin or, for a redundant arm, in a part of the
+self-motion set none of the descents ends in and the null-space steps (local: they follow one
+pair's gradient, and another pair may bind after a step) do not reach. The volume's check run
+(`for_check`) repeats the measurement with twice the samples and restarts (and half the step):
+where more configurations free more of the workspace the two runs disagree, the difference enters
+the error estimate and marks the run not converged when it exceeds the estimates.
+
+The base's turn: a pair of bodies both carried by a full-turn base joint keeps its distances
+when the base turns (the whole pair turns rigidly), so with only such pairs the collision-free set
+is still a solid of revolution and is measured on its (rho, z) profile (Pappus), at azimuth 0.
+A pair with a body fixed to the world (the base link, an obstacle) changes with the base's angle:
+then (and for a base that turns through less than a full turn) the arm is searched and measured in
+3-D (`Reach(revolve=False)`), with the pre-scan's cells (`kinematics.analyses.collision_prescan`)
+on the 3-D grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from kinematics.analyses.collision_prescan import Prescan
+from kinematics.errors import UnsupportedRobotError
+from kinematics.generic.batched import configurations
+from kinematics.generic.capsules import AnalyticDistances
+from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.mechanisms.serial.mechanism import SerialArm
+from kinematics.mechanisms.serial.reach import Reach, ReachMargin
+
+ESCALATE = 4
+"""Where every restart's configuration collides, the next (ESCALATE - 1) x `restarts` nearest
+samples are descended too (the ur5 near its base: 99 of 392 grid points colliding with the 6
+restarts, 37 with 24, 32 with 96)."""
+
+
+ESCAPE_STEPS = 4
+"""Null-space steps a redundant arm takes away from contact where every configuration found collides."""
+
+ESCAPE_H = 1e-5
+"""[rad or m] Forward-difference step of the binding pair's gradient."""
+
+ESCAPE_ANGLE = 0.3
+"""[rad] Largest null-space step (before the descent back onto the target)."""
+
+ESCAPE_CLEARANCE = 0.005
+"""[m] The binding pair's distance a step aims at (its linear model's)."""
+
+
+def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
+    """Whether every checked pair keeps its distances when the first chain joint turns: both of
+    its bodies are carried by that joint (in its subtree of the kinematic tree)."""
+    model = robot.model
+    first = next(j for j in range(1, model.njoints) if model.joints[j].idx_v == int(reach.kin.idx_v[0]))
+    carried = set(model.subtrees[first])
+    objs = distances.model.geometry.geometryObjects
+    return all(int(objs[a].parentJoint) in carried and int(objs[b].parentJoint) in carried
+               for a, b in distances.model.pairs)
+
+
+def collision_reach(mech: Mechanism, robot: Any, distances: AnalyticDistances) -> Reach:
+    """The search a collision-aware margin of `mech` (a `SerialArm`, else UnsupportedRobotError)
+    uses: its own when the checked pairs are unchanged by the base's full turn (module docstring),
+    else one in 3-D."""
+    if not isinstance(mech, SerialArm):
+        raise UnsupportedRobotError(mech.name, "a serial arm's collision margin is for open chains searched by "
+                                               "their reach search")
+    reach = mech.reach
+    if reach.setup.mode == "revolved" and (reach.turn is not None or not turn_invariant(robot, distances, reach)):
+        return Reach(robot, reach.frame, restarts=reach.restarts, seed=reach.seed, orientation=mech.orientation,
+                     revolve=False)
+    return reach
+
+
+class SerialCollisionMargin:
+    """The collision-aware margin of a serial arm (module docstring) as a column engine margin:
+    points (N, d) -> (N, 2 + W) columns: the kinematic margin k, the margin with each watched pair
+    alone, then the union's m (`CollisionMargin`'s layout with no branch columns: an arm has none). On the profile (`on_profile`) its points are
+    (rho, z); a revolved arm's 3-D margin carries that profile (`profile`) and answers 3-D points
+    through it."""
+
+    def __init__(self, mech: Mechanism, robot: Any, distances: AnalyticDistances, reach: Reach,
+                 watched: Any = (), prescan: Prescan | None = None, on_profile: bool = False) -> None:
+        self.mech, self.robot, self.distances, self.reach = mech, robot, distances, reach
+        # the pre-scan's one column of k: an arm has no branches, its margin is the union's
+        self.branches, self.limits = (UNION,), "all"
+        self.watched = np.asarray(watched, dtype=np.int64)
+        self.prescan, self.on_profile = prescan, on_profile
+        self.kinematic = ReachMargin(reach, on_profile)
+        self.profile, self.profile_margin = None, None
+        if reach.setup.mode == "revolved" and not on_profile:
+            assert self.kinematic.profile is not None
+            self.profile_margin = self.on_the_profile()
+            self.profile = dataclasses.replace(self.kinematic.profile, margin=self.profile_margin)
+
+    def on_the_profile(self) -> SerialCollisionMargin:
+        """The same margin on the (rho, z) profile (revolved mode)."""
+        return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach, self.watched, self.prescan,
+                                     True)
+
+    def with_prescan(self, watched: Any, prescan: Prescan) -> SerialCollisionMargin:
+        """This margin with `watched` pairs, the distances evaluated in `prescan`'s close cells only
+        (a revolved arm's pre-scan is of its profile)."""
+        return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach, watched, prescan,
+                                     self.on_profile)
+
+    def for_check(self) -> SerialCollisionMargin:
+        """The check run's margin: the search with twice the samples and restarts."""
+        return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach.checker, self.watched,
+                                     self.prescan, self.on_profile)
+
+    def _world(self, pts: np.ndarray) -> np.ndarray:
+        return self.reach.profile_world(pts) if self.on_profile else self.reach.world(pts)
+
+    def full_configurations(self, Q: np.ndarray) -> np.ndarray:
+        """(N, nq) Pinocchio configurations of chain values Q (N, n): the joints off the chain or
+        never searched at the setup's values."""
+        values = np.tile(self.reach.setup.base, (len(Q), 1))
+        values[:, self.reach.chain_dofs] = Q
+        return configurations(self.robot, values)
+
+    def evaluate(self, points: np.ndarray, signs: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """At points (N, d): k (N,), the best configuration's smallest distance (N,) (+inf where
+        not evaluated: k <= 0 or outside the pre-scan's close cells), each watched pair's best
+        distance (N, W), every pair's distances at the best configuration (N, P) and its chain
+        values (N, n) (the search's solution where not evaluated)."""
+        pts = np.asarray(points, dtype=float)
+        if self.profile_margin is not None:  # unchanged by the base's turn: the profile's
+            return self.profile_margin.evaluate(self.reach.profile_of(pts), signs)
+        world = self._world(pts)
+        k, Q0 = (self.reach.profile_search(pts) if self.on_profile else self.reach.distance(world))
+        P, W = len(self.distances.kinds), len(self.watched)
+        best, watch, at = np.full(len(pts), np.inf), np.full((len(pts), W), np.inf), np.full((len(pts), P), np.inf)
+        inside = k > 0
+        if self.prescan is not None:
+            inside &= self.prescan.close[0][self.prescan.cell_index(pts)]
+        idx = np.flatnonzero(inside)
+        if not len(idx) or not P:
+            return k, best, watch, at, Q0
+        D = self.distances.distances(self.full_configurations(Q0[idx]), signs=signs)
+        best[idx], watch[idx], at[idx] = D.min(axis=1), D[:, self.watched], D
+        qbest = np.array(Q0)
+        # colliding at the first solution: each restart's, then (still colliding) ESCALATE x as many
+        n = self.reach.restarts
+        for first, count in ((0, n), (n, (ESCALATE - 1) * n)):
+            more = idx[best[idx] <= 0]
+            if not len(more) or not count:
+                break
+            Qs, ok = self.reach.solutions(world[more], first, count)
+            rows, cols = np.nonzero(ok)
+            if not len(rows):
+                continue
+            Ds = np.full((len(more), Qs.shape[1], P), -np.inf)
+            Ds[rows, cols] = self.distances.distances(self.full_configurations(Qs[rows, cols]), signs=signs)
+            low = Ds.min(axis=2)
+            c = np.argmax(low, axis=1)
+            better = low[np.arange(len(more)), c] > best[more]
+            sel = more[better]
+            best[sel] = low[better, c[better]]
+            at[sel] = Ds[better, c[better]]
+            qbest[sel] = Qs[better, c[better]]
+            watch[more] = np.maximum(watch[more], Ds[:, :, self.watched].max(axis=1))
+        if self.reach.orientation is None and int(self.reach.searched.sum()) > len(self.reach.setup.rows):  # redundant
+            self._escape(world, idx[best[idx] <= 0], qbest, best, watch, at, signs)
+        return k, best, watch, at, qbest
+
+    def _escape(self, world: np.ndarray, rows: np.ndarray, Q: np.ndarray, best: np.ndarray, watch: np.ndarray,
+                at: np.ndarray, signs: bool) -> None:
+        """Null-space steps of a redundant arm away from contact at the points `rows` (their best
+        configurations Q still colliding), updating Q, best, watch and at in place where a step
+        improves the smallest distance (module docstring)."""
+        reach, dist = self.reach, self.distances
+        moving = np.flatnonzero(reach.searched)
+        for _ in range(ESCAPE_STEPS):
+            if not len(rows):
+                return
+            q = Q[rows]
+            pair = np.argmin(at[rows], axis=1)
+            d0 = dist.pair_distances(self.full_configurations(q), pair)
+            grad = np.zeros_like(q)
+            for j in moving:  # the binding pair's gradient by forward differences
+                qj = q.copy()
+                qj[:, j] += ESCAPE_H
+                grad[:, j] = (dist.pair_distances(self.full_configurations(qj), pair) - d0) / ESCAPE_H
+            J = reach.jacobians(q)
+            J[:, :, ~reach.searched] = 0.0
+            step = grad - np.einsum("mij,mjk,mk->mi", np.linalg.pinv(J), J, grad)  # keeps the tool still
+            norm = np.linalg.norm(step, axis=1)
+            # a Newton step of the binding distance to ESCAPE_CLEARANCE along the projected gradient
+            # (its directional derivative there is |step|), at most ESCAPE_ANGLE
+            length = np.minimum((ESCAPE_CLEARANCE - d0) / np.maximum(norm, 1e-12), ESCAPE_ANGLE)
+            seed = np.clip(q + step / np.maximum(norm, 1e-12)[:, None] * length[:, None], reach.lo, reach.hi)
+            Qn, ok = reach.descend(world[rows], seed[:, None, :])
+            D = np.full((len(rows), at.shape[1]), -np.inf)
+            if ok[:, 0].any():
+                D[ok[:, 0]] = dist.distances(self.full_configurations(Qn[ok[:, 0], 0]), signs=signs)
+            low = D.min(axis=1)
+            better = (low > best[rows]) & (norm > 1e-12)
+            sel = rows[better]
+            best[sel], at[sel], Q[sel] = low[better], D[better], Qn[better, 0]
+            watch[sel] = np.maximum(watch[sel], D[better][:, self.watched])
+            rows = sel[low[better] <= 0]
+
+    def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
+        """(M, P) pair distances at the best configuration found at the points `inside` (a mask)
+        (the pre-scan's; +inf where the search reaches none)."""
+        return self.evaluate(np.asarray(points, dtype=float)[inside], signs)[3]
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        k, best, watch, _, _ = self.evaluate(points)
+        m = np.where(k > 0, np.minimum(k, best), k)
+        w = np.where(k[:, None] > 0, np.minimum(k[:, None], watch), k[:, None])
+        return np.column_stack([k, w, m])
+
+
+__all__ = ["SerialCollisionMargin", "collision_reach", "turn_invariant"]
