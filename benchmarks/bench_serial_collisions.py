@@ -59,7 +59,7 @@ def main() -> None:
                     "twice the search's samples and restarts)")
     ap.add_argument("--max-points", type=int, default=None, help="evaluation budget of the collision run")
     ap.add_argument("--json", action="store_true")
-    args = parse(ap, {"rtol": 0.3, "step": 0.3, "check": False, "max_points": 30_000})
+    args = parse(ap, {"rtol": 0.3, "step": 0.3, "check": False, "max_points": 8_000})
     machine = calibration()
     rows = [measure(r, args.rtol, args.step, args.check, args.max_points) for r in args.robots]
     out = {"rows": rows, "machine": machine}
