@@ -194,6 +194,23 @@ def test_spatial_arm_beside_a_wall_is_measured_in_3d(arm3):
     assert {p.links for p in cw.pairs} == {("link1", "wall"), ("link2", "wall")}
 
 
+def test_spatial_collision_search_stops_on_its_budget(arm3, monkeypatch):
+    """A collision-aware 3-D measure ends on its search budget (an evaluation there costs a search
+    and every pair's distances): not converged, the budget named, its error covering the volume by
+    hand. 20,000 evaluations: under the starting grid's and one refinement round's need at 0.04 m
+    and rtol 1e-3, so the run must stop on it."""
+    import kinematics.analyses.serial_collisions as sc
+
+    monkeypatch.setattr(sc, "SEARCHES", 20_000)
+    robot = load_robot(arm3 / "arm3.urdf")
+    cw = measure_collision_workspace(mechanism_of(robot), robot, step=0.04, rtol=1e-3,
+                                     obstacles=load_obstacles(arm3 / "wall.yaml"), self_collisions=False)
+    r = cw.workspace.result
+    assert not r.converged and r.out_of_budget is not None and bool(r.out_of_budget[-1])
+    assert r.points_evaluated <= 3 * 20_000  # the budget, a round begun and the pre-scan's grid
+    assert abs(cw.workspace.total - _wall_volume(1e-3)) <= cw.workspace.error + 3e-6
+
+
 def test_revolved_arm_with_a_post_keeps_its_profile(arm3):
     """The 3R arm with a post on its turret: the only pair turns with the yaw, so the measure stays
     on the profile (Pappus); the volume is the profile integral by hand within its error estimate."""
