@@ -71,9 +71,12 @@ SEARCHES = 1_000_000
 """The volume engine's budget for a collision-aware margin searched in 3-D (`search_budget`, as
 `reach.SEARCHES` for the kinematic one; each check run twice it, a first run that stops on it gets
 no check run): an evaluation here is a search plus every pair's distance at its configurations,
-~0.33 ms of CPU on the ur5's 20 mesh pairs through coal (one core) against ~0.01 ms for a search
-alone, so the kinematic budget of 10^7 would be an hour; 10^6 bounds a run at the defaults to
-minutes, `converged: false` with the budget named where it stops."""
+0.3-0.5 ms on the ur5's 20 mesh pairs through coal (one core) against ~0.01 ms for a search
+alone, so the kinematic budget of 10^7 would be hours. 10^6 keeps the benchmark's ur5 run (step
+0.1 m, rtol 0.1: 1.08e6 evaluations with its check run) converging and bounds a run at the CLI's
+defaults (up to ~2e6 evaluations: the budget and a round begun) to ~15-20 minutes,
+`converged: false` with the budget named; its error estimate is then no use (a budget of 10^5 at
+step 0.02 m: 3.62 +- 7.1 m^3, 106 s): a larger --step / --rtol is the way to an answer."""
 
 
 ESCAPE_STEPS = 4
