@@ -390,15 +390,14 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
         scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
                 else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
-        watched = _binding(scan, watch)[1]
+        found, watched = _binding(scan, watch)
         margin = plain.with_prescan(watched, scan)
         r = plain.reach
         extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts}}
     else:
         scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
-        watched = _binding(scan, watch)[1]
+        found, watched = _binding(scan, watch)
         margin = CollisionMargin(mech, robot, dist, chosen, limits, watched, prescan=scan)
-    found = _binding(scan, watch)[0]
     rtol = 1e-2 if rtol is None else rtol
     budget = MAX_POINTS if max_points is None else max_points
     B, W = len(chosen), len(watched)
