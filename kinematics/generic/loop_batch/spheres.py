@@ -181,5 +181,5 @@ def sphere_angles(g: tuple[Any, ...], cut: SphereCut, x: np.ndarray) -> np.ndarr
 
 
 def wrap(x: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Angles to within pi of their centres, as `LoopStructure.canonical`."""
+    """Angles [rad] to within pi of their centres (`LoopStructure.canonical`, the spherical joints' angles)."""
     return (x - centre + math.pi) % (2 * math.pi) + centre - math.pi

@@ -36,7 +36,7 @@ import numpy as np
 from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.loop_batch.compiled import REVOLUTE
 from kinematics.generic.loop_batch.model import LoopModel, row_pattern, sparsity
-from kinematics.generic.loop_batch.spheres import SphereCut, sphere_cuts
+from kinematics.generic.loop_batch.spheres import SphereCut, sphere_cuts, wrap
 
 
 class Block(NamedTuple):
@@ -444,8 +444,7 @@ class LoopStructure(LoopModel):
             if len(grp) == 3:
                 x[..., grp[2]] = np.where(flip, x[..., grp[2]] + math.pi, x[..., grp[2]])
         revolute = self._g[1] == REVOLUTE
-        c = self._centre[revolute]
-        x[..., revolute] = (x[..., revolute] - c + math.pi) % (2 * math.pi) + c - math.pi
+        x[..., revolute] = wrap(x[..., revolute], self._centre[revolute])
         return x
 
     def _descends(self, j: int, ancestor: int) -> bool:
