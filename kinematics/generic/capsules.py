@@ -32,7 +32,8 @@ penetration depth, the shortest translation that separates them, when they overl
   with z_k = n.p_k - d the end heights, d = min z_k - r, exact apart and in penetration (the
   half-space's nearest face is the plane).
 
-Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from one
+Everything else (boxes, cylinders against cylinders, meshes) is coal's; where only signs matter,
+a pair of those whose bounding capsules are apart is not (`kinematics.generic.bounding`). Placements come from one
 compiled pass over the tree of the geometries' joints (`capsule_kernels.tree_kernel`; joint data as
 `kinematics.generic.batched` reads them).
 """
@@ -45,6 +46,7 @@ import numpy as np
 
 from kinematics.chunks import slices
 from kinematics.generic import capsule_kernels
+from kinematics.generic.bounding import bound_model
 from kinematics.generic.capsule_kernels import (
     pair_rows_kernel,
     pair_rows_serial,
@@ -118,6 +120,11 @@ class AnalyticDistances:
         self._tree = _Tree(model.robot.model, [int(objs[k].parentJoint) for k in used], model.robot.name)
         self._joint_of = np.full(G, -1, dtype=np.int64)  # each closed-form shape's tree joint (-1: the world)
         self._joint_of[self._used] = self._tree.of_geometry
+        # the coal pairs' bounding capsules (`kinematics.generic.bounding`): their closed forms
+        # prove most of those pairs apart where only signs matter
+        bounds = bound_model(model, np.flatnonzero(kinds == COAL)) if (kinds == COAL).any() else None
+        self._bound = AnalyticDistances(bounds) if bounds is not None else None  # type: ignore[arg-type]
+        self._bound_of = bounds.of if bounds is not None else np.zeros(0, dtype=np.int64)
 
     def _placements(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, G, 3) centres and (N, G, 3) z axes of the closed-form geometries in the world (one
@@ -149,17 +156,26 @@ class AnalyticDistances:
         coal (`CollisionModel.distances`) for the configurations where some pair needs it.
 
         signs: where a capsule lies beside a plate and clear of it, keep `closed_form`'s positive
-        lower bound instead of asking coal: every entry then has the sign of the true distance
-        (and is exact wherever it is <= 0), which is all a margin's zero set needs."""
+        lower bound instead of asking coal, likewise for a coal pair whose bounding capsules
+        (`kinematics.generic.bounding`) are apart, and a mesh pair's distance is min(d,
+        `collision.NEAR`) (`CollisionModel.distances(near=True)`): every entry then has the sign
+        of the true distance (and is exact wherever it is <= 0), which is all a margin's zero set
+        needs."""
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.model.robot.model.nq or not np.isfinite(q).all():
             return self.model.distances(q)  # raises the model's error
         out, ok = self.closed_form(q)
         if signs:
             ok |= (self.kinds == PLATE) & (out > 0)
+            if self._bound is not None:  # coal pairs whose bounding capsules are apart
+                bound = self._bound.closed_form(q)[0]
+                apart = bound > 0
+                cols = self._bound_of
+                out[:, cols] = np.where(apart, bound, out[:, cols])
+                ok[:, cols] |= apart
         rows = np.flatnonzero(~ok.all(axis=1))
         if len(rows):
-            d = self.model.distances(q[rows], only=np.flatnonzero(~ok[rows].all(axis=0)))
+            d = self.model.distances(q[rows], where=~ok[rows], near=signs)
             out[rows] = np.where(ok[rows], out[rows], d)
         return out
 
@@ -181,10 +197,16 @@ class AnalyticDistances:
                 out, ok)
         if signs:
             ok |= (self.kinds[pair] == PLATE) & (out > 0)
+            rows = np.flatnonzero(~ok & np.isin(pair, self._bound_of))
+            if len(rows):  # coal pairs whose bounding capsules are apart
+                column = np.searchsorted(self._bound_of, pair[rows])
+                bound = self._bound.closed_form(q[rows])[0][np.arange(len(rows)), column]  # type: ignore[union-attr]
+                apart = bound > 0
+                out[rows[apart]], ok[rows[apart]] = bound[apart], True
         rows = np.flatnonzero(~ok)
         for k in np.unique(pair[rows]):
             r = rows[pair[rows] == k]
-            out[r] = self.model.distances(q[r], only=np.array([k]))[:, k]
+            out[r] = self.model.distances(q[r], only=np.array([k]), near=signs)[:, k]
         return out
 
     def margin(self, q: np.ndarray, signs: bool = False) -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,10 @@ GJK_TOL = 1e-10
 """Coal's GJK/EPA stopping tolerance [m] for every pair (its default, 1e-6, lets a distance come
 out up to ~1e-7 m long, e.g. a hull farther than the mesh inside it)."""
 
+NEAR = 1e-3
+"""[m] Where only signs matter (`CollisionModel.distances(near=True)`), a mesh pair's distance at
+or above NEAR is reported as NEAR."""
+
 TOUCH_TOL = 1e-6
 """Distance [m] at or below which two bodies count as touching at the reference configuration."""
 
@@ -94,6 +98,7 @@ class CollisionModel:
         self._mesh_pairs = np.array(mesh_pairs, dtype=np.int64)
         self._mesh_model = _mesh_model(robot, geometry, self.pairs, meshes) if mesh_pairs else None
         self._mesh_data = _tight(pin.GeometryData(self._mesh_model)) if mesh_pairs else None
+        self._near_data = _tight(pin.GeometryData(self._mesh_model), NEAR) if mesh_pairs else None
 
     @classmethod
     def from_robot(cls, robot: Any, *, disabled: Iterable[tuple[str, str]] = (),
@@ -167,13 +172,19 @@ class CollisionModel:
                           on_obstacle)
         return out
 
-    def distances(self, q: np.ndarray, only: np.ndarray | None = None) -> np.ndarray:
+    def distances(self, q: np.ndarray, only: np.ndarray | None = None, where: np.ndarray | None = None,
+                  near: bool = False) -> np.ndarray:
         """Signed distance [m] of every pair at each configuration.
 
         Args:
             q: (N, nq) configurations.
-            only: pair indices: compute these alone (the other columns are NaN), unless one of
-                them has a mesh (then every pair is computed).
+            only: pair indices: compute these alone (the other columns are NaN).
+            where: (N, P) booleans: compute these entries alone (the others are NaN); with `only`,
+                within its pairs.
+            near: a mesh pair whose hulls overlap and whose meshes are NEAR or more apart (coal's
+                collision test with that security margin) gets NEAR instead of the meshes' own
+                distance: min(d, NEAR), continuous, exact below NEAR (a mesh distance costs ~10x
+                a collision test: the ur5's base and upper arm 280 us against 17 us).
 
         Returns:
             (N, P) distances, pair order as `pairs`; (N, 0) when no pair can collide.
@@ -187,23 +198,36 @@ class CollisionModel:
         out = np.empty((len(q), len(self.pairs)))
         results = self._gdata.distanceResults
         model, data = self.robot.model, self._data
-        if only is not None and not np.isin(only, self._mesh_pairs).any():
+        every = only is None and where is None
+        if not every:
             out[:] = np.nan
-            for n, qn in enumerate(q):
-                pin.updateGeometryPlacements(model, data, self.geometry, self._gdata, qn)
-                for k in only:
-                    out[n, k] = pin.computeDistance(self.geometry, self._gdata, int(k)).min_distance
-            return out
+            pick = np.zeros((len(q), len(self.pairs)), dtype=bool)
+            pick[:, np.arange(len(self.pairs)) if only is None else np.asarray(only, dtype=np.int64)] = True
+            if where is not None:
+                pick &= np.asarray(where, dtype=bool).reshape(pick.shape)
         for n, qn in enumerate(q):
-            pin.computeDistances(model, data, self.geometry, self._gdata, qn)
-            out[n] = [r.min_distance for r in results]
+            if every:
+                pin.computeDistances(model, data, self.geometry, self._gdata, qn)
+                out[n] = [r.min_distance for r in results]
+            else:
+                pairs = np.flatnonzero(pick[n])
+                if not len(pairs):
+                    continue
+                pin.updateGeometryPlacements(model, data, self.geometry, self._gdata, qn)
+                for k in pairs:
+                    out[n, k] = pin.computeDistance(self.geometry, self._gdata, int(k)).min_distance
             if self._mesh_model is None:
                 continue
-            overlap = self._mesh_pairs[out[n, self._mesh_pairs] <= 0.0]
+            mesh = self._mesh_pairs if every else self._mesh_pairs[pick[n, self._mesh_pairs]]
+            overlap = mesh[out[n, mesh] <= 0.0]
             if len(overlap):
                 pin.updateGeometryPlacements(model, data, self._mesh_model, self._mesh_data)
+                if near:
+                    pin.updateGeometryPlacements(model, data, self._mesh_model, self._near_data)
                 for k in overlap:
-                    if pin.computeCollision(self._mesh_model, self._mesh_data, int(k)):
+                    if near and not pin.computeCollision(self._mesh_model, self._near_data, int(k)):
+                        out[n, k] = NEAR
+                    elif pin.computeCollision(self._mesh_model, self._mesh_data, int(k)):
                         out[n, k] -= CONTACT_EPS
                     else:
                         out[n, k] = pin.computeDistance(self._mesh_model, self._mesh_data, int(k)).min_distance
@@ -293,10 +317,13 @@ def _add_obstacles(geometry: Any, obstacles: Obstacles, taken: set[str]) -> dict
     return out
 
 
-def _tight(data: Any) -> Any:
-    """`data` with every pair's GJK/EPA tolerance set to `GJK_TOL`."""
+def _tight(data: Any, margin: float = 0.0) -> Any:
+    """`data` with every pair's GJK/EPA tolerance set to `GJK_TOL`, its collision tests'
+    security margin to `margin` [m] (a pair within it counts as colliding)."""
     for request in data.distanceRequests:
         request.gjk_tolerance = request.epa_tolerance = GJK_TOL
+    for request in data.collisionRequests:
+        request.security_margin = margin
     return data
 
 
