@@ -71,7 +71,7 @@ SEARCHES = 1_000_000
 """The volume engine's budget for a collision-aware margin searched in 3-D (`search_budget`, as
 `reach.SEARCHES` for the kinematic one; each check run twice it, a first run that stops on it gets
 no check run): an evaluation here is a search plus every pair's distance at its configurations,
-0.3-0.5 ms on the ur5's 20 mesh pairs through coal (one core) against ~0.01 ms for a search
+~0.2 ms on the ur5's 20 mesh pairs through coal (one core) against ~0.01 ms for a search
 alone, so the kinematic budget of 10^7 would be hours. 10^6 keeps the benchmark's ur5 run (step
 0.1 m, rtol 0.1: 1.08e6 evaluations with its check run) converging; it bounds every run, but at
 the CLI's defaults (1 cm, rtol 1e-3) the ur5 gave no answer within 25 minutes, and where a run
