@@ -128,6 +128,32 @@ def test_an_empty_range_reads_as_no_range(tmp_path, capsys):
     assert "--range r1=LO:HI" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("text", "expected"), [
+    ("joint1=-pi/2:3pi/4", (-0.5 * math.pi, 0.75 * math.pi)),
+    ("joint1=-pi:pi", (-math.pi, math.pi)),
+    ("joint1=0.25:2*pi", (0.25, 2.0 * math.pi)),
+    ("joint1=-.5pi:1e-1", (-0.5 * math.pi, 0.1)),
+])
+def test_range_flag_takes_multiples_of_pi(text, expected, capsys):
+    """`--range` reads LO and HI as numbers or multiples of pi (the Gepetto models' actuators are
+    given -pi:pi in docs/models.md); the JSON report shows the range read (to the last bit)."""
+    import json
+
+    from kinematics.cli import main
+
+    assert main(["info", "scara", "--range", text, "--json"]) == 0
+    joint = json.loads(capsys.readouterr().out)["joints"][0]
+    assert (joint["lower"], joint["upper"]) == expected
+
+
+@pytest.mark.parametrize("text", ["joint1=-pi:pix", "joint1=pi/0:1", "joint1=.pi:1", "joint1=pi:-pi"])
+def test_range_flag_refuses_what_is_no_angle(text, capsys):
+    from kinematics.cli import main
+
+    assert main(["info", "scara", "--range", text]) == 2
+    assert "expected JOINT=LO:HI with finite LO < HI" in capsys.readouterr().err
+
+
 def test_continuous_joints_round_trip(rng):
     kinova = load_robot("kinova")
     assert any(d.kind == "continuous" for d in kinova.dofs)

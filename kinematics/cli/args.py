@@ -72,16 +72,36 @@ def number(text: str) -> float:
     return v
 
 
+def angle_value(text: str) -> float:
+    """A number, or a multiple or fraction of pi [rad]: `-pi`, `pi/2`, `0.5pi`, `2*pi`, `-3pi/4`
+    (NaN when it is neither)."""
+    import math
+    import re
+
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    m = re.fullmatch(r"\s*([+-]?)\s*(\d*\.?\d*)\s*\*?\s*pi\s*(?:/\s*(\d+\.?\d*))?\s*", text)
+    if m is None or m.group(2) == ".":
+        return float("nan")
+    factor = float(m.group(2)) if m.group(2) else 1.0
+    divisor = float(m.group(3)) if m.group(3) else 1.0
+    if divisor == 0.0:
+        return float("nan")
+    value = factor * math.pi / divisor
+    return -value if m.group(1) == "-" else value
+
+
 def joint_range(text: str) -> tuple[str, tuple[float, float]]:
-    """`JOINT=LO:HI` -> (joint, (lo, hi)), both finite with lo < hi."""
+    """`JOINT=LO:HI` -> (joint, (lo, hi)), both finite with lo < hi; LO and HI numbers or
+    multiples of pi (`angle_value`: `--range mot1=-pi:pi`)."""
     name, sep, pair = text.partition("=")
     lo, colon, hi = pair.partition(":")
-    try:
-        a, b = float(lo), float(hi)
-    except ValueError:
-        a = b = float("nan")
+    a, b = angle_value(lo), angle_value(hi)
     if not (sep and colon and name) or not (abs(a) <= MAX_MAGNITUDE and abs(b) <= MAX_MAGNITUDE and a < b):
-        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r} (LO, HI: numbers "
+                                         "or multiples of pi such as -pi, pi/2)")
     return name, (a, b)
 
 
@@ -126,8 +146,8 @@ def subcommands(sub: Any) -> Command:
 def robot_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("robot", metavar="ROBOT", help=ROBOT_HELP)
     p.add_argument("--range", action="append", type=joint_range, metavar="JOINT=LO:HI",
-                   help="give or replace a joint's range [rad or m] (repeat per joint): for URDFs whose "
-                        "<limit> has no lower/upper")
+                   help="give or replace a joint's range [rad or m] (repeat per joint; LO and HI numbers "
+                        "or multiples of pi: mot1=-pi:pi, q2=0:pi/2): for URDFs whose <limit> has no lower/upper")
 
 
 def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
