@@ -187,3 +187,30 @@ def test_cli_show_and_plot_of_a_serial_arm_with_obstacles(arm3, capsys):  # noqa
         code, _, err = run(capsys, *argv)
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
     assert not (arm3 / "x.html").exists() and not (arm3 / "x.png").exists()
+
+
+def test_a_link_with_two_shapes_is_one_cloud(tmp_path):
+    """A link whose two shapes both bind somewhere (link 2's capsule where the tool is in the wall,
+    a ball of radius 0.05 m on its elbow end, which holds link 1's end, where the elbow is) is
+    drawn as one cloud, labelled once, holding every point where either binds."""
+    from kinematics.analyses.collisions import collision_map
+
+    ball = '<collision><geometry><sphere radius="0.05"/></geometry></collision>'
+    (tmp_path / "arm.urdf").write_text(ARM.replace('<link name="link2">', '<link name="link2">' + ball))
+    (tmp_path / "wall.yaml").write_text(HALF)
+    robot = load_robot(tmp_path / "arm.urdf")
+    cm = collision_model_of(robot, load_obstacles(tmp_path / "wall.yaml"), self_collisions=False)
+    mech, step = mechanism_of(robot), 0.023
+    scene = viz.scara_view(robot, workspace=True, collisions=cm, step=step)
+    lo, hi = mech.bounding_box("all")
+    axes = [np.arange(lo[k] + step / 2, hi[k], step) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    pts = pts[(mech.margin(None, "all")(pts)[:, :-1] >= 0).any(axis=1)]
+    margin, pair = collision_map(mech, robot, cm, pts)
+    hit = (margin <= 0) & (pair >= 0)
+    link2 = {int(k) for k in pair[hit] if cm.pair_links[k] == ("link2", "wall")}
+    assert len(link2) == 2  # both shapes bind somewhere
+    labels = [x for x, _ in scene.legend if x.startswith("colliding: link2 - wall")]
+    assert labels == [f"colliding: link2 - wall binds ({sum(int((pair[hit] == k).sum()) for k in link2)} points)"]
+    assert sorted(scene._window.tree["meshcat"]["overlays"]["colliding"]) == sorted(
+        f"{a}--{b}" for a, b in {cm.pair_links[k] for k in pair[hit]})

@@ -117,6 +117,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             else:
                 if args.guide is not None:
                     raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                if checks is not None and args.limits != "all":
+                    raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
                 ws = None
                 if (args.workspace and checks is None) or args.singularities:  # the cell engine's
                     from kinematics.cli.singular import serial_scan

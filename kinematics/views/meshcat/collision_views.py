@@ -34,12 +34,18 @@ def colliding_overlay(scene: Scene, mech: Any, robot: Any, model: Any, points: n
 
 def pair_clouds(scene: Scene, model: Any, points: np.ndarray, colliding: np.ndarray, pair: np.ndarray, size: float,
                 embed: Callable[[np.ndarray], np.ndarray], what: str = "points") -> None:
-    """Draw the `colliding` points, one cloud per binding pair (`pair`: index into the model's
-    pairs), the most frequent first, each labelled with its pair and its count of `what`."""
-    kinds, counts = np.unique(pair[colliding], return_counts=True)
+    """Draw the `colliding` points, one cloud per binding pair of links (`pair`: index into the
+    model's pairs; a link with several shapes has several pairs), the most frequent first, each
+    labelled with its links and its count of `what`."""
+    links = sorted({model.pair_links[k] for k in np.unique(pair[colliding])})
+    of = np.full(len(model.pairs), -1)
+    for n, lp in enumerate(links):
+        of[[k for k in range(len(model.pairs)) if model.pair_links[k] == lp]] = n
+    group = np.where(colliding, of[np.maximum(pair, 0)], -1)
+    kinds, counts = np.unique(group[colliding], return_counts=True)
     for n, k in enumerate(kinds[np.argsort(-counts, kind="stable")]):
-        sel = colliding & (pair == k)
-        a, b = model.pair_links[k]
+        sel = group == k
+        a, b = links[k]
         scene.add_points(embed(points[sel]), name=f"overlays/colliding/{a}--{b}", colour=PAIR_COLOURS[n % len(PAIR_COLOURS)],
                          size=size, opacity=0.8, label=f"colliding: {a} - {b} binds ({int(sel.sum())} {what})")
 
