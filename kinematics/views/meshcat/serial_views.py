@@ -220,7 +220,7 @@ def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: fl
     size = g.step * (0.35 if g.axis is None else 0.5)
     pair_clouds(scene, collisions, g.points, ~g.free, g.pair, size, embed, what)
     scene.add_points(embed(g.points[g.free]), name="overlays/workspace", colour=(0.2, 0.55, 0.85), size=size,
-                     opacity=0.5, label=f"collision-free workspace ({int(g.free.sum())} {what}; {grid} of step "
+                     opacity=0.5, label=f"collision-free workspace ({int(g.free.sum())} {what}; {grid}, step "
                                         f"{g.step:.4g} m, {g.grid_points:,} points searched)")
     if collisions.obstacles:
         add_obstacles(scene, collisions)
