@@ -29,8 +29,8 @@ MAX_VIEW_POINTS = 2_000_000
 
 MAX_COLLISION_VIEW_POINTS = 200_000
 """Grid points a serial arm's collision-aware view or figure may search (each reached point costs
-a search and every pair's distance: ~0.6 ms on the ur5's 20 mesh pairs, so about 30 s where a
-quarter of the box is reached)."""
+a search and every pair's distance: ~0.25 ms on the ur5's 20 mesh pairs, so ~15 s where a
+quarter of the box is reached, more for arms with more pairs or under load)."""
 
 MAX_STEPS = 2_000_000
 """Control steps of one guidance simulation (a Python loop: ~ a minute at this length)."""

@@ -43,7 +43,7 @@ def register(command: Command) -> None:
                    help="closed loops: grid step [m] (default 0.02; 0.05 for a generic closed loop, whose solver is "
                         "slower); serial arms with --collisions/--obstacles: default the task box's longest side / 24 "
                         "(/ 48 on a revolved arm's profile or a plane; each reached point costs a search and every "
-                        "pair's distance: the ur5's 3,184 points about 2 s)")
+                        "pair's distance: the ur5's 3,184 points about 1.5 s)")
     serial_args(p)
     p.add_argument("--skeleton", action="store_true",
                    help="also draw the kinematic skeleton: joints along their axes, links joint to joint, loop-closure "
