@@ -27,6 +27,11 @@ MAX_LISTED_POINTS = 50_000_000
 MAX_VIEW_POINTS = 2_000_000
 """Grid points a Meshcat view may sample (a browser draws a few million points at most)."""
 
+MAX_COLLISION_VIEW_POINTS = 200_000
+"""Grid points a serial arm's collision-aware view or figure may search (each reached point costs
+a search and every pair's distance: ~0.25 ms on the ur5's 20 mesh pairs, so ~15 s where a
+quarter of the box is reached, more for arms with more pairs or under load)."""
+
 MAX_STEPS = 2_000_000
 """Control steps of one guidance simulation (a Python loop: ~ a minute at this length)."""
 

@@ -143,7 +143,9 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "ur5", "--limits", "actuators"], "URDF's joint limits"),
     (["singularities", "ur5", "--plot", "w.png"], "no figure"),
     (["singularities", "ur5", "--collisions"], "depends on that angle"),
-    (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "collision-free workspace is not drawn yet"),
+    (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "over the 200,000 limit"),  # before the volume
+    (["show", "ur5", "--workspace", "--collisions", "--step", "0.005", "--export", "x.html"], "too fine a step"),
+    (["show", "ur5", "--workspace", "--collisions", "--limits", "actuators", "--export", "x.html"], "joint limits only"),
     (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'"),
     (["workspace-volume", "ur5", "--limits", "actuators"], "actuators"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "0"], "not all zero"),

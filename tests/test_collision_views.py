@@ -73,7 +73,7 @@ def test_show_workspace_with_obstacles_and_refusals(capsys, tmp_path):
     assert code == 0, err
     page = out.read_text()
     assert "obstacle floor" in page and "colliding: platform - floor binds" in page
-    for argv, needle in [(["show", "ur5", "--workspace", "--collisions"], "serial arm's drawn workspace is not collision-aware"),
+    for argv, needle in [(["show", "ur5", "--workspace", "--collisions", "--step", "0.005"], "too fine a step"),
                          (["show", "p2us", "--collisions"], "drawn with --workspace")]:
         code, _, err = run(capsys, *argv, "--export", str(tmp_path / "x.html"))
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1

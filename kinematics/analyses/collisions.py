@@ -78,16 +78,13 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
     return cm
 
 
-def collision_refusal(mech: Mechanism, plot: bool = False) -> tuple[str, str] | None:
-    """(option, reason) where a collision-aware volume of `mech` (with a `--plot`: drawn) cannot be
-    had, else None: the margin needs configurations at task points (`ik`, or a serial arm's
-    reach search), and a serial arm's margin has no branch columns to draw."""
+def collision_refusal(mech: Mechanism) -> tuple[str, str] | None:
+    """(option, reason) where a collision-aware volume of `mech` cannot be had, else None: the
+    margin needs configurations at task points (`ik`, or a serial arm's reach search)."""
     serial = mech.family == "serial"
     if "ik" not in mech.capabilities and not serial:
         return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
                                              "delta, the planar arm, closed loops and serial arms are collision-aware"))
-    if plot and serial:
-        return ("--plot", "a serial arm's collision-free workspace is not drawn yet (use --points)")
     return None
 
 

@@ -41,7 +41,9 @@ def register(command: Command) -> None:
                    help="closed loops: limits for --workspace")
     p.add_argument("--step", type=positive, default=None, metavar="M",
                    help="closed loops: grid step [m] (default 0.02; 0.05 for a generic closed loop, whose solver is "
-                        "slower)")
+                        "slower); serial arms with --collisions/--obstacles: default the task box's longest side / 24 "
+                        "(/ 48 on a revolved arm's profile or a plane; each reached point costs a search and every "
+                        "pair's distance: the ur5's 3,184 points about 1.5 s)")
     serial_args(p)
     p.add_argument("--skeleton", action="store_true",
                    help="also draw the kinematic skeleton: joints along their axes, links joint to joint, loop-closure "
@@ -49,7 +51,8 @@ def register(command: Command) -> None:
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")
     collision_args(p, "; with --workspace: the points where every branch collides drawn by binding pair, and "
-                      "the obstacles (p2us, delta, the planar arm, closed loops)")
+                      "the obstacles (p2us, delta, the planar arm, closed loops, serial arms: the best configuration their "
+                      "search finds, on a --step grid)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=non_negative, metavar="S", help=argparse.SUPPRESS)
 
@@ -76,10 +79,6 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     if args.collisions or args.obstacles:
         if not args.workspace:
             raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
-        if robot.loops is None and "joint_singularities" not in mech.capabilities:
-            raise InvalidInputError("--collisions/--obstacles", "a serial arm's drawn workspace is not collision-aware "
-                                    "yet (its volume is: workspace-volume --collisions); p2us, delta, the planar "
-                                    "arm and closed loops are drawn")
         checks = collision_checks(args, robot)
     if three_limb:
         unreachable = _parallel_checks(args, robot, mech)
@@ -118,13 +117,15 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             else:
                 if args.guide is not None:
                     raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                if checks is not None and args.limits != "all":
+                    raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
                 ws = None
-                if args.workspace or args.singularities:
+                if (args.workspace and checks is None) or args.singularities:  # the cell engine's
                     from kinematics.cli.singular import serial_scan
 
                     ws = serial_scan(args, robot)
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
-                                scene=scene)
+                                scene=scene, collisions=checks, step=args.step)
         else:
             viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float),
                                  workspace=args.workspace, singularities=args.singularities, limits=args.limits,

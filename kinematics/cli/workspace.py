@@ -104,7 +104,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
         from kinematics.analyses.collisions import collision_refusal
 
-        refused = collision_refusal(mech, plot=bool(args.plot))
+        refused = collision_refusal(mech)
         if refused is not None:
             raise InvalidInputError(*refused)
         return _collision_volume(args, robot, mech, branches, rtol, out)
@@ -172,6 +172,13 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
     checks = collision_checks(args, robot)
+    serial = mech.family == "serial"
+    if args.plot and serial:  # the figure searches every grid point at the step: checked before the volume's run
+        from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
+
+        check_points("--plot", grid_points(*mech.bounding_box(args.limits), max(args.step, 0.01)),
+                     limit=MAX_COLLISION_VIEW_POINTS, hint=f"a serial arm's collision-free figure at --step "
+                                                           f"{args.step:g} m; use a larger --step")
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches or None, limits=args.limits,
                                      progress=show_progress(args), collision_model=checks)
     margin_of = margin_builder(mech, robot, checks, args.limits)

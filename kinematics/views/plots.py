@@ -126,14 +126,18 @@ def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singul
 def _branch_margins(mech: Any, limits: str, branch_margin: Any, points: np.ndarray,
                     branches: Sequence[str] | None) -> np.ndarray:
     """(N, len(branches)): `branch_margin(points)`, or the mechanism's own margin's, branch columns
-    (`branches`, default every one)."""
+    (`branches`, default every one); (N, 1) the union's (the last column) for a mechanism without
+    branches (a serial arm)."""
     cols = [mech.branches.index(b) for b in mech.check_branches(branches)] if branches else slice(len(mech.branches))
     m = np.asarray(branch_margin(points)) if branch_margin is not None else mech.margin(None, limits)(points)
-    return m[:, cols]
+    return m[:, cols] if mech.branches else m[:, -1:]
 
 
 def _counted(mech: Any, branches: Sequence[str] | None) -> str:
-    """What a count map counts: a mechanism's branches, or the chosen ones."""
+    """What a count map counts: a mechanism's branches, or the chosen ones (an arm without
+    branches: whether its tool reaches the point)."""
+    if not mech.branches:
+        return "tool reaches (1)"
     if not branches or len(branches) == len(mech.branches):
         return f"{mech.branch_kind}s"
     return f"{mech.branch_kind}s of {', '.join(branches)}"

@@ -27,6 +27,22 @@ class CellGrid:
         return self.origin + (np.asarray(index) + 0.5) * self.cell
 
 
+def revolve(profile: np.ndarray, origin: np.ndarray, direction: np.ndarray, turns: int) -> np.ndarray:
+    """(K * turns, 3) world points [m] of profile points (K, 2) = (rho, z) about the axis through
+    `origin` along the unit `direction`, each swept at `turns` evenly spaced azimuths (a point's
+    ring consecutive)."""
+    a = np.asarray(direction, dtype=float)
+    u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    phi = np.linspace(0, 2 * np.pi, max(1, turns), endpoint=False)
+    pts = np.asarray(profile, dtype=float)
+    rho, z = pts[:, 0, None], pts[:, 1, None]
+    ring = (np.asarray(origin, dtype=float) + rho[..., None] * (np.cos(phi)[None, :, None] * u
+                                                                + np.sin(phi)[None, :, None] * v) + z[..., None] * a)
+    return ring.reshape(-1, 3)
+
+
 @dataclass(frozen=True, eq=False)
 class SerialWorkspace:
     """Reachable set of a frame's position, with guaranteed bounds and per-cell dexterity.
@@ -110,15 +126,7 @@ class SerialWorkspace:
             return out
         if self.axis_direction is None or self.axis_origin is None:
             raise UnsupportedRobotError(self.robot, f"a {self.mode!r} workspace has no revolution axis")
-        a = self.axis_direction
-        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        u /= np.linalg.norm(u)
-        v = np.cross(a, u)
-        phi = np.linspace(0, 2 * np.pi, max(1, turns), endpoint=False)
-        rho, z = pts[:, 0, None], pts[:, 1, None]
-        ring = (self.axis_origin + rho[..., None] * (np.cos(phi)[None, :, None] * u + np.sin(phi)[None, :, None] * v)
-                + z[..., None] * a)
-        return ring.reshape(-1, 3)
+        return revolve(pts, self.axis_origin, self.axis_direction, turns)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary with the issue's stable keys (volume_m3 or area_m2,

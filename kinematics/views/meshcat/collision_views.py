@@ -22,19 +22,32 @@ HALFSPACE_SIDE = 1.0
 def colliding_overlay(scene: Scene, mech: Any, robot: Any, model: Any, points: np.ndarray, limits: str,
                       size: float, embed: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """Draw the points (inside the kinematic workspace) where every branch collides, one cloud
-    per binding pair (`analyses.collisions.collision_map`), labelled with the pair and its count;
-    returns the mask of the points that are collision-free in some branch."""
+    per binding pair (`analyses.collisions.collision_map`, `pair_clouds`); returns the mask of the
+    points that are collision-free in some branch."""
     from kinematics.analyses.collisions import collision_map
 
     margin, pair = collision_map(mech, robot, model, points, limits)
     colliding = (margin <= 0) & (pair >= 0)  # a zero kinematic margin is the workspace's own boundary
-    kinds, counts = np.unique(pair[colliding], return_counts=True)
-    for n, k in enumerate(kinds[np.argsort(-counts, kind="stable")]):
-        sel = colliding & (pair == k)
-        a, b = model.pair_links[k]
-        scene.add_points(embed(points[sel]), name=f"overlays/colliding/{a}--{b}", colour=PAIR_COLOURS[n % len(PAIR_COLOURS)],
-                         size=size, opacity=0.8, label=f"colliding: {a} - {b} binds ({int(sel.sum())} points)")
+    pair_clouds(scene, model, points, colliding, pair, size, embed)
     return ~colliding
+
+
+def pair_clouds(scene: Scene, model: Any, points: np.ndarray, colliding: np.ndarray, pair: np.ndarray, size: float,
+                embed: Callable[[np.ndarray], np.ndarray], what: str = "points") -> None:
+    """Draw the `colliding` points, one cloud per binding pair of links (`pair`: index into the
+    model's pairs; a link with several shapes has several pairs), the most frequent first, each
+    labelled with its links and its count of `what`."""
+    links = sorted({model.pair_links[k] for k in np.unique(pair[colliding])})
+    of = np.full(len(model.pairs), -1)
+    for n, lp in enumerate(links):
+        of[[k for k in range(len(model.pairs)) if model.pair_links[k] == lp]] = n
+    group = np.where(colliding, of[np.maximum(pair, 0)], -1)
+    kinds, counts = np.unique(group[colliding], return_counts=True)
+    for n, k in enumerate(kinds[np.argsort(-counts, kind="stable")]):
+        sel = group == k
+        a, b = links[k]
+        scene.add_points(embed(points[sel]), name=f"overlays/colliding/{a}--{b}", colour=PAIR_COLOURS[n % len(PAIR_COLOURS)],
+                         size=size, opacity=0.8, label=f"colliding: {a} - {b} binds ({int(sel.sum())} {what})")
 
 
 def add_obstacles(scene: Scene, model: Any) -> int:

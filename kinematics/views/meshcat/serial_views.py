@@ -4,6 +4,7 @@ workspaces."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -124,20 +125,28 @@ VIEW_CELLS = 100_000
 
 
 def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: Any = None,
-                singularities: bool = False, scene: Scene | None = None) -> Scene:
+                singularities: bool = False, scene: Scene | None = None, collisions: Any = None,
+                step: float | None = None) -> Scene:
     """Any serial robot at joint values q (default: `default_pose`), with the velocity ellipsoid
     of its tool position; with a `SerialWorkspace` (`kinematics.analyses.serial_workspace`), its certified
     cells as points coloured by the smallest radius sigma_min [m/rad] (grey where no configuration
     was evaluated in the cell) and, with `singularities`, the images of the possibly singular
-    boxes; the camera framed on all."""
+    boxes; the camera framed on all. With `collisions` (a `CollisionModel`) the workspace is drawn
+    on a task-space grid of `step` [m] instead (`serial_collisions.collision_grid`, its default
+    step with None): the reached points where every configuration found collides apart, by
+    binding pair, the collision-free ones in one colour, and the obstacles."""
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
     from kinematics.generic.serial import forward_kinematics, frame_jacobian
 
     scene = scene or Scene()
     qc = robot.configuration(default_pose(robot) if q is None else q)
     scene.add_robot(robot, qc)
-    if workspace is not None:
-        _serial_workspace_points(scene, workspace, singularities)
+    if collisions is not None:
+        _serial_collision_points(scene, robot, collisions, step)
+    elif workspace is not None:
+        _serial_workspace_points(scene, workspace)
+    if singularities and workspace is not None:
+        _serial_singular_points(scene, workspace)
     if ellipsoid:
         e = ellipsoid_of(frame_jacobian(robot, qc)[:3])
         # true size unless it would dwarf the arm: then scaled to half the arm's bounding radius
@@ -153,14 +162,16 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
     return scene
 
 
-def _serial_workspace_points(scene: Scene, w: Any, singularities: bool) -> None:
-    """The certified cells (a solid of revolution swept at as many angles as VIEW_CELLS allows)
-    coloured by smallest radius, and the singular boxes' images, subsampled evenly to VIEW_CELLS."""
-    import dataclasses
+def _turns(points: int) -> int:
+    """Azimuths a revolved profile of `points` points is swept at in a view (VIEW_CELLS points in all)."""
+    return max(4, min(48, VIEW_CELLS // max(points, 1)))
 
+
+def _serial_workspace_points(scene: Scene, w: Any) -> None:
+    """The certified cells (a solid of revolution swept at as many angles as VIEW_CELLS allows)
+    coloured by smallest radius, subsampled evenly to VIEW_CELLS."""
     cells = int(w.inside.sum())
-    turns = max(4, min(48, VIEW_CELLS // max(cells, 1)))
-    pts = w.world_points("inside", turns=turns)
+    pts = w.world_points("inside", turns=_turns(cells))
     per = len(pts) // max(cells, 1)  # a revolved cell's points are consecutive
     values = np.repeat(w.smallest_radius[w.inside], per)
     keep = np.unique(np.linspace(0, max(len(pts) - 1, 0), min(len(pts), VIEW_CELLS)).astype(int))
@@ -173,10 +184,43 @@ def _serial_workspace_points(scene: Scene, w: Any, singularities: bool) -> None:
     if (~known).any():
         scene.add_points(pts[~known], None, "overlays/workspace_unsampled", size=size, colour=(0.7, 0.7, 0.7),
                          opacity=0.4, label="certified cells where no configuration was evaluated")
-    if singularities and len(w.singular_radius):
-        k = len(w.singular_radius)
-        idx = np.unique(np.linspace(0, k - 1, min(k, VIEW_CELLS // (5 if w.mode != "revolved" else 40))).astype(int))
-        sing = dataclasses.replace(w, singular_points=w.singular_points[idx]).world_points("singular", turns=8)
-        scene.add_points(sing, None, "overlays/singular", size=size, colour=(0.85, 0.1, 0.1),
-                         label=f"possibly singular boxes' images ({k:,} boxes, sample of {len(idx):,})")
 
+
+def _serial_singular_points(scene: Scene, w: Any) -> None:
+    """The possibly singular boxes' images, subsampled evenly."""
+    import dataclasses
+
+    if not len(w.singular_radius):
+        return
+    k = len(w.singular_radius)
+    idx = np.unique(np.linspace(0, k - 1, min(k, VIEW_CELLS // (5 if w.mode != "revolved" else 40))).astype(int))
+    sing = dataclasses.replace(w, singular_points=w.singular_points[idx]).world_points("singular", turns=8)
+    scene.add_points(sing, None, "overlays/singular", size=1.5 * w.grid.cell, colour=(0.85, 0.1, 0.1),
+                     label=f"possibly singular boxes' images ({k:,} boxes, sample of {len(idx):,})")
+
+
+def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: float | None) -> None:
+    """A serial arm's reached grid points (`serial_collisions.collision_grid`): the colliding ones
+    by binding pair (`collision_views.pair_clouds`), the collision-free ones, the obstacles; a
+    revolved profile's points swept about the base axis (`_turns`)."""
+    from kinematics.analyses.serial_collisions import collision_grid
+    from kinematics.analyses.serial_workspace.result import revolve
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.views.meshcat.collision_views import add_obstacles, pair_clouds
+
+    g = collision_grid(mechanism_of(robot), robot, collisions, step)
+    reach = g.margin.reach
+    embed: Callable[[np.ndarray], np.ndarray] = reach.world
+    what, grid = "points", f"a {'planar' if g.mode == 'planar' else '3-D'} grid"
+    if g.axis is not None:  # a profile point stands for its circle about the base axis
+        origin, direction = g.axis
+        turns = _turns(len(g.points))
+        embed = lambda p: revolve(reach.profile_of(p), origin, direction, turns)  # noqa: E731
+        what, grid = "profile points", f"a (rho, z) profile grid turned at {turns} azimuths"
+    size = g.step * (0.35 if g.axis is None else 0.5)
+    pair_clouds(scene, collisions, g.points, ~g.free, g.pair, size, embed, what)
+    scene.add_points(embed(g.points[g.free]), name="overlays/workspace", colour=(0.2, 0.55, 0.85), size=size,
+                     opacity=0.5, label=f"collision-free workspace ({int(g.free.sum())} {what}; {grid}, step "
+                                        f"{g.step:.4g} m, {g.grid_points:,} points searched)")
+    if collisions.obstacles:
+        add_obstacles(scene, collisions)
