@@ -22,9 +22,7 @@ from kinematics.model.robot import load_robot
 def p2us_results():
     robot = load_robot("p2us-results")
     mech = mechanism_of(robot)
-    dist = AnalyticDistances(collision_model_of(robot))
-    lo, hi = mech.bounding_box("all")
-    return mech, robot, dist, lo, hi
+    return (mech, robot, AnalyticDistances(collision_model_of(robot)), *mech.bounding_box("all"))
 
 
 def _points(lo, hi, ax, base, z):

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
-from kinematics.generic.capsule_kernels import joint_pose, pair_value, place
+from kinematics.generic.capsule_kernels import joint_pose, pair_at, pair_value, place, scratch
 from kinematics.generic.capsules import PARALLEL_MIN, PLATE
 from kinematics.jit import on_cores
 from kinematics.mechanisms.p2us.configurations import configurations_kernel
@@ -39,16 +39,9 @@ def pair_roots_kernel(bx, by, others, ax, za, zb, fa, fb, pair, root_tol, steps,
     the pair needs coal at some step (the outputs are then not final)."""
     R = za.shape[0]
     for blk in prange((R + 63) // 64):
-        nq = code.shape[0]
-        J, G, P = parent.shape[0], radius.shape[0], pairs.shape[0]
-        Rm = np.empty((max(J, 1), 3, 3))
-        pj = np.empty((max(J, 1), 3))
-        centre = np.zeros((1, G, 3))
-        gaxis = np.zeros((1, G, 3))
-        o = np.empty((1, P))
-        good = np.empty((1, P), np.bool_)
+        Rm, pj, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
         pt = np.empty((1, 3))
-        q = np.empty((1, nq))
+        q = np.empty((1, code.shape[0]))
         for r in range(blk * 64, min(R, blk * 64 + 64)):
             a, c, ya, yc = za[r], zb[r], fa[r], fb[r]
             k = pair[r]
@@ -68,15 +61,8 @@ def pair_roots_kernel(bx, by, others, ax, za, zb, fa, fb, pair, root_tol, steps,
                 n += 1
                 y = math.inf
                 if np.isfinite(q[0]).all():
-                    for s in range(2):
-                        g = pairs[k, s]
-                        j = joint_of[g]
-                        if j >= 0:
-                            for m in range(chain_len[j]):
-                                jj = chain[j, m]
-                                joint_pose(q, 0, jj, parent[jj], kind[jj], axis, iq[jj], rot, tra, Rm, pj)
-                        place(0, g, j, Rm, pj, local_p, local_axis, centre, gaxis)
-                    pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
+                    pair_at(q, 0, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
+                            radius, half, pairs, kinds, Rm, pj, centre, gaxis, o, good)
                     y = o[0, k]
                     if not (good[0, k] or (kinds[k] == PLATE and y > 0.0)):
                         failed[r] = True
@@ -105,29 +91,22 @@ def distances_kernel(bx, by, z, others, ax, e, w, t, geometry, roots, code, limb
     (coal's: the row is then not final), in blocks of 64 points on every core."""
     N = z.shape[0]
     for blk in prange((N + 63) // 64):
-        nq = code.shape[0]
-        J, G, P = parent.shape[0], radius.shape[0], pairs.shape[0]
-        Rm = np.empty((max(J, 1), 3, 3))
-        pj = np.empty((max(J, 1), 3))
-        centre = np.zeros((1, G, 3))
-        gaxis = np.zeros((1, G, 3))
-        o = np.empty((1, P))
-        good = np.empty((1, P), np.bool_)
+        Rm, pj, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
         pt = np.empty((1, 3))
-        q = np.empty((1, nq))
+        q = np.empty((1, code.shape[0]))
         for n in range(blk * 64, min(N, blk * 64 + 64)):
             pt[0, others[0]], pt[0, others[1]], pt[0, ax] = bx[n], by[n], z[n]
             configurations_kernel(pt, e, w, t, geometry, roots, code, limb, q)
             need[n] = False
             if not np.isfinite(q[0]).all():
-                for k in range(P):
+                for k in range(pairs.shape[0]):
                     out[n, k] = math.inf
                 continue
-            for j in range(J):
+            for j in range(parent.shape[0]):
                 joint_pose(q, 0, j, parent[j], kind[j], axis, iq[j], rot, tra, Rm, pj)
             for m in range(used.shape[0]):
                 place(0, used[m], of_geometry[m], Rm, pj, local_p, local_axis, centre, gaxis)
-            for k in range(P):
+            for k in range(pairs.shape[0]):
                 pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
                 out[n, k] = o[0, k]
                 if not (good[0, k] or (kinds[k] == PLATE and o[0, k] > 0.0)):

@@ -203,6 +203,15 @@ def pair_value(n, k, centre, axis, radius, half, pairs, kinds, out, ok):  # prag
     out[n, k] = gap if gap > 0.0 else np.nan
 
 
+@njit(cache=True, inline="always")
+def scratch(J, G, P):  # pragma: no cover - compiled
+    """One configuration's work arrays for J tree joints, G shapes and P pairs: the joints'
+    rotations (J, 3, 3) and origins (J, 3), the shapes' centres and axes (1, G, 3), the pairs'
+    values (1, P) and flags (1, P)."""
+    return (np.empty((max(J, 1), 3, 3)), np.empty((max(J, 1), 3)), np.zeros((1, G, 3)), np.zeros((1, G, 3)),
+            np.empty((1, P)), np.empty((1, P), np.bool_))
+
+
 @njit(cache=True, parallel=True)
 def closed_form_kernel(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, radius, half,
                        pairs, kinds, out, ok):  # pragma: no cover - compiled
@@ -219,19 +228,13 @@ def closed_form_kernel(q, parent, kind, axis, iq, rot, tra, of_geometry, used, l
 def closed_form_block(q, n0, n1, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, radius,
                       half, pairs, kinds, out, ok):  # pragma: no cover - compiled
     """`closed_form_kernel` for configurations n0..n1 - 1."""
-    J, G, P = parent.shape[0], radius.shape[0], pairs.shape[0]
-    R = np.empty((max(J, 1), 3, 3))
-    p = np.empty((max(J, 1), 3))
-    centre = np.zeros((1, G, 3))
-    gaxis = np.zeros((1, G, 3))
-    o = np.empty((1, P))
-    good = np.empty((1, P), np.bool_)
+    R, p, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
     for n in range(n0, n1):
-        for j in range(J):
+        for j in range(parent.shape[0]):
             joint_pose(q, n, j, parent[j], kind[j], axis, iq[j], rot, tra, R, p)
         for m in range(used.shape[0]):
             place(0, used[m], of_geometry[m], R, p, local_p, local_axis, centre, gaxis)
-        for k in range(P):
+        for k in range(pairs.shape[0]):
             pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
             out[n, k], ok[n, k] = o[0, k], good[0, k]
 
@@ -250,27 +253,30 @@ def pair_rows_kernel(q, pair, parent, kind, axis, iq, rot, tra, chain, chain_len
 
 
 @njit(cache=True, inline="always")
+def pair_at(q, n, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half,
+            pairs, kinds, R, p, centre, gaxis, o, good):  # pragma: no cover - compiled
+    """Pair k's closed form at configuration q[n] into o[0, k], good[0, k], the joints on the
+    chains of its two shapes alone posed (scratch R, p, centre, gaxis as `scratch`'s)."""
+    for s in range(2):
+        g = pairs[k, s]
+        j = joint_of[g]
+        if j >= 0:
+            for c in range(chain_len[j]):
+                jj = chain[j, c]
+                joint_pose(q, n, jj, parent[jj], kind[jj], axis, iq[jj], rot, tra, R, p)
+        place(0, g, j, R, p, local_p, local_axis, centre, gaxis)
+    pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
+
+
+@njit(cache=True, inline="always")
 def pair_rows_block(q, pair, n0, n1, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
                     radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
     """`pair_rows_kernel` for configurations n0..n1 - 1."""
-    J, G, P = parent.shape[0], radius.shape[0], pairs.shape[0]
-    R = np.empty((max(J, 1), 3, 3))
-    p = np.empty((max(J, 1), 3))
-    centre = np.zeros((1, G, 3))
-    gaxis = np.zeros((1, G, 3))
-    o = np.empty((1, P))
-    good = np.empty((1, P), np.bool_)
+    R, p, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
     for n in range(n0, n1):
         k = pair[n]
-        for s in range(2):
-            g = pairs[k, s]
-            j = joint_of[g]
-            if j >= 0:
-                for c in range(chain_len[j]):
-                    jj = chain[j, c]
-                    joint_pose(q, n, jj, parent[jj], kind[jj], axis, iq[jj], rot, tra, R, p)
-            place(0, g, j, R, p, local_p, local_axis, centre, gaxis)
-        pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
+        pair_at(q, n, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half,
+                pairs, kinds, R, p, centre, gaxis, o, good)
         out[n], ok[n] = o[0, k], good[0, k]
 
 
@@ -279,5 +285,5 @@ def kernels() -> tuple[Any, ...]:
     return (pairs_kernel, tree_kernel, closed_form_kernel, pair_rows_kernel)
 
 
-__all__ = ["closed_form_kernel", "joint_pose", "pair_rows_kernel", "pair_value", "pairs_kernel",
-           "place", "segments", "tree_kernel"]
+__all__ = ["closed_form_kernel", "joint_pose", "pair_at", "pair_rows_kernel", "pair_value", "pairs_kernel",
+           "place", "scratch", "segments", "tree_kernel"]
