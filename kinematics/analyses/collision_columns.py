@@ -37,6 +37,11 @@ pre-scan's grid and the curvatures on the samples, not bounded (a pair closing i
 reach boundary where the joints turn fast, can dip below zero between two samples), and a dip
 narrower than spacing / 2^MAX_REFINE;
 the check run halves the spacing (`for_check`).
+
+Evaluations: the 3-[P2(US)]'s samples and pair roots are compiled single passes from column points
+to distances (`kinematics.analyses.collision_fused`, `COMPILED`), the same values to the last bit
+as the batched path (configurations, then `AnalyticDistances`, the roots by `illinois`) that the
+other families take.
 """
 
 from __future__ import annotations
@@ -45,12 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.analyses.collision_column_kernels import (
-    ambiguous_gaps,
-    curvature_kernel,
-    split_close,
-    union_pieces,
-)
+from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
 from kinematics.analyses.collision_fused import distances, illinois, pair_roots
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
@@ -171,7 +171,7 @@ class CollisionColumns:
         F = 1 + len(self.margin.watched)
         col, a, e, kerr = self._intervals(b, base, ax, z0, z1, first)
         lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
-        cells = _close_rows(self.prescan, b, base, ax)
+        cells = self.prescan.close_rows(b, base, ax)
         sc, su, sv, checked = split_close(col, a, e, cells, lo, g)
         free_col, free_a, free_e = sc[~checked], su[~checked], sv[~checked]
         n_free = len(free_col)
@@ -267,7 +267,7 @@ class CollisionColumns:
         z[np.cumsum(n + 1) - 1] = v
         nudge = np.minimum(EDGE, (v - u) / 4)[seg]
         d = self._evaluate(b, base, ax, col[seg], np.clip(z, u[seg] + nudge, v[seg] - nudge))
-        curv = _curvatures(d, k, n[seg], ((v - u) / n)[seg])
+        curv = curvatures(d, k, n[seg], ((v - u) / n)[seg])
         left = np.flatnonzero(k < n[seg])
         gc, za, zb, ia, ib = col[seg[left]], z[left], z[left + 1], left, left + 1
         s = self.slopes[b]
@@ -397,26 +397,6 @@ class CollisionColumns:
 
         lo, hi, _, _ = illinois(smallest, za, zb, fa, fb, self.root_tol, ROOT_STEPS)
         return 0.5 * (lo + hi), pair
-
-
-def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
-    its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
-    spacing h."""
-    out = np.empty_like(d)
-    curvature_kernel(d, k, n, h, out)
-    return out
-
-
-def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
-    """(M, cells - 1) the pre-scan's close cells of branch b along each column."""
-    others = [k for k in range(3) if k != ax]
-    idx = []
-    for n, k in enumerate(others):
-        i = np.floor((base[:, n] - prescan.lo[k]) / prescan.spacing[k]).astype(np.int64)
-        idx.append(np.clip(i, 0, prescan.cells - 2))
-    close = np.moveaxis(prescan.close[b], ax, -1)
-    return np.ascontiguousarray(close[idx[0], idx[1]])
 
 
 class ExactCollisionMargin(CollisionMargin):

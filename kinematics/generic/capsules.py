@@ -32,9 +32,11 @@ penetration depth, the shortest translation that separates them, when they overl
   with z_k = n.p_k - d the end heights, d = min z_k - r, exact apart and in penetration (the
   half-space's nearest face is the plane).
 
-Everything else (boxes, cylinders against cylinders, meshes) is coal's. Placements come from one
-compiled pass over the tree of the geometries' joints (`capsule_kernels.tree_kernel`; joint data as
-`kinematics.generic.batched` reads them).
+Everything else (boxes, cylinders against cylinders, meshes) is coal's. Each configuration's
+placements (a pass over the tree of the geometries' joints; joint data as
+`kinematics.generic.batched` reads them) and pair distances come from one compiled pass
+(`capsule_kernels.closed_form_kernel`), on every core, or on one thread for a small batch
+(`PARALLEL_MIN`, `jit.on_cores`).
 """
 
 from __future__ import annotations
