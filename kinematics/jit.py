@@ -18,7 +18,7 @@ import os
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["cached", "call", "compiled"]
+__all__ = ["cached", "call", "compiled", "on_cores"]
 
 
 def _entry(kernel: Any) -> tuple[str, str] | None:
@@ -73,3 +73,21 @@ def call(kernel: Any, *args: Any) -> Any:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
         kernel.compile(tuple(kernel.typeof_pyval(a) for a in args))  # loads it if another process just did
     return kernel(*args)
+
+
+def on_cores(kernel: Any, items: int, smallest: int, *args: Any) -> Any:
+    """kernel(*args), a `parallel=True` kernel over `items` work items, on every core, or on this
+    thread alone when items < smallest: a parallel launch costs more than a small batch (milliseconds
+    on a loaded machine, while it waits for a busy core), and the same loop compiled without
+    parallel=True ran ~2.8x slower (the closed-form pair distances: 2.8 against 1.0 us per
+    configuration on one core)."""
+    if items >= smallest:
+        return kernel(*args)
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        return kernel(*args)
+    finally:
+        numba.set_num_threads(before)

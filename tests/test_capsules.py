@@ -106,3 +106,21 @@ def test_one_pair_per_configuration_is_the_full_evaluation(robot, rng):
         signs = ad.pair_distances(q[:n], pair[:n], signs=True)
         full = ad.distances(q[:n], signs=True)[rows[:n], pair[:n]]
         assert (full < 0).sum() > 50 and (np.sign(signs) == np.sign(full)).all()
+
+
+@pytest.mark.parametrize("robot", ["p2us-results", "delta"])
+def test_closed_form_in_one_pass_is_the_two_passes(robot, rng):
+    """`closed_form` (the tree posed and every pair evaluated per configuration in one compiled
+    pass) gives the same values and flags, bit for bit, as its two passes (every placement, then
+    every pair: `closed_form_in_two`), on one thread and on every core."""
+    from kinematics.generic import capsules
+
+    rb = load_robot(robot)
+    ad = AnalyticDistances(CollisionModel.from_robot(rb))
+    m = rb.model
+    q = rng.uniform(np.maximum(m.lowerPositionLimit, -np.pi), np.minimum(m.upperPositionLimit, np.pi),
+                    (3 * capsules.PARALLEL_MIN, m.nq))
+    for n in (capsules.PARALLEL_MIN - 1, len(q)):
+        one, two = ad.closed_form(q[:n]), ad.closed_form_in_two(q[:n])
+        assert np.array_equal(one[0], two[0], equal_nan=True) and np.array_equal(one[1], two[1])
+        assert one[1].mean() > 0.5

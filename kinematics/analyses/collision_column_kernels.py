@@ -149,9 +149,18 @@ def union_pieces(col, order, a, e, ca, ce, f, t, last, root_tol, by_pair, hashed
         i = j
 
 
+def curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
+    its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
+    spacing h."""
+    out = np.empty_like(d)
+    curvature_kernel(d, k, n, h, out)
+    return out
+
+
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels of this module (for `kinematics.jit`)."""
     return (curvature_kernel, ambiguous_gaps, split_close, union_pieces)
 
 
-__all__ = ["ambiguous_gaps", "curvature_kernel", "split_close", "union_pieces"]
+__all__ = ["ambiguous_gaps", "curvature_kernel", "curvatures", "split_close", "union_pieces"]

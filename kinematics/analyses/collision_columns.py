@@ -37,6 +37,11 @@ pre-scan's grid and the curvatures on the samples, not bounded (a pair closing i
 reach boundary where the joints turn fast, can dip below zero between two samples), and a dip
 narrower than spacing / 2^MAX_REFINE;
 the check run halves the spacing (`for_check`).
+
+Evaluations: the 3-[P2(US)]'s samples and pair roots are compiled single passes from column points
+to distances (`kinematics.analyses.collision_fused`, `COMPILED`), the same values to the last bit
+as the batched path (configurations, then `AnalyticDistances`, the roots by `illinois`) that the
+other families take.
 """
 
 from __future__ import annotations
@@ -45,14 +50,11 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.analyses.collision_column_kernels import (
-    ambiguous_gaps,
-    curvature_kernel,
-    split_close,
-    union_pieces,
-)
+from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
+from kinematics.analyses.collision_fused import distances, illinois, pair_roots
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
+from kinematics.mechanisms.p2us.configurations import kernel_data
 
 SPACING = 4.0
 """The collision margin's first samples along a column are SPACING x the column step apart (the gap
@@ -90,6 +92,11 @@ MAX_SPLITS = 40
 ROOT_STEPS = 80
 """Most steps of the root refinement (each halves the bracket from the 8th on)."""
 
+COMPILED = True
+"""Whether the 3-[P2(US)]'s samples and pair roots are evaluated by compiled single passes
+(`collision_fused`; else batched: configurations, then distances, the roots by `illinois` on
+`_pair_values`; the same values)."""
+
 class CollisionColumns:
     """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
     margin included (module docstring): each branch, the kinematic union, the union with each
@@ -106,6 +113,9 @@ class CollisionColumns:
         worst = finite.max(axis=1, keepdims=True) if slopes.size else np.zeros((len(self.branch), 1))
         self.slopes = SAFETY * np.where(np.isfinite(slopes), slopes, worst)  # (B, P)
         self.evaluations = 0
+        self.kernel_data = [kernel_data(mech.params, margin.robot.model, name) if COMPILED and mech.family == "p2us"
+                            else None for name in margin.branches]
+        """Per branch, `p2us.configurations.kernel_data` for the compiled root refinement (None: batched)."""
 
     def halved(self) -> CollisionColumns:
         """The same with half the sampling spacing (the check run's)."""
@@ -161,7 +171,7 @@ class CollisionColumns:
         F = 1 + len(self.margin.watched)
         col, a, e, kerr = self._intervals(b, base, ax, z0, z1, first)
         lo, g = self.prescan.lo[ax], self.prescan.spacing[ax]
-        cells = _close_rows(self.prescan, b, base, ax)
+        cells = self.prescan.close_rows(b, base, ax)
         sc, su, sv, checked = split_close(col, a, e, cells, lo, g)
         free_col, free_a, free_e = sc[~checked], su[~checked], sv[~checked]
         n_free = len(free_col)
@@ -208,6 +218,17 @@ class CollisionColumns:
     def _evaluate(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
         """(N, P) pair distances [m] (signs exact, `AnalyticDistances.distances(signs=True)`) at
         the points of columns `col` at `z` in branch b (+inf where no configuration exists)."""
+        kd = self.kernel_data[b]
+        if kd is not None:  # compiled (`collision_fused.distances`): the same values
+            d, need = distances(kd, self.margin.distances, base[col], ax, z)
+            self.evaluations += len(z)
+            if need.any():
+                d[need] = self._evaluate_batched(b, base, ax, col[need], z[need])
+            return d
+        return self._evaluate_batched(b, base, ax, col, z)
+
+    def _evaluate_batched(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """`_evaluate` by its batches: the configurations, then the distances."""
         q, good = self._configurations(b, base, ax, col, z)
         if good.all():
             return self.margin.distances.distances(q, signs=True)
@@ -246,7 +267,7 @@ class CollisionColumns:
         z[np.cumsum(n + 1) - 1] = v
         nudge = np.minimum(EDGE, (v - u) / 4)[seg]
         d = self._evaluate(b, base, ax, col[seg], np.clip(z, u[seg] + nudge, v[seg] - nudge))
-        curv = _curvatures(d, k, n[seg], ((v - u) / n)[seg])
+        curv = curvatures(d, k, n[seg], ((v - u) / n)[seg])
         left = np.flatnonzero(k < n[seg])
         gc, za, zb, ia, ib = col[seg[left]], z[left], z[left + 1], left, left + 1
         s = self.slopes[b]
@@ -320,11 +341,7 @@ class CollisionColumns:
         vb = np.where(fi > 0, fb[gi, fi], np.where(lower, xb[gi], fb[gi, 0]))
         _, first, task = np.unique(gi * n_pairs + pair, return_index=True, return_inverse=True)
         g, k = gi[first], pair[first]
-
-        def one_pair(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
-            return self._pair_values(b, base, ax, gc[g[rows]], x, k[rows])
-
-        lo, hi, ylo, _ = self._illinois(one_pair, za[g], zb[g], va[first], vb[first])
+        lo, hi, ylo = self._pair_roots(b, base, ax, gc[g], za[g], zb[g], va[first], vb[first], k)
         root, code = 0.5 * (lo + hi), k.copy()
         root, code = root[task], code[task]
         smallest = np.flatnonzero(fi == 0)
@@ -338,6 +355,28 @@ class CollisionColumns:
                                                                 zb[gi[again]], fa[gi[again], 0], fb[gi[again], 0],
                                                                 pair[again])
         return root, code
+
+    def _pair_roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
+                    fa: np.ndarray, fb: np.ndarray, pair: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Brackets (za, zb) (values fa, fb of opposite signs) of pair pair[r]'s own root along
+        column col[r] narrowed to `root_tol`: the final brackets and their lower ends' values, by
+        `collision_fused.pair_roots` (compiled, the 3-[P2(US)]'s) where it can, else `illinois`
+        on `_pair_values` (the same steps)."""
+        lo, hi, ylo = za.copy(), zb.copy(), fa.copy()
+        todo = np.arange(len(za))
+        kd = self.kernel_data[b]
+        if kd is not None:
+            lo, hi, ylo, n, failed = pair_roots(kd, self.margin.distances, base[col], ax, za, zb, fa, fb, pair,
+                                                self.root_tol, ROOT_STEPS)
+            self.evaluations += int(n.sum())
+            todo = np.flatnonzero(failed)
+        if len(todo):
+            def one_pair(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+                return self._pair_values(b, base, ax, col[todo[rows]], x, pair[todo[rows]])
+
+            lo[todo], hi[todo], ylo[todo], _ = illinois(one_pair, za[todo], zb[todo], fa[todo], fb[todo],
+                                                        self.root_tol, ROOT_STEPS)
+        return lo, hi, ylo
 
     def _smallest_roots(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, za: np.ndarray, zb: np.ndarray,
                         fa: np.ndarray, fb: np.ndarray, pair: np.ndarray, fi: np.ndarray | None = None
@@ -356,54 +395,8 @@ class CollisionColumns:
             pair[rows[neg]] = d[neg].argmin(axis=1)
             return y
 
-        lo, hi, _, _ = self._illinois(smallest, za, zb, fa, fb)
+        lo, hi, _, _ = illinois(smallest, za, zb, fa, fb, self.root_tol, ROOT_STEPS)
         return 0.5 * (lo + hi), pair
-
-    def _illinois(self, evaluate: Any, za: np.ndarray, zb: np.ndarray, fa: np.ndarray, fb: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Brackets (za, zb) of roots (values fa, fb of opposite signs; `evaluate(rows, z)` the
-        values at z of brackets `rows`) narrowed to `root_tol` (Illinois false position, bisection
-        from the 8th step on): the final brackets and their values."""
-        za, zb, fa, fb = za.copy(), zb.copy(), fa.copy(), fb.copy()
-        side = np.zeros(len(za), np.int64)
-        rows = np.arange(len(za))
-        for step in range(ROOT_STEPS):
-            live = rows[zb[rows] - za[rows] > self.root_tol]
-            if not len(live):
-                break
-            rows = live
-            a, c, ya, yc = za[rows], zb[rows], fa[rows], fb[rows]
-            tol = 0.25 * self.root_tol
-            x = np.clip(a - ya * (c - a) / (yc - ya), a + tol, c - tol) if step < 8 else 0.5 * (a + c)
-            y = evaluate(rows, x)
-            below = (y >= 0) == (ya >= 0)  # the root is above x
-            # Illinois: halve the value kept at the end that stays twice in a row
-            fb[rows[below & (side[rows] == 1)]] *= 0.5
-            fa[rows[~below & (side[rows] == -1)]] *= 0.5
-            za[rows[below]], fa[rows[below]] = x[below], y[below]
-            zb[rows[~below]], fb[rows[~below]] = x[~below], y[~below]
-            side[rows] = np.where(below, 1, -1)
-        return za, zb, fa, fb
-
-
-def _curvatures(d: np.ndarray, k: np.ndarray, n: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """(N, P) each pair's |second difference| / h^2 [1/m] at the samples (an end sample takes
-    its neighbour's; +inf where not finite), the samples k = 0..n of each sub-interval in order,
-    spacing h."""
-    out = np.empty_like(d)
-    curvature_kernel(d, k, n, h, out)
-    return out
-
-
-def _close_rows(prescan: Prescan, b: int, base: np.ndarray, ax: int) -> np.ndarray:
-    """(M, cells - 1) the pre-scan's close cells of branch b along each column."""
-    others = [k for k in range(3) if k != ax]
-    idx = []
-    for n, k in enumerate(others):
-        i = np.floor((base[:, n] - prescan.lo[k]) / prescan.spacing[k]).astype(np.int64)
-        idx.append(np.clip(i, 0, prescan.cells - 2))
-    close = np.moveaxis(prescan.close[b], ax, -1)
-    return np.ascontiguousarray(close[idx[0], idx[1]])
 
 
 class ExactCollisionMargin(CollisionMargin):
@@ -431,5 +424,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]

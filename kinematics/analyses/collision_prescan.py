@@ -96,6 +96,17 @@ class Prescan:
         k = np.clip(k, 0, self.cells - 2)
         return tuple(k.T)
 
+    def close_rows(self, b: int, base: np.ndarray, ax: int) -> np.ndarray:
+        """(M, cells - 1) branch b's close cells along each column at base (M, 2) along axis ax
+        (3-D grids)."""
+        others = [k for k in range(3) if k != ax]
+        idx = []
+        for n, k in enumerate(others):
+            i = np.floor((base[:, n] - self.lo[k]) / self.spacing[k]).astype(np.int64)
+            idx.append(np.clip(i, 0, self.cells - 2))
+        close = np.moveaxis(self.close[b], ax, -1)
+        return np.ascontiguousarray(close[idx[0], idx[1]])
+
 
 def _slopes(grid: np.ndarray, spacing: np.ndarray) -> np.ndarray:
     """(P,) the largest |change| per metre of each pair's distance between grid neighbours that

@@ -1,6 +1,7 @@
 """Compiled kernels of `kinematics.generic.capsules`: placements of the closed-form shapes over
 the tree of their joints, and the closed-form pair distances (every pair per configuration, or one
-chosen pair per configuration with its two shapes placed alone)."""
+chosen pair per configuration with its two shapes placed alone), each `parallel=True` (a small
+batch runs it on one thread, `jit.on_cores`)."""
 
 from __future__ import annotations
 
@@ -25,17 +26,6 @@ def tree_kernel(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p,
         for n in range(blk * 64, min(q.shape[0], blk * 64 + 64)):
             tree_row(q, n, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis,
                       R, p)
-
-
-@njit(cache=True)
-def tree_serial(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis
-                 ):  # pragma: no cover - compiled
-    """`tree_kernel` on one core (small batches: no parallel launch)."""
-    J = parent.shape[0]
-    R = np.empty((J, 3, 3))
-    p = np.empty((J, 3))
-    for n in range(q.shape[0]):
-        tree_row(q, n, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, centre, out_axis, R, p)
 
 
 @njit(cache=True, inline="always")
@@ -137,13 +127,6 @@ def pairs_kernel(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: 
         pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok)
 
 
-@njit(cache=True)
-def pairs_serial(centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
-    """`pairs_kernel` on one core (small batches: no parallel launch)."""
-    for n in range(centre.shape[0]):
-        pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok)
-
-
 @njit(cache=True, inline="always")
 def pairs_row(n, centre, axis, radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
     """Every pair's closed form at configuration n."""
@@ -220,6 +203,42 @@ def pair_value(n, k, centre, axis, radius, half, pairs, kinds, out, ok):  # prag
     out[n, k] = gap if gap > 0.0 else np.nan
 
 
+@njit(cache=True, inline="always")
+def scratch(J, G, P):  # pragma: no cover - compiled
+    """One configuration's work arrays for J tree joints, G shapes and P pairs: the joints'
+    rotations (J, 3, 3) and origins (J, 3), the shapes' centres and axes (1, G, 3), the pairs'
+    values (1, P) and flags (1, P)."""
+    return (np.empty((max(J, 1), 3, 3)), np.empty((max(J, 1), 3)), np.zeros((1, G, 3)), np.zeros((1, G, 3)),
+            np.empty((1, P)), np.empty((1, P), np.bool_))
+
+
+@njit(cache=True, parallel=True)
+def closed_form_kernel(q, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, radius, half,
+                       pairs, kinds, out, ok):  # pragma: no cover - compiled
+    """out (N, P), ok (N, P): every pair's closed form (`pair_value`) at each configuration, the
+    tree posed (`tree_row`) into per-block scratch (no (N, G, 3) placements), in blocks of 64
+    configurations on every core: `tree_kernel` then `pairs_kernel` in one pass."""
+    N = q.shape[0]
+    for blk in prange((N + 63) // 64):
+        closed_form_block(q, blk * 64, min(N, blk * 64 + 64), parent, kind, axis, iq, rot, tra, of_geometry, used,
+                          local_p, local_axis, radius, half, pairs, kinds, out, ok)
+
+
+@njit(cache=True, inline="always")
+def closed_form_block(q, n0, n1, parent, kind, axis, iq, rot, tra, of_geometry, used, local_p, local_axis, radius,
+                      half, pairs, kinds, out, ok):  # pragma: no cover - compiled
+    """`closed_form_kernel` for configurations n0..n1 - 1."""
+    R, p, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
+    for n in range(n0, n1):
+        for j in range(parent.shape[0]):
+            joint_pose(q, n, j, parent[j], kind[j], axis, iq[j], rot, tra, R, p)
+        for m in range(used.shape[0]):
+            place(0, used[m], of_geometry[m], R, p, local_p, local_axis, centre, gaxis)
+        for k in range(pairs.shape[0]):
+            pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
+            out[n, k], ok[n, k] = o[0, k], good[0, k]
+
+
 @njit(cache=True, parallel=True)
 def pair_rows_kernel(q, pair, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
                      radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
@@ -233,43 +252,38 @@ def pair_rows_kernel(q, pair, parent, kind, axis, iq, rot, tra, chain, chain_len
                         joint_of, local_p, local_axis, radius, half, pairs, kinds, out, ok)
 
 
-@njit(cache=True)
-def pair_rows_serial(q, pair, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
-                     radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
-    """`pair_rows_kernel` on one core (small batches: no parallel launch)."""
-    pair_rows_block(q, pair, 0, q.shape[0], parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p,
-                    local_axis, radius, half, pairs, kinds, out, ok)
+@njit(cache=True, inline="always")
+def pair_at(q, n, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half,
+            pairs, kinds, R, p, centre, gaxis, o, good):  # pragma: no cover - compiled
+    """Pair k's closed form at configuration q[n] into o[0, k], good[0, k], the joints on the
+    chains of its two shapes alone posed (scratch R, p, centre, gaxis as `scratch`'s)."""
+    for s in range(2):
+        g = pairs[k, s]
+        j = joint_of[g]
+        if j >= 0:
+            for c in range(chain_len[j]):
+                jj = chain[j, c]
+                joint_pose(q, n, jj, parent[jj], kind[jj], axis, iq[jj], rot, tra, R, p)
+        place(0, g, j, R, p, local_p, local_axis, centre, gaxis)
+    pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
 
 
 @njit(cache=True, inline="always")
 def pair_rows_block(q, pair, n0, n1, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
                     radius, half, pairs, kinds, out, ok):  # pragma: no cover - compiled
     """`pair_rows_kernel` for configurations n0..n1 - 1."""
-    J, G, P = parent.shape[0], radius.shape[0], pairs.shape[0]
-    R = np.empty((max(J, 1), 3, 3))
-    p = np.empty((max(J, 1), 3))
-    centre = np.zeros((1, G, 3))
-    gaxis = np.zeros((1, G, 3))
-    o = np.empty((1, P))
-    good = np.empty((1, P), np.bool_)
+    R, p, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
     for n in range(n0, n1):
         k = pair[n]
-        for s in range(2):
-            g = pairs[k, s]
-            j = joint_of[g]
-            if j >= 0:
-                for c in range(chain_len[j]):
-                    jj = chain[j, c]
-                    joint_pose(q, n, jj, parent[jj], kind[jj], axis, iq[jj], rot, tra, R, p)
-            place(0, g, j, R, p, local_p, local_axis, centre, gaxis)
-        pair_value(0, k, centre, gaxis, radius, half, pairs, kinds, o, good)
+        pair_at(q, n, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half,
+                pairs, kinds, R, p, centre, gaxis, o, good)
         out[n], ok[n] = o[0, k], good[0, k]
 
 
 def kernels() -> tuple[Any, ...]:
     """The compiled kernels (for `kinematics.jit`)."""
-    return (pairs_kernel, pairs_serial, tree_kernel, tree_serial, pair_rows_kernel, pair_rows_serial)
+    return (pairs_kernel, tree_kernel, closed_form_kernel, pair_rows_kernel)
 
 
-__all__ = ["joint_pose", "pair_rows_kernel", "pair_rows_serial", "pair_value", "pairs_kernel", "pairs_serial",
-           "place", "segments", "tree_kernel", "tree_serial"]
+__all__ = ["closed_form_kernel", "joint_pose", "pair_at", "pair_rows_kernel", "pair_value", "pairs_kernel",
+           "place", "scratch", "segments", "tree_kernel"]

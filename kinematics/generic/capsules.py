@@ -33,9 +33,11 @@ penetration depth, the shortest translation that separates them, when they overl
   half-space's nearest face is the plane).
 
 Everything else (boxes, cylinders against cylinders, meshes) is coal's; where only signs matter,
-a pair of those whose bounding capsules are apart is not (`kinematics.generic.bounding`). Placements come from one
-compiled pass over the tree of the geometries' joints (`capsule_kernels.tree_kernel`; joint data as
-`kinematics.generic.batched` reads them).
+a pair of those whose bounding capsules are apart is not (`kinematics.generic.bounding`). Each configuration's
+placements (a pass over the tree of the geometries' joints; joint data as
+`kinematics.generic.batched` reads them) and pair distances come from one compiled pass
+(`capsule_kernels.closed_form_kernel`), on every core, or on one thread for a small batch
+(`PARALLEL_MIN`, `jit.on_cores`).
 """
 
 from __future__ import annotations
@@ -47,15 +49,9 @@ import numpy as np
 from kinematics.chunks import slices
 from kinematics.generic import capsule_kernels
 from kinematics.generic.bounding import bound_model
-from kinematics.generic.capsule_kernels import (
-    pair_rows_kernel,
-    pair_rows_serial,
-    pairs_kernel,
-    pairs_serial,
-    tree_kernel,
-    tree_serial,
-)
+from kinematics.generic.capsule_kernels import closed_form_kernel, pair_rows_kernel, pairs_kernel, tree_kernel
 from kinematics.generic.collision import CollisionModel
+from kinematics.jit import on_cores
 
 CAPSULE, PLATE, COAL, HALFSPACE = 0, 1, 2, 3
 """Pair kinds: closed form, closed form where the footprint test holds, coal, closed form."""
@@ -64,8 +60,9 @@ CHUNK = 16384
 """Configurations per batch: placements and distances of a chunk stay small."""
 
 PARALLEL_MIN = 2048
-"""Smaller batches run on one core: a parallel launch costs more than they do (milliseconds on a
-loaded machine; the column engine's root refinement calls with a few hundred points)."""
+"""Smaller batches run on one core (`jit.on_cores`): a parallel launch costs more than they do
+(milliseconds on a loaded machine; the column engine's root refinement calls with a few hundred
+points)."""
 
 
 class AnalyticDistances:
@@ -134,8 +131,8 @@ class AnalyticDistances:
         axis = np.zeros((N, G, 3))
         if len(self._used):
             t = self._tree
-            (tree_kernel if N >= PARALLEL_MIN else tree_serial)(np.ascontiguousarray(q), t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation,
-                         t.of_geometry, self._used, self._local_p, self._local_axis, centre, axis)
+            on_cores(tree_kernel, N, PARALLEL_MIN, np.ascontiguousarray(q), t.parent, t.kind, t.axis, t.idx_q, t.rotation,
+                     t.translation, t.of_geometry, self._used, self._local_p, self._local_axis, centre, axis)
         return centre, axis
 
     def closed_form(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -145,10 +142,21 @@ class AnalyticDistances:
         q = np.ascontiguousarray(q, dtype=float)
         out = np.empty((len(q), len(self.kinds)))
         ok = np.empty((len(q), len(self.kinds)), dtype=np.bool_)
+        # the tree posed and the pairs evaluated per configuration in one compiled pass (no
+        # (N, G, 3) placements in between)
+        on_cores(closed_form_kernel, len(q), PARALLEL_MIN, q, *self.closed_form_data(), out, ok)
+        return out, ok
+
+    def closed_form_in_two(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`closed_form` by its two passes: every placement (`_placements`), then every pair
+        (`pairs_kernel`) (the fused pass's reference in the tests)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        out = np.empty((len(q), len(self.kinds)))
+        ok = np.empty((len(q), len(self.kinds)), dtype=np.bool_)
         for s in slices(len(q), CHUNK):
             centre, axis = self._placements(q[s])
-            (pairs_kernel if len(centre) >= PARALLEL_MIN else pairs_serial)(
-                centre, axis, self._radius, self._half, self._pairs, self.kinds, out[s], ok[s])
+            on_cores(pairs_kernel, len(centre), PARALLEL_MIN, centre, axis, self._radius, self._half, self._pairs,
+                     self.kinds, out[s], ok[s])
         return out, ok
 
     def distances(self, q: np.ndarray, signs: bool = False) -> np.ndarray:
@@ -190,11 +198,7 @@ class AnalyticDistances:
         out = np.full(len(q), np.nan)
         ok = np.zeros(len(q), dtype=np.bool_)
         if len(q) and len(self._used):
-            t = self._tree
-            (pair_rows_kernel if len(q) >= PARALLEL_MIN else pair_rows_serial)(
-                q, pair, t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation, t.chain, t.chain_len,
-                self._joint_of, self._local_p, self._local_axis, self._radius, self._half, self._pairs, self.kinds,
-                out, ok)
+            on_cores(pair_rows_kernel, len(q), PARALLEL_MIN, q, pair, *self.pair_kernel_data(), out, ok)
         if signs:
             ok |= (self.kinds[pair] == PLATE) & (out > 0)
             rows = np.flatnonzero(~ok & np.isin(pair, self._bound_of))
@@ -208,6 +212,21 @@ class AnalyticDistances:
             r = rows[pair[rows] == k]
             out[r] = self.model.distances(q[r], only=np.array([k]), near=signs)[:, k]
         return out
+
+    def pair_kernel_data(self) -> tuple[np.ndarray, ...]:
+        """`capsule_kernels.pair_rows_kernel`'s arguments after q and pair, before out and ok (the
+        tree's joints, the chains, the shapes and the pairs), for kernels that evaluate one pair
+        at configurations of their own."""
+        t = self._tree
+        return (t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation, t.chain, t.chain_len, self._joint_of,
+                self._local_p, self._local_axis, self._radius, self._half, self._pairs, self.kinds)
+
+    def closed_form_data(self) -> tuple[np.ndarray, ...]:
+        """`capsule_kernels.closed_form_kernel`'s arguments after q, before out and ok, for kernels
+        that evaluate every pair at configurations of their own."""
+        t = self._tree
+        return (t.parent, t.kind, t.axis, t.idx_q, t.rotation, t.translation, t.of_geometry, self._used,
+                self._local_p, self._local_axis, self._radius, self._half, self._pairs, self.kinds)
 
     def margin(self, q: np.ndarray, signs: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Smallest signed distance [m] over the pairs and its pair index (-1, +inf: no pair);

@@ -41,14 +41,20 @@ def configurations(params: P2USParams, model: Any, pts: np.ndarray, mode: str) -
     """Configurations (N, nq) of the p2us URDF `model` with the platform at `pts` (N, 3) [m] in
     working mode `mode` (NaN in the values of a limb that cannot reach), as `urdf.configurations_at`."""
     p = np.ascontiguousarray(points(pts).reshape(-1, 3))
+    out = np.empty((len(p), model.nq))
+    configurations_kernel(p, *kernel_data(params, model, mode), out)  # type: ignore[call-arg]
+    return out
+
+
+def kernel_data(params: P2USParams, model: Any, mode: str) -> tuple[np.ndarray, ...]:
+    """`configurations_kernel`'s arguments between the positions and the output: e, w, t,
+    geometry, roots, code, limb (for kernels that pose the tree at points of their own)."""
     code, limb = coordinate_codes(model)
     geometry = np.array([params.d - params.b, params.L, params.theta_zero, params.theta_joint_centre,
                          BOUNDARY_TOL])
-    out = np.empty((len(p), model.nq))
-    configurations_kernel(p, np.ascontiguousarray(params.e, dtype=float), np.ascontiguousarray(params.w, dtype=float),
-                          np.ascontiguousarray(params.t, dtype=float), geometry,
-                          np.ascontiguousarray(MODE_ROOTS[mode_index(mode)], dtype=np.int64), code, limb, out)
-    return out
+    return (np.ascontiguousarray(params.e, dtype=float), np.ascontiguousarray(params.w, dtype=float),
+            np.ascontiguousarray(params.t, dtype=float), geometry,
+            np.ascontiguousarray(MODE_ROOTS[mode_index(mode)], dtype=np.int64), code, limb)
 
 
 @njit(cache=True)
@@ -89,4 +95,4 @@ def kernels() -> tuple[Any, ...]:
     return (configurations_kernel,)
 
 
-__all__ = ["configurations", "configurations_kernel", "coordinate_codes"]
+__all__ = ["configurations", "configurations_kernel", "coordinate_codes", "kernel_data"]
