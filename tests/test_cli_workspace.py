@@ -70,7 +70,7 @@ def test_workspace_volume_says_what_a_mechanism_lacks(capsys):
     code, _, err = run(capsys, "singularities", rssr)
     assert code == 2 and "3D grid" in err and "1-dimensional" in err
     code, _, err = run(capsys, "usable-workspace", "ur5", "--shape", "cube")
-    assert code == 2 and "needs its mechanism's ik" in err and "it provides: fk, margin, velocity" in err
+    assert code == 2 and "needs its mechanism's ik" in err and "it provides: fk, margin, reach_search, velocity" in err
 
 
 REVOLVED = str(Path(__file__).parent / "models" / "arm3r_revolved.urdf")

@@ -33,8 +33,8 @@ def test_a_missing_capability_names_what_is_missing_and_what_exists():
     with pytest.raises(MissingCapabilityError) as err:
         ur5.ik(np.zeros((1, 3)))
     assert err.value.capability == "ik"
-    assert set(err.value.available) == {"fk", "margin", "velocity"}
-    assert "ik" in str(err.value) and "fk, margin, velocity" in str(err.value)
+    assert set(err.value.available) == {"fk", "margin", "velocity", "reach_search"}
+    assert "ik" in str(err.value) and "fk, margin, reach_search, velocity" in str(err.value)
     loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
     with pytest.raises(MissingCapabilityError, match="joint_values"):
         loop.joint_values(np.zeros(1), loop.branches[0])

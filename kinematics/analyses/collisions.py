@@ -81,7 +81,7 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
 def collision_refusal(mech: Mechanism) -> tuple[str, str] | None:
     """(option, reason) where a collision-aware volume of `mech` cannot be had, else None: the
     margin needs configurations at task points (`ik`, or a serial arm's reach search)."""
-    serial = mech.family == "serial"
+    serial = "reach_search" in mech.capabilities
     if "ik" not in mech.capabilities and not serial:
         return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
                                              "delta, the planar arm, closed loops and serial arms are collision-aware"))
@@ -222,7 +222,7 @@ def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: s
     arm's `SerialCollisionMargin`, the union's last), for analyses that take a margin in place of
     the mechanism's (`usable.usable(margin_of=...)`, `--points`)."""
     dist = AnalyticDistances(model)
-    if mech.family == "serial":  # one margin, the union's (`analyses.serial_collisions`)
+    if "reach_search" in mech.capabilities:  # a serial arm: one margin, the union's (`analyses.serial_collisions`)
         from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
 
         reach = collision_reach(mech, robot, dist)
@@ -380,7 +380,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     t0 = time.perf_counter()
     margin: Any
     extra: dict[str, Any] = {}
-    if mech.family == "serial":  # the reach search's configurations (`analyses.serial_collisions`)
+    if "reach_search" in mech.capabilities:  # the reach search's configurations (`analyses.serial_collisions`)
         from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
 
         plain = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))

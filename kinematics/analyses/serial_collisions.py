@@ -59,7 +59,6 @@ from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.batched import configurations
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms.base import UNION, Mechanism
-from kinematics.mechanisms.serial.mechanism import SerialArm
 from kinematics.mechanisms.serial.reach import Reach, ReachMargin
 from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
 
@@ -109,15 +108,15 @@ def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bo
 
 
 def collision_reach(mech: Mechanism, robot: Any, distances: AnalyticDistances) -> Reach:
-    """The search a collision-aware margin of `mech` (a `SerialArm`, else UnsupportedRobotError)
-    uses: its own when the checked pairs are unchanged by the base's full turn (module docstring),
-    else one in 3-D."""
-    if not isinstance(mech, SerialArm):
+    """The search a collision-aware margin of `mech` (one with `reach_search`, a serial arm, else
+    UnsupportedRobotError) uses: its own when the checked pairs are unchanged by the base's full
+    turn (module docstring), else one in 3-D."""
+    if "reach_search" not in mech.capabilities:
         raise UnsupportedRobotError(mech.name, "a serial arm's collision margin is for open chains searched by "
                                                "their reach search")
-    reach = mech.reach
+    reach = mech.reach_search()
     if reach.setup.mode == "revolved" and (reach.turn is not None or not turn_invariant(robot, distances, reach)):
-        return Reach(robot, reach.frame, restarts=reach.restarts, seed=reach.seed, orientation=mech.orientation,
+        return Reach(robot, reach.frame, restarts=reach.restarts, seed=reach.seed, orientation=reach.orientation,
                      revolve=False)
     return reach
 

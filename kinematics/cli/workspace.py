@@ -172,7 +172,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
     from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
 
     checks = collision_checks(args, robot)
-    serial = mech.family == "serial"
+    serial = "reach_search" in mech.capabilities
     if args.plot and serial:  # the figure searches every grid point at the step: checked before the volume's run
         from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
 

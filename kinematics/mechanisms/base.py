@@ -47,7 +47,8 @@ UNION = "union"
 """The label of the union of every branch (the margin's last column)."""
 
 CAPABILITIES = ("margin", "ik", "fk", "velocity", "singular_fields", "joint_values", "pose_ik", "pose_fk",
-                "pose_jacobians", "joint_singularities", "reference_results", "paper_scan", "sweep_parameters")
+                "pose_jacobians", "joint_singularities", "reference_results", "paper_scan", "sweep_parameters",
+                "reach_search")
 """The optional parts of the interface, by method name."""
 
 
@@ -327,6 +328,12 @@ class Mechanism(ABC):
     def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
         """The loop-equation Jacobians at task point (d,) [m] with actuator values (a,)."""
         raise MissingCapabilityError(self.name, "pose_jacobians", "Jacobians at a task point", self.capabilities)
+
+    def reach_search(self) -> Any:
+        """The search that finds configurations reaching task points
+        (`kinematics.mechanisms.serial.reach.Reach`), for a mechanism with no inverse kinematics
+        per branch (a serial arm): its collisions are checked at the configurations it finds."""
+        raise MissingCapabilityError(self.name, "reach_search", "configurations found by search", self.capabilities)
 
     def joint_singularities(self, angle_step: float | None = None) -> dict[str, Any]:
         """The singular set swept over a joint grid (`angle_step` [rad], None: the default), for

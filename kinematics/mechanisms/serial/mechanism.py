@@ -67,6 +67,10 @@ class SerialArm(Mechanism):
 
         return Reach(self.robot, orientation=self.orientation)
 
+    def reach_search(self) -> Reach:
+        """`reach` (the `Mechanism` capability)."""
+        return self.reach
+
     def reaching_jacobians(self, points: np.ndarray, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """Position Jacobians at every configuration the search reaches task points (N, d) with:
         (N, K, d, n) [m/rad or m/m] over the chain joints and (N, K) whether seed k reached the
