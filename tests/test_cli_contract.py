@@ -142,7 +142,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "ur5", "--modes", "up"], "working modes"),
     (["singularities", "ur5", "--limits", "actuators"], "URDF's joint limits"),
     (["singularities", "ur5", "--plot", "w.png"], "no figure"),
-    (["singularities", "ur5", "--collisions"], "depends on that angle"),
+    (["singularities", "ur5", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "collision-free workspace is not drawn yet"),
     (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'"),
     (["workspace-volume", "ur5", "--limits", "actuators"], "actuators"),

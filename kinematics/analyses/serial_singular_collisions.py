@@ -80,7 +80,7 @@ class SingularCollisions:
         free_intervals: per configuration, (F, 2) base-joint values [rad] certified free
             ("varies" only; else empty).
         free_samples: (K,) sampled base angles found free but not certified on an interval.
-        samples: (K,) base angles evaluated.
+        samples: (K,) base angles evaluated; colliding_samples: (K,) those at which it collides.
         verdict: (K,) "every", "some", "none" or "none found" ("varies" only; else the
             listed configuration's: "every" free or "none").
         step: [rad] the bisection's finest interval width.
@@ -95,6 +95,7 @@ class SingularCollisions:
     free_intervals: tuple[np.ndarray, ...]
     free_samples: np.ndarray
     samples: np.ndarray
+    colliding_samples: np.ndarray
     verdict: np.ndarray
     step: float
     box_free: np.ndarray
@@ -142,7 +143,7 @@ def singular_collisions(robot: Any, ws: Any, model: CollisionModel, values: np.n
     listed = np.where(depth < 0, "none", "every")
     zeros = np.zeros(K, dtype=np.int64)
     if ws.mode != "revolved":
-        return SingularCollisions(depth, pair, "in the configuration", -1, none, zeros, zeros, listed, step, box)
+        return SingularCollisions(depth, pair, "in the configuration", -1, none, zeros, zeros, zeros, listed, step, box)
     v0 = int(BatchedKinematics.from_robot(robot, ws.frame).idx_v[0])
     joint = next(j for j in range(1, robot.model.njoints) if robot.model.joints[j].idx_v == v0)
     carried = set(robot.model.subtrees[joint])
@@ -151,16 +152,16 @@ def singular_collisions(robot: Any, ws: Any, model: CollisionModel, values: np.n
     other = np.array([int(objs[b].parentJoint) in carried for _, b in model.pairs], dtype=bool)
     varies = moves ^ other
     if not varies.any() or not K:
-        return SingularCollisions(depth, pair, "invariant", -1, none, zeros, zeros, listed, step, box)
+        return SingularCollisions(depth, pair, "invariant", -1, none, zeros, zeros, zeros, listed, step, box)
     body = np.where(moves, np.array([a for a, _ in model.pairs]), np.array([b for _, b in model.pairs]))
     r = _axis_radii(robot, model, configurations(robot, values), ws.axis_origin, ws.axis_direction)[:, body[varies]]
     base = dof_of(robot, v0)
-    free, samples, count = _bisect(robot, dist, values, base, varies, r, D, step)
+    free, samples, count, hits = _bisect(robot, dist, values, base, varies, r, D, step)
     meas = np.array([float((f[:, 1] - f[:, 0]).sum()) for f in free])
     stuck = (D[:, ~varies] < 0).any(axis=1) if (~varies).any() else np.zeros(K, dtype=bool)
     verdict = np.where(meas >= 2 * math.pi * (1 - 1e-12), "every",
                        np.where((meas > 0) | (samples > 0), "some", np.where(stuck, "none", "none found")))
-    return SingularCollisions(depth, pair, "varies", base, tuple(free), samples, count, verdict, step, box)
+    return SingularCollisions(depth, pair, "varies", base, tuple(free), samples, count, hits, verdict, step, box)
 
 
 def _smallest(D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -238,9 +239,9 @@ def _axis_radii(robot: Any, model: CollisionModel, q: np.ndarray, origin: np.nda
 
 def _bisect(robot: Any, dist: AnalyticDistances, values: np.ndarray, base: int, varies: np.ndarray,
             r: np.ndarray, D0: np.ndarray, step: float
-            ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Per configuration, the certified free base-joint intervals (merged), the free samples and
-    the angles evaluated, bisecting the turn about each listed base value (module docstring)."""
+            ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """Per configuration, the certified free base-joint intervals (merged), the free samples, the
+    angles evaluated and those colliding, bisecting the turn about each listed base value (module docstring)."""
     K = len(values)
     half0 = math.pi / START
     box = np.repeat(np.arange(K), START)
@@ -250,11 +251,13 @@ def _bisect(robot: Any, dist: AnalyticDistances, values: np.ndarray, base: int, 
     found: list[list[tuple[float, float]]] = [[] for _ in range(K)]
     samples = np.zeros(K, dtype=np.int64)
     count = np.zeros(K, dtype=np.int64)
+    hits = np.zeros(K, dtype=np.int64)
     while len(box):
         q = values[box].copy()
         q[:, base] = centre
         D = dist.distances(configurations(robot, q), signs=True)[:, varies]
         np.add.at(count, box, 1)
+        np.add.at(hits, box[~steady[box] | (D < 0).any(axis=1)], 1)
         ok = steady[box] & (r[box] * half[:, None] < D).all(axis=1)
         for b, c, h in zip(box[ok], centre[ok], half[ok], strict=True):
             found[b].append((c - h, c + h))
@@ -265,7 +268,7 @@ def _bisect(robot: Any, dist: AnalyticDistances, values: np.ndarray, base: int, 
         h = half[split] / 2
         centre = (centre[split][:, None] + np.array([-1.0, 1.0]) * h[:, None]).ravel()
         half = np.repeat(h, 2)
-    return [_merge(f) for f in found], samples, count
+    return [_merge(f) for f in found], samples, count, hits
 
 
 def _merge(intervals: list[tuple[float, float]]) -> np.ndarray:

@@ -291,7 +291,8 @@ def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any) ->
             f = res.free_intervals[k]
             item["base_angles"] = {"free": str(res.verdict[k]), "free_rad": float((f[:, 1] - f[:, 0]).sum()),
                                    "free_intervals": f.tolist(), "free_samples": int(res.free_samples[k]),
-                                   "samples": int(res.samples[k])}
+                                   "samples": int(res.samples[k]),
+                                   "colliding_samples": int(res.colliding_samples[k])}
     c = {**summary(checks), "singular_points": len(pts), "colliding_points": int(res.colliding.sum()),
          "boxes_certified_free": int(res.box_free.sum()), "base_angle": res.base_angle,
          "verdict": _VERDICT[res.base_angle] + _BOX}
