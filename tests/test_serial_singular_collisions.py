@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
 from kinematics.analyses.collisions import collision_model_of
 from kinematics.analyses.serial_singular_collisions import STEP, singular_collisions
@@ -23,7 +22,7 @@ from kinematics.analyses.serial_workspace import serial_workspace
 from kinematics.model.robot import load_robot
 
 from .test_cli import run, run_json
-from .test_serial_collisions import L1, L2, POST, RP, WALL, R, _arm3, _segment_distance
+from .test_serial_collisions import L1, L2, POST, RP, WALL, R, _arm3, _segment_distance, arm3  # noqa: F401 (a fixture)
 
 C = WALL - R
 """A capsule along a segment clears the wall x >= WALL iff the segment's largest x is below C [m]."""
@@ -50,16 +49,7 @@ def _free_turn(q: np.ndarray, psi: np.ndarray) -> np.ndarray:
     return (ue[:, None] * c < C) & (up[:, None] * c < C)
 
 
-@pytest.fixture(scope="module")
-def arm3(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("arm3s")
-    (folder / "arm3.urdf").write_text(_arm3(False))
-    (folder / "arm3p.urdf").write_text(_arm3(True))
-    (folder / "wall.yaml").write_text(f"obstacles:\n  - {{name: wall, halfspace: [-1, 0, 0, {-WALL}]}}\n")
-    return folder
-
-
-def test_wall_flags_and_free_base_angles_by_hand(arm3, capsys, rng):
+def test_wall_flags_and_free_base_angles_by_hand(arm3, capsys, rng):  # noqa: F811
     """The 3R arm beside the wall (the wall does not turn with the yaw): each listed box's centre
     collides at its listed yaw exactly where the arm's largest x reaches C; every certified free
     base-angle interval lies in the free set by hand, and falls short of it by a few steps at
@@ -118,7 +108,7 @@ def test_wall_flags_and_free_base_angles_by_hand(arm3, capsys, rng):
         assert (_wall_gap(box) > 0).all()
 
 
-def test_post_turning_with_the_arm_is_invariant(arm3, capsys):
+def test_post_turning_with_the_arm_is_invariant(arm3, capsys):  # noqa: F811
     """The post on the turret turns with the yaw (self-collisions only): every verdict holds at
     every base angle, and each centre collides exactly where link 2's segment comes within
     R + RP of the post's, in the arm's plane by hand."""
@@ -140,7 +130,7 @@ def test_post_turning_with_the_arm_is_invariant(arm3, capsys):
     assert c["any_collision_free"] and c["colliding_points"] == got.sum()
 
 
-def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):
+def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):  # noqa: F811
     """A yaw of range [-1, 1] rad: the scan is spatial, the yaw one of the box's joints, so each
     verdict is the listed configuration's own (its listed yaw), by hand."""
     code, d, err = run_json(capsys, "singularities", str(arm3 / "arm3.urdf"), "--obstacles", str(arm3 / "wall.yaml"),
@@ -154,7 +144,7 @@ def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):
     assert np.array_equal(got[np.abs(gap) > 1e-9], gap[np.abs(gap) > 1e-9] < 0)
 
 
-def test_human_report_and_bad_input(arm3, capsys, tmp_path):
+def test_human_report_and_bad_input(arm3, capsys, tmp_path):  # noqa: F811
     """The human report gives the counts; obstacles nothing can touch: exit 2, one line."""
     code, out, err = run(capsys, "singularities", str(arm3 / "arm3.urdf"), "--obstacles", str(arm3 / "wall.yaml"),
                          "--max-points", "20000")
