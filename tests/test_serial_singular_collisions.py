@@ -150,6 +150,7 @@ def test_human_report_and_bad_input(arm3, capsys, tmp_path):  # noqa: F811
                          "--max-points", "20000")
     assert code == 0, err
     assert "colliding singular configurations:" in out and "free at every base angle" in out
+    assert "whole boxes certified free:" in out
     bare = tmp_path / "bare.urdf"
     bare.write_text(_arm3(False).replace("<collision>", "<!--").replace("</collision>", "-->"))
     code, out, err = run(capsys, "singularities", str(bare), "--obstacles", str(arm3 / "wall.yaml"))

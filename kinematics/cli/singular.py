@@ -324,7 +324,8 @@ _VERDICT = {
 
 def _serial_collision_line(c: dict[str, Any]) -> str:
     line = f"colliding singular configurations: {c['colliding_points']} of {c['singular_points']} (box centres"
+    boxes = f"; whole boxes certified free: {c['boxes_certified_free']}"
     if c["base_angle"] == "varies":
         return (f"{line}, base at the listed angle); free at every base angle {c['free_at_every_base_angle']}, "
-                f"at some {c['free_at_some_base_angle']}, at none found {c['free_at_no_base_angle']}")
-    return line + (", at every base angle)" if c["base_angle"] == "invariant" else ")")
+                f"at some {c['free_at_some_base_angle']}, at none found {c['free_at_no_base_angle']}{boxes}")
+    return line + (", at every base angle)" if c["base_angle"] == "invariant" else ")") + boxes
