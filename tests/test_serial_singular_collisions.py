@@ -130,6 +130,32 @@ def test_post_turning_with_the_arm_is_invariant(arm3, capsys):  # noqa: F811
     assert c["any_collision_free"] and c["colliding_points"] == got.sum()
 
 
+def test_post_and_wall_together(arm3, capsys):  # noqa: F811
+    """The post (turning with the yaw) and the wall (not): a centre whose link 2 meets the post
+    collides at every base angle ("none", by the segment distance by hand), the others' verdicts
+    are the wall's by hand, their certified intervals inside its free set."""
+    code, d, err = run_json(capsys, "singularities", str(arm3 / "arm3p.urdf"), "--collisions", "--obstacles",
+                            str(arm3 / "wall.yaml"), "--max-points", "100000")
+    assert code == 0, err
+    assert d["collisions"]["base_angle"] == "varies"
+    pts = d["singular_points"]
+    q = np.array([p["q"] for p in pts])
+    ue, up, ze, zp = _plane(q)
+    n = len(pts)
+    post = _segment_distance(np.stack([ue, ze], 1), np.stack([up, zp], 1), np.tile([0.0, POST[0]], (n, 1)),
+                             np.tile([0.0, POST[1]], (n, 1))) - (R + RP)
+    psi = np.linspace(-math.pi, math.pi, 7200, endpoint=False)
+    wall = _free_turn(q, psi)
+    verdicts = np.array([p["base_angles"]["free"] for p in pts])
+    assert (np.abs(post) > 1e-9).all() and (post < 0).any() and (post > 0).any()
+    assert (verdicts[post < 0] == "none").all()
+    assert np.array_equal(verdicts[post > 0], np.where(wall[post > 0].all(axis=1), "every", "some"))
+    for k in np.flatnonzero(post > 0):
+        for lo, hi in pts[k]["base_angles"]["free_intervals"]:
+            assert wall[k, (psi >= lo) & (psi <= hi)].all()
+    assert d["collisions"]["free_at_no_base_angle"] == (post < 0).sum()
+
+
 def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):  # noqa: F811
     """A yaw of range [-1, 1] rad: the scan is spatial, the yaw one of the box's joints, so each
     verdict is the listed configuration's own (its listed yaw), by hand."""
@@ -161,7 +187,8 @@ def test_ur5_verdicts_against_coal(rng):
     """The ur5 with self-collisions (its base link's pairs change with the base angle): at each
     listed centre, `colliding` is coal's own verdict on the URDF's meshes (pin.computeCollisions
     over the same link pairs), the binding pair one coal finds in collision; at the ends of the
-    certified free base-angle intervals and at random angles inside them coal finds no collision."""
+    certified free base-angle intervals and at random angles inside them coal finds no collision;
+    a centre colliding at every base angle ("none") collides at random angles by coal."""
     import pinocchio as pin
 
     from kinematics.generic.batched import configurations
@@ -201,4 +228,9 @@ def test_ur5_verdicts_against_coal(rng):
                 w[res.base_joint] = psi
                 assert not hits(w), (k, w)
     assert any(flags) and not all(flags)
-    assert set(res.verdict) >= {"every", "some"}
+    assert set(res.verdict) >= {"every", "some", "none"}
+    for k in np.flatnonzero(res.verdict == "none"):  # a pair the base's turn leaves alone collides
+        for psi in rng.uniform(-math.pi, math.pi, 3):
+            w = values[k].copy()
+            w[res.base_joint] = psi
+            assert hits(w), (k, w)
