@@ -4,8 +4,10 @@
 The singular scan (`kinematics.analyses.serial_workspace`) lists joint boxes that may hold a
 rank-deficient position Jacobian, each by its centre c (joint values) and half-widths w. Each
 listed box is judged at its centre: the configuration c collides when some checked pair has a
-negative signed distance there (`AnalyticDistances.distances(signs=True)`: closed forms, coal for
-meshes), and the pair with the smallest distance binds. The other configurations of the box may
+negative signed distance there (`AnalyticDistances.distances`: closed forms, coal for meshes;
+the full distances, not the signs-only ones, whose positive values are clamped or bounded
+far below the gap and would certify little below), and the pair with the smallest distance
+binds. The other configurations of the box may
 differ: the verdict is the centre's, with the box's half-widths beside it. A bound settles the
 whole box where the centre is clear enough (`box_free`): moving joint i by dq_i moves every point
 of a body it carries by at most R_i |dq_i| (R_i: the path's joint offsets from joint i's origin,
@@ -31,8 +33,8 @@ angle psi (a turn of the base keeps the position Jacobian's rank). Per checked p
   certified: turning by dpsi moves every point of the carried body by at most r dpsi, r its
   largest distance from the base axis (its geometry's bounding sphere, the same at every psi), so
   the true gap g (1-Lipschitz in the bodies' displacement) obeys g(psi) >= g(psi0) - r |psi -
-  psi0|. Each positive reported distance is at most the true gap (exact, or a convex hull's or a
-  slab's distance, a lower bound), so an interval of half-width h about psi0 is free when every
+  psi0|. Each positive reported distance is at most the true gap (exact, or the convex hulls'
+  distance, a lower bound), so an interval of half-width h about psi0 is free when every
   varying pair's distance at psi0 exceeds r h (and every other pair's is positive). The turn is
   bisected from START intervals until each is certified or at most `step` wide; such an interval
   whose centre is free is a free sample (one free angle, its neighbourhood not certified), one
@@ -130,7 +132,7 @@ def singular_collisions(robot: Any, ws: Any, model: CollisionModel, values: np.n
     values = np.asarray(values, dtype=float).reshape(-1, robot.nv)
     dist = AnalyticDistances(model)
     K, P = len(values), len(model.pairs)
-    D = dist.distances(configurations(robot, values), signs=True) if K else np.zeros((0, P))
+    D = dist.distances(configurations(robot, values)) if K else np.zeros((0, P))
     depth, pair = _smallest(D)
     if half is None:
         box = np.zeros(K, dtype=bool)
@@ -255,7 +257,7 @@ def _bisect(robot: Any, dist: AnalyticDistances, values: np.ndarray, base: int, 
     while len(box):
         q = values[box].copy()
         q[:, base] = centre
-        D = dist.distances(configurations(robot, q), signs=True)[:, varies]
+        D = dist.distances(configurations(robot, q))[:, varies]
         np.add.at(count, box, 1)
         np.add.at(hits, box[~steady[box] | (D < 0).any(axis=1)], 1)
         ok = steady[box] & (r[box] * half[:, None] < D).all(axis=1)
