@@ -29,6 +29,8 @@ from .test_collision_obstacles import ARM, HALF, _free_areas
 
 L1, L2, R, WALL = 0.4, 0.3, 0.02, 0.35
 """The 3R arm's link lengths, its capsules' radius and the wall's face x = WALL [m] (the solid x >= WALL)."""
+DOWN = 0.05
+"""The 4R arm's tool offset past its wrist [m] (`_arm4`)."""
 RP, POST = 0.1, (-0.6, -0.05)
 """The turret's post: a capsule of radius RP [m] on the yaw axis between these heights [m]."""
 
@@ -57,6 +59,18 @@ def _arm3(post: bool) -> str:
     <axis xyz="0 1 0"/>{lim}</joint>
   <joint name="tool_joint" type="fixed"><parent link="link2"/><child link="tool"/><origin xyz="{L2} 0 0"/></joint>
 </robot>"""
+
+
+def _arm4(post: bool) -> str:
+    """The 3R arm plus a full-turn wrist pitch at the tool point carrying a tool frame DOWN [m]
+    along its z axis (no collision shape past link 2): with the tool's z axis held at -z the wrist
+    pitch is pi - pitch - elbow, and the tool point is the 3R arm's shifted down by DOWN."""
+    lim = f'<limit lower="{-math.pi}" upper="{math.pi}" effort="1" velocity="1"/>'
+    return _arm3(post).replace('<link name="tool"/>', '<link name="hand"/><link name="tool"/>').replace(
+        f'<joint name="tool_joint" type="fixed"><parent link="link2"/><child link="tool"/><origin xyz="{L2} 0 0"/>',
+        f'<joint name="wrist" type="revolute"><parent link="link2"/><child link="hand"/><origin xyz="{L2} 0 0"/>'
+        f'<axis xyz="0 1 0"/>{lim}</joint><joint name="tool_joint" type="fixed"><parent link="hand"/>'
+        f'<child link="tool"/><origin xyz="0 0 {DOWN}"/>')
 
 
 def _profile(h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -243,6 +257,25 @@ def test_revolved_arm_with_a_post_keeps_its_profile(arm3):
     assert cw.kinematic - cw.workspace.total > 0.02  # the post removes 0.029 m^3
     walled = AnalyticDistances(collision_model_of(robot, load_obstacles(arm3 / "wall.yaml")))
     assert not turn_invariant(robot, walled, mech.reach)
+
+
+def test_tool_pointing_down_with_a_post_is_the_3r_volume(arm3, capsys):
+    """`workspace-volume --collisions --tool-axis 0 0 -1` of the 4R arm with the post: every tool
+    point is the 3R arm's wrist shifted down by DOWN at the same configuration of its links (the
+    wrist carries no shape), so the collision-free volume is the 3R arm's with the post by hand
+    (`_post_volume`), the kinematic one the shell's; measured on the profile (the held axis and the
+    pair both turn with the base)."""
+    from .test_cli import run_json
+
+    (arm3 / "arm4p.urdf").write_text(_arm4(True))
+    code, d, err = run_json(capsys, "workspace-volume", str(arm3 / "arm4p.urdf"), "--collisions", "--tool-axis",
+                            "0", "0", "-1", "--step", "0.06", "--rtol", "2e-3")
+    assert code == 0, err
+    assert d["parameters"]["orientation"]["tool_z"] == [0.0, 0.0, -1.0] and d["converged"]
+    assert d["collisions"]["search"]["mode"] == "revolved"
+    assert abs(d["volume_m3"] - _post_volume(1e-3)) <= d["error_estimate"] + 2e-6
+    c = d["collisions"]
+    assert abs(c["kinematic_volume"] - 4 / 3 * math.pi * (0.7**3 - 0.1**3)) <= c["kinematic_error_estimate"]
 
 
 def test_cli_serial_arm_with_obstacles(arm3, capsys):

@@ -37,7 +37,8 @@ def register(command: Command) -> None:
                    help="planar arm: joint-grid step in degrees (default 1)")
     serial_args(p)
     collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
-                      "(p2us, delta, the planar arm, closed loops with singular fields)")
+                      "(p2us, delta, the planar arm, closed loops with singular fields; serial arms: each listed joint "
+                      "box at its centre, with the base angles at which it is free where that angle matters)")
 
 
 def cmd_singularities(args: argparse.Namespace) -> int:
@@ -67,23 +68,29 @@ def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
                             progress=show_progress(args))
 
 
-def singular_sample(ws: Any, count: int = 200) -> list[dict[str, Any]]:
-    """An evenly spaced sample of the possibly singular boxes: world position [m] (the base joint
-    at 0 for a solid of revolution), the ball radius [m] their image lies within, the joint values."""
-    import dataclasses
-
+def singular_sample(ws: Any, robot: Robot, count: int = 200) -> list[dict[str, Any]]:
+    """An evenly spaced sample of the possibly singular boxes: the world position [m] of the
+    frame at the box's centre (the base joint at its listed value for a solid of revolution), the
+    ball radius [m] the box's image lies within, the joint values of the centre and its
+    half-widths [rad or m]."""
     import numpy as np
+
+    from kinematics.generic.batched import BatchedKinematics, configurations
 
     k = len(ws.singular_radius)
     idx = np.unique(np.linspace(0, k - 1, min(k, count)).astype(int)) if k else np.zeros(0, dtype=int)
-    world = dataclasses.replace(ws, singular_points=ws.singular_points[idx]).world_points("singular", turns=1)
-    return [{"position": p.tolist(), "radius_m": float(r), "q": q.tolist()}
-            for p, r, q in zip(world, ws.singular_radius[idx], ws.singular_configurations[idx], strict=True)]
+    q = ws.singular_configurations[idx]
+    # the centre's own position (a revolved scan's profile points carry no azimuth)
+    world = (BatchedKinematics.from_robot(robot, ws.frame).fk(configurations(robot, q)).position if len(idx)
+             else np.zeros((0, 3)))
+    half = (ws.singular_half_widths[idx] if ws.singular_half_widths is not None else np.full(q.shape, np.nan))
+    return [{"position": p.tolist(), "radius_m": float(r), "q": c.tolist(), "half_width": w.tolist()}
+            for p, r, c, w in zip(world, ws.singular_radius[idx], q, half, strict=True)]
 
 
-def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
+def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, checks: Any = None) -> int:
     ws = serial_scan(args, robot)
-    sample = singular_sample(ws)
+    sample = singular_sample(ws, robot)
     r = ws.singular_radius
     payload = {
         "robot": robot.name, "frame": ws.frame, "mode": ws.mode,
@@ -96,6 +103,8 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> i
         "points_evaluated": ws.points_evaluated, "max_points": args.max_points, "cell_m": ws.grid.cell,
         "seconds": ws.seconds,
     }
+    if checks is not None:
+        _flag_serial(payload, robot, ws, checks)
 
     def human() -> str:
         rad = payload["radius_m"]
@@ -109,6 +118,7 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out) -> i
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "tolerance: " + payload["tolerance"],
+            *([_serial_collision_line(payload["collisions"])] if checks is not None else []),
             "",
             table(["position [m] (sample)", "radius [m]"], rows) if rows else "no singular box",
         ])
@@ -128,15 +138,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     mech = mechanism_of(robot)
     checks = collision_checks(args, robot)
-    if checks is not None and not ({"joint_singularities", "singular_fields"} & mech.capabilities):
-        raise InvalidInputError("--collisions/--obstacles", "a serial arm's possibly singular joint boxes are found "
-                                "with its base joint at 0 (its workspace a solid of revolution), and whether a "
-                                "configuration collides depends on that angle; p2us, delta, the planar arm and "
-                                "closed loops with singular fields are collision-aware")
     if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
-        return _serial_singularities(args, robot, out)
+        return _serial_singularities(args, robot, out, checks)
     if "joint_singularities" in mech.capabilities:
         mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
         s = mech.joint_singularities(math.radians(args.angle_step_deg))
@@ -262,3 +267,65 @@ def _flag_colliding_configurations(payload: dict[str, Any], robot: Robot, checks
             item["pair"] = list(checks.pair_links[int(k)])
     payload["collisions"] = {**summary(checks), "singular_points": len(flags), "colliding_points": int(flags.sum()),
                              "any_collision_free": bool((~flags).any())}
+
+
+def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any) -> None:
+    """Mark each listed singular box `colliding` at its centre as listed (with the binding `pair`)
+    and, where the base's angle changes some pair's distance, with its certified free base angles
+    (`analyses.serial_singular_collisions`); add the counts."""
+    import numpy as np
+
+    from kinematics.analyses.collisions import summary
+    from kinematics.analyses.serial_singular_collisions import singular_collisions
+
+    pts = payload["singular_points"]
+    shape = (len(pts), robot.nv)
+    res = singular_collisions(robot, ws, checks, np.array([p["q"] for p in pts]).reshape(shape),
+                              np.array([p["half_width"] for p in pts]).reshape(shape))
+    for k, item in enumerate(pts):
+        item["colliding"] = bool(res.colliding[k])
+        item["box_free"] = bool(res.box_free[k])
+        if res.colliding[k]:
+            item["pair"] = list(checks.pair_links[int(res.pair[k])])
+        if res.base_angle == "varies":
+            f = res.free_intervals[k]
+            item["base_angles"] = {"free": str(res.verdict[k]), "free_rad": float((f[:, 1] - f[:, 0]).sum()),
+                                   "free_intervals": f.tolist(), "free_samples": int(res.free_samples[k]),
+                                   "samples": int(res.samples[k]),
+                                   "colliding_samples": int(res.colliding_samples[k])}
+    c = {**summary(checks), "singular_points": len(pts), "colliding_points": int(res.colliding.sum()),
+         "boxes_certified_free": int(res.box_free.sum()), "base_angle": res.base_angle,
+         "verdict": _VERDICT[res.base_angle] + _BOX}
+    if res.base_angle == "varies":
+        v = res.verdict
+        c.update(base_joint=robot.dofs[res.base_joint].name, base_angle_step_rad=res.step,
+                 free_at_every_base_angle=int((v == "every").sum()), free_at_some_base_angle=int((v == "some").sum()),
+                 free_at_no_base_angle=int(np.isin(v, ["none", "none found"]).sum()),
+                 any_collision_free=bool(np.isin(v, ["every", "some"]).any()))
+    else:
+        c["any_collision_free"] = bool((~res.colliding).any())
+    payload["collisions"] = c
+
+
+_BOX = ("; box_free: the whole box certified collision-free (at the listed base angle) by the distances' "
+        "Lipschitz bound in the joints")
+
+_VERDICT = {
+    "invariant": "each box judged at its centre (the box's other configurations unchecked: half_width beside); "
+                 "every checked pair turns with the base or not at all, so the verdict holds at every base angle",
+    "varies": "each box judged at its centre (the box's other configurations unchecked: half_width beside); "
+              "colliding: at the listed base angle; base_angles.free_intervals: base-joint values certified "
+              "collision-free by the distances' Lipschitz bound in the base angle (every, some, none found at "
+              "the step, none: a pair the base's turn leaves alone collides)",
+    "in the configuration": "each box judged at its centre, every joint as listed (the box's other configurations "
+                            "unchecked: half_width beside)",
+}
+
+
+def _serial_collision_line(c: dict[str, Any]) -> str:
+    line = f"colliding singular configurations: {c['colliding_points']} of {c['singular_points']} (box centres"
+    boxes = f"; whole boxes certified free: {c['boxes_certified_free']}"
+    if c["base_angle"] == "varies":
+        return (f"{line}, base at the listed angle); free at every base angle {c['free_at_every_base_angle']}, "
+                f"at some {c['free_at_some_base_angle']}, at none found {c['free_at_no_base_angle']}{boxes}")
+    return line + (", at every base angle)" if c["base_angle"] == "invariant" else ")") + boxes

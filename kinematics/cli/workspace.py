@@ -42,7 +42,7 @@ def register(command: Command) -> None:
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
     collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
-                      "serial arms: the best configuration their search finds)")
+                      "serial arms: the best configuration their search finds, also with --orientation / --tool-axis)")
     orientation_args(p, "the volume of tool positions reachable")
 
 
@@ -81,8 +81,6 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     orientation = orientation_of(args)
-    if orientation is not None and (getattr(args, "collisions", False) or getattr(args, "obstacles", None)):
-        raise InvalidInputError("--collisions/--obstacles", "not available with a fixed tool orientation yet")
     mech = mechanism_of(robot, orientation)
     mech.require("margin", "workspace-volume")
     mech.check_limits(args.limits)
@@ -199,6 +197,8 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
 
         print(f"warning: {_not_converged(ws)}", file=sys.stderr)
 
+    held = (payload.get("parameters") or {}).get("orientation")
+
     def human() -> str:
         unit, key = ("m^2", "area") if ws.planar else ("m^3", "volume")
         rows = [(f"{a} - {b}", f"{fmt(p.removed, 4)} +/- {fmt(p.error, 2)}", str(p.prescan_points))
@@ -212,6 +212,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
                 *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
+                *([("tool held at", held["text"])] if held else []),
                 *([("search", _search_text(payload["collisions"]["search"]))] if "search" in payload["collisions"]
                   else []),
                 ("time [s]", f"{ws.seconds:.2f}"),

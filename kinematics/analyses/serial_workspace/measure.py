@@ -172,13 +172,14 @@ class Cells:
 @dataclass(eq=False)
 class _Run:
     """What the refinement gathers besides the cells: configurations evaluated, a summary per
-    level, and the possibly singular boxes (task points, ball radii, centres in joint values)."""
+    level, and the possibly singular boxes (task points, ball radii, centres in joint values and half-widths)."""
 
     points: int = 0
     levels: list[dict[str, float]] = field(default_factory=list)
     sing_pts: list[np.ndarray] = field(default_factory=list)
     sing_rad: list[np.ndarray] = field(default_factory=list)
     sing_cfg: list[np.ndarray] = field(default_factory=list)
+    sing_half: list[np.ndarray] = field(default_factory=list)
 
 
 def _refine(robot: Robot, kin: BatchedKinematics, s: Setup, cells: Cells, centre: np.ndarray, half: np.ndarray,
@@ -226,6 +227,9 @@ def _level(cells: Cells, s: Setup, run: _Run, centre: np.ndarray, half: np.ndarr
         cfg = np.repeat(s.base[None, :], int(maybe_singular.sum()), axis=0)
         cfg[:, s.active] = centre[maybe_singular]
         run.sing_cfg.append(cfg)
+        widths = np.zeros_like(cfg)
+        widths[:, s.active] = half[maybe_singular]
+        run.sing_half.append(widths)
     mark_touching(y3[leaf], eps[leaf], cells.origin3, h, d, cells.touched)
     run.levels.append({"boxes": float(len(centre)), "settled": float(settled.sum()), "leaves": float(leaf.sum()),
                        "max_eps_m": float(eps.max()),
@@ -335,4 +339,5 @@ def _result(robot: Robot, kin: BatchedKinematics, s: Setup, cells: Cells, run: _
         axis_direction=s.axis_direction,
         levels=tuple(run.levels),
         plane_offset=plane_offset,
+        singular_half_widths=np.concatenate(run.sing_half) if run.sing_half else np.zeros((0, robot.nv)),
     )

@@ -67,7 +67,10 @@ class SerialWorkspace:
             evaluated there (max, min, max); NaN where none was.
         singular_points: (K, d) task coordinates of boxes that may hold a rank-deficient
             Jacobian; singular_radius: (K,) the box's image lies within this distance [m];
-            singular_configurations: (K, nv) the boxes' centres (joint values).
+            singular_configurations: (K, nv) the boxes' centres (joint values);
+            singular_half_widths: (K, nv) their half-widths [rad or m] (0 for the joints not
+            sampled: those that never move the point, and a revolved arm's base joint, whose
+            every angle the box stands for).
     """
 
     robot: str
@@ -99,6 +102,7 @@ class SerialWorkspace:
     axis_direction: np.ndarray | None = None
     levels: tuple[dict[str, float], ...] = field(default=())
     plane_offset: float = 0.0
+    singular_half_widths: np.ndarray | None = None
 
     @property
     def planar(self) -> bool:
