@@ -12,6 +12,7 @@ the yaw turns that plane, a point's world x being u cos psi.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -177,6 +178,14 @@ def test_human_report_and_bad_input(arm3, capsys, tmp_path):  # noqa: F811
     assert code == 0, err
     assert "colliding singular configurations:" in out and "free at every base angle" in out
     assert "whole boxes certified free:" in out
+    # the table's collision column says what the JSON says of each point it shows (every len // 10-th)
+    code, js, err = run(capsys, "singularities", str(arm3 / "arm3.urdf"), "--obstacles", str(arm3 / "wall.yaml"),
+                        "--max-points", "20000", "--json")
+    points = json.loads(js)["singular_points"]
+    shown = points[:: max(1, len(points) // 10)]
+    table = out.split("collisions (centre)", 1)[1]
+    assert table.count("colliding (") == sum(p["colliding"] for p in shown) > 0
+    assert table.count("; free at ") == sum("base_angles" in p for p in shown) > 0
     bare = tmp_path / "bare.urdf"
     bare.write_text(_arm3(False).replace("<collision>", "<!--").replace("</collision>", "-->"))
     code, out, err = run(capsys, "singularities", str(bare), "--obstacles", str(arm3 / "wall.yaml"))

@@ -108,7 +108,9 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
 
     def human() -> str:
         rad = payload["radius_m"]
-        rows = [(fmt(p["position"], 4), fmt(p["radius_m"], 3)) for p in sample[:: max(1, len(sample) // 10)]]
+        shown = sample[:: max(1, len(sample) // 10)]
+        rows = [(fmt(p["position"], 4), fmt(p["radius_m"], 3), *([_serial_collision_cell(p)] if checks else []))
+                for p in shown]
         return "\n".join([
             f"{robot.name}: joint boxes of frame {ws.frame} that may hold a rank-deficient position Jacobian",
             key_values([
@@ -120,7 +122,8 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
             "tolerance: " + payload["tolerance"],
             *([_serial_collision_line(payload["collisions"])] if checks is not None else []),
             "",
-            table(["position [m] (sample)", "radius [m]"], rows) if rows else "no singular box",
+            table(["position [m] (sample)", "radius [m]", *(["collisions (centre)"] if checks else [])], rows)
+            if rows else "no singular box",
         ])
 
     out(args, payload, human)
@@ -320,6 +323,15 @@ _VERDICT = {
     "in the configuration": "each box judged at its centre, every joint as listed (the box's other configurations "
                             "unchecked: half_width beside)",
 }
+
+
+def _serial_collision_cell(point: dict[str, Any]) -> str:
+    """One listed box's collision verdict for the human table: colliding (its pair) or free at the
+    listed angle, the free base angles where the turn matters, and a whole box certified free."""
+    cell = f"colliding ({' - '.join(point['pair'])})" if point["colliding"] else "free"
+    if "base_angles" in point:
+        cell += f"; free at {point['base_angles']['free']} base angle{'s' if point['base_angles']['free'] == 'some' else ''}"
+    return cell + ("; whole box free" if point["box_free"] else "")
 
 
 def _serial_collision_line(c: dict[str, Any]) -> str:
