@@ -48,8 +48,8 @@ GJK_TOL = 1e-10
 out up to ~1e-7 m long, e.g. a hull farther than the mesh inside it)."""
 
 NEAR = 1e-3
-"""[m] Where only signs matter (`CollisionModel.distances(near=True)`), a mesh pair's distance at
-or above NEAR is reported as NEAR."""
+"""[m] Where only signs matter (`CollisionModel.distances(near=True)`), a mesh pair whose hulls
+overlap and whose meshes are at least NEAR apart is reported at NEAR."""
 
 TOUCH_TOL = 1e-6
 """Distance [m] at or below which two bodies count as touching at the reference configuration."""
