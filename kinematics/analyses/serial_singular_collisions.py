@@ -109,7 +109,7 @@ class SingularCollisions:
 
     def free_measure(self) -> np.ndarray:
         """(K,) total width [rad] of the certified free base-angle intervals."""
-        return np.array([float((f[:, 1] - f[:, 0]).sum()) for f in self.free_intervals])
+        return _widths(self.free_intervals)
 
 
 def singular_collisions(robot: Any, ws: Any, model: CollisionModel, values: np.ndarray,
@@ -159,11 +159,16 @@ def singular_collisions(robot: Any, ws: Any, model: CollisionModel, values: np.n
     r = _axis_radii(robot, model, configurations(robot, values), ws.axis_origin, ws.axis_direction)[:, body[varies]]
     base = dof_of(robot, v0)
     free, samples, count, hits = _bisect(robot, dist, values, base, varies, r, D, step)
-    meas = np.array([float((f[:, 1] - f[:, 0]).sum()) for f in free])
+    meas = _widths(free)
     stuck = (D[:, ~varies] < 0).any(axis=1) if (~varies).any() else np.zeros(K, dtype=bool)
     verdict = np.where(meas >= 2 * math.pi * (1 - 1e-12), "every",
                        np.where((meas > 0) | (samples > 0), "some", np.where(stuck, "none", "none found")))
     return SingularCollisions(depth, pair, "varies", base, tuple(free), samples, count, hits, verdict, step, box)
+
+
+def _widths(intervals: Any) -> np.ndarray:
+    """(K,) total width of each configuration's (F, 2) intervals."""
+    return np.array([float((f[:, 1] - f[:, 0]).sum()) for f in intervals])
 
 
 def _smallest(D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

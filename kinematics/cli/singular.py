@@ -285,6 +285,7 @@ def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any) ->
     shape = (len(pts), robot.nv)
     res = singular_collisions(robot, ws, checks, np.array([p["q"] for p in pts]).reshape(shape),
                               np.array([p["half_width"] for p in pts]).reshape(shape))
+    widths = res.free_measure()
     for k, item in enumerate(pts):
         item["colliding"] = bool(res.colliding[k])
         item["box_free"] = bool(res.box_free[k])
@@ -292,7 +293,7 @@ def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any) ->
             item["pair"] = list(checks.pair_links[int(res.pair[k])])
         if res.base_angle == "varies":
             f = res.free_intervals[k]
-            item["base_angles"] = {"free": str(res.verdict[k]), "free_rad": float((f[:, 1] - f[:, 0]).sum()),
+            item["base_angles"] = {"free": str(res.verdict[k]), "free_rad": float(widths[k]),
                                    "free_intervals": f.tolist(), "free_samples": int(res.free_samples[k]),
                                    "samples": int(res.samples[k]),
                                    "colliding_samples": int(res.colliding_samples[k])}

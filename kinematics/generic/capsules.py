@@ -204,7 +204,7 @@ class AnalyticDistances:
             rows = np.flatnonzero(~ok & np.isin(pair, self._bound_of))
             if len(rows):  # coal pairs whose bounding capsules are apart
                 column = np.searchsorted(self._bound_of, pair[rows])
-                bound = self._bound.closed_form(q[rows])[0][np.arange(len(rows)), column]  # type: ignore[union-attr]
+                bound = self._bound.pair_distances(q[rows], column)  # type: ignore[union-attr]
                 apart = bound > 0
                 out[rows[apart]], ok[rows[apart]] = bound[apart], True
         rows = np.flatnonzero(~ok)
