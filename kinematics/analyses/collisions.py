@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -52,6 +52,10 @@ from kinematics.generic.collision import CollisionModel
 from kinematics.generic.obstacles import Obstacles
 from kinematics.mechanisms.base import UNION, Mechanism
 from kinematics.sizes import MAX_POINTS
+
+if TYPE_CHECKING:
+    from kinematics.analyses.serial_collisions import Turn
+    from kinematics.generic.turn_envelope import TurnEnvelope
 
 SERIAL_PRESCAN_CELLS = 24
 """Grid points per axis of a serial arm's pre-scan in 3-D (each point runs the reach search and,
@@ -340,6 +344,49 @@ def _take(r: ColumnVolume, idx: list[int]) -> ColumnVolume:
                                target_converged=r.target_converged[idx], check_agrees=r.check_agrees[idx])
 
 
+def _serial_route(mech: Mechanism, robot: Any, cm: CollisionModel, dist: AnalyticDistances, lo: np.ndarray,
+                  hi: np.ndarray, watch: int, turn: Turn) -> tuple[Any, Prescan, list[tuple[int, int]], list[int],
+                                                                   TurnEnvelope | None, dict[str, Any]]:
+    """A serial arm's margin (`serial_collisions.serial_margin`), its pre-scan (of the profile
+    where it has one), the binding pairs, the watched ones, the turn envelope used and the report's
+    `search` and `turn` entries."""
+    from kinematics.analyses.serial_collisions import serial_margin
+
+    plain, env = serial_margin(mech, robot, cm, dist, turn)
+    on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
+    scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
+            else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
+    found, watched = _binding(scan, watch)
+    r = plain.reach
+    route = "envelope" if env is not None else "profile" if shape is not None else r.setup.mode
+    extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts},
+             "turn": {"route": route}}
+    return plain.with_prescan(watched, scan), scan, found, watched, env, extra
+
+
+def _bracket(res: ColumnVolume, B: int, low: int, high: int, rtol: float) -> tuple[ColumnVolume, dict[str, Any]]:
+    """The run's B branch targets and the union, the bracket of `low` (the lower bound, the
+    union's column) and `high` (the upper bound): the bracket's midpoint: error the half-width plus the larger of
+    the two error estimates (the true measure lies in [low - its error, high + its error]),
+    converged where both bounds are and that error is <= rtol x the midpoint; the half-width is the
+    error no finer step reduces (`fixed_error`). Also the report's entries of the two bounds."""
+    keep = list(range(B))
+    lo_v, hi_v = float(res.estimate[low]), float(res.estimate[high])
+    half = 0.5 * max(hi_v - lo_v, 0.0)
+    mid = 0.5 * (lo_v + hi_v)
+    err = half + max(float(res.error[low]), float(res.error[high]))
+    ok = bool(res.target_converged[low] and res.target_converged[high] and err <= rtol * abs(mid))
+    pick = [*keep, low]
+    out = dataclasses.replace(
+        res, estimate=np.append(res.estimate[keep], mid), error=np.append(res.error[keep], err),
+        check_difference=res.check_difference[pick], target_converged=np.append(res.target_converged[keep], ok),
+        check_agrees=np.append(res.check_agrees[keep], bool(res.check_agrees[low] and res.check_agrees[high])),
+        fixed_error=np.append(np.zeros(len(keep)), half), converged=bool(res.converged and ok), rtol=rtol)
+    bounds = {"route": "envelope", "lower": lo_v, "lower_error_estimate": float(res.error[low]),
+              "upper": hi_v, "upper_error_estimate": float(res.error[high]), "half_width": half}
+    return out, bounds
+
+
 def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.005, rtol: float | None = 1e-3,
                                 branches: Sequence[str] | None = None, limits: str = "all",
                                 progress: bool = False, check: bool = True,
@@ -347,7 +394,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                                 box: tuple[np.ndarray, np.ndarray] | None = None,
                                 max_points: int | None = None, watch: int = MAX_WATCHED,
                                 obstacles: Obstacles | None = None, self_collisions: bool = True,
-                                exact: bool = True) -> CollisionWorkspace:
+                                exact: bool = True, turn: Turn = "auto") -> CollisionWorkspace:
     """Volume (area) of each branch's collision-free workspace and of their union, with the
     kinematic union and each binding pair's removal measured in the same column run.
 
@@ -368,6 +415,12 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         self_collisions: with the default model, check the robot's own pairs (False: obstacles only).
         exact: use the collision-free exact columns where the mechanism has exact columns (False:
             sampled columns, the route of any other mechanism).
+        turn: a serial arm with a full-turn base and pairs its turn changes (a fixed body against
+            a carried one, `serial_collisions.Turn`): "auto" measures the profile with each fixed
+            body's turn envelope (a lower bound) and without its pairs (an upper bound) in one run,
+            each to rtol / 2, and reports their midpoint, its error the half-width plus the larger
+            error estimate; where that exceeds rtol x the volume it measures in 3-D instead.
+            "envelope" keeps the bracket (then not converged), "spatial" measures in 3-D.
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
@@ -380,17 +433,9 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     t0 = time.perf_counter()
     margin: Any
     extra: dict[str, Any] = {}
+    env = None
     if "reach_search" in mech.capabilities:  # the reach search's configurations (`analyses.serial_collisions`)
-        from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach
-
-        plain = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
-        on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
-        scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
-                else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
-        found, watched = _binding(scan, watch)
-        margin = plain.with_prescan(watched, scan)
-        r = plain.reach
-        extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts}}
+        margin, scan, found, watched, env, extra = _serial_route(mech, robot, cm, dist, lo, hi, watch, turn)
     else:
         scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
         found, watched = _binding(scan, watch)
@@ -403,16 +448,33 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     if not scan.near.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
         res = run(margin.kinematic)
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
+        env = None
     else:
         if exact:
             from kinematics.analyses.collision_columns import SPACING, ExactCollisionMargin, has_exact_columns
 
             if has_exact_columns(margin):
                 margin = ExactCollisionMargin(margin, scan, SPACING * step, root_tolerance(rtol, step))
-        res = run(margin)
+        # with a turn envelope, each bound to half the tolerance: the bracket's half-width takes the rest
+        res = run(margin, rtol=rtol / 2 if env is not None else rtol)
         kin, kin_err = float(res.estimate[B]), float(res.error[B])
         removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]
-        res = _take(res, [*range(B), B + 1 + W])
+        if env is not None:
+            res, bounds = _bracket(res, B, B + 2 + W, B + 1 + W, rtol)
+            extra["turn"] = {**bounds, "enveloped": [
+                {"link": link, "geometry": name, "bands": [{"from_m": b.lo, "to_m": b.hi, "radius_m": b.radius}
+                                                           for b in bands]} for link, name, bands in env.enveloped]}
+            if not res.target_converged[-1] and turn == "auto":  # the bracket is too wide: in 3-D
+                again = measure_collision_workspace(
+                    mech, robot, step=step, rtol=rtol, branches=branches, limits=limits, progress=progress,
+                    check=check, collision_model=cm, box=box, max_points=max_points, watch=watch, turn="spatial")
+                again.collision["turn"] = {**extra["turn"], "route": "spatial",
+                                           "why": "the envelope's bracket did not meet the tolerance"}
+                return again
+        else:
+            res = _take(res, [*range(B), B + 1 + W])
+    if env is not None:
+        cm = env.model
     ws = Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res,
                    time.perf_counter() - t0, mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], removed, error, count)

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -64,6 +64,7 @@ from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
 
 if TYPE_CHECKING:
     from kinematics.generic.collision import CollisionModel
+    from kinematics.generic.turn_envelope import TurnEnvelope
 
 ESCALATE = 4
 """Where every restart's configuration collides, the next (ESCALATE - 1) x `restarts` nearest
@@ -96,15 +97,41 @@ ESCAPE_CLEARANCE = 0.005
 """[m] The binding pair's distance a step aims at (its linear model's)."""
 
 
-def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
-    """Whether every checked pair keeps its distances when the first chain joint turns: both of
-    its bodies are carried by that joint (in its subtree of the kinematic tree)."""
+def carried_joints(robot: Any, reach: Reach) -> set[int]:
+    """The joints the first chain joint (the base joint) carries: its subtree of the kinematic tree."""
     model = robot.model
     first = next(j for j in range(1, model.njoints) if model.joints[j].idx_v == int(reach.kin.idx_v[0]))
-    carried = set(model.subtrees[first])
-    objs = distances.model.geometry.geometryObjects
-    return all(int(objs[a].parentJoint) in carried and int(objs[b].parentJoint) in carried
-               for a, b in distances.model.pairs)
+    return set(model.subtrees[first])
+
+
+def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
+    """Whether every checked pair keeps its distances when the first chain joint turns: both of
+    its bodies are carried by that joint (in its subtree of the kinematic tree) or neither is, or
+    the one not carried is unchanged by turns about the joint's axis (`turn_envelope.coaxial`: a
+    floor's half-space, a coaxial cylinder)."""
+    import pinocchio as pin
+
+    from kinematics.generic.turn_envelope import coaxial
+
+    carried = carried_joints(robot, reach)
+    geometry = distances.model.geometry
+    objs = geometry.geometryObjects
+    placed = None
+    for a, b in distances.model.pairs:
+        ca, cb = int(objs[a].parentJoint) in carried, int(objs[b].parentJoint) in carried
+        if ca == cb:
+            continue
+        if reach.setup.mode != "revolved":
+            return False
+        if placed is None:  # the fixed bodies' world placements (off-chain joints at the setup's values)
+            values = np.array(reach.setup.base, dtype=float)
+            placed = pin.GeometryData(geometry)
+            pin.updateGeometryPlacements(robot.model, robot.model.createData(), geometry, placed,
+                                         configurations(robot, values[None, :])[0])
+        k = b if ca else a
+        if not coaxial(objs[k].geometry, placed.oMg[k], reach.origin, reach.basis[2]):
+            return False
+    return True
 
 
 def collision_reach(mech: Mechanism, robot: Any, distances: AnalyticDistances) -> Reach:
@@ -121,6 +148,34 @@ def collision_reach(mech: Mechanism, robot: Any, distances: AnalyticDistances) -
     return reach
 
 
+Turn = Literal["auto", "envelope", "spatial"]
+"""How a collision-aware volume treats pairs a full-turn base's turn changes (a body fixed in the
+world against a carried one): "envelope" measures the profile twice in one run, with each fixed
+body replaced by its turn envelope (a lower bound) and without its pairs (an upper bound),
+"spatial" measures in 3-D, "auto" tries the envelope first and falls back to 3-D where its
+bracket does not meet the tolerance (`kinematics.analyses.collisions.measure_collision_workspace`)."""
+
+
+def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances: AnalyticDistances,
+                  turn: Turn = "auto") -> tuple[SerialCollisionMargin, TurnEnvelope | None]:
+    """The collision-aware margin of a serial arm for a volume, and the turn envelope it uses
+    (None: it measures `model`'s own pairs, on the profile where they all turn with a full-turn
+    base, else in 3-D). With turn "auto" or "envelope", a full-turn arm with pairs the turn changes
+    gets the enveloped model's margin on the profile, its `exact` pairs those of the upper bound,
+    where every fixed body has an envelope (`kinematics.generic.turn_envelope`)."""
+    from kinematics.generic.turn_envelope import turn_envelope
+
+    reach = collision_reach(mech, robot, distances)
+    native = mech.reach_search()
+    if turn == "spatial" or reach is native or native.turn is not None or native.setup.mode != "revolved":
+        return SerialCollisionMargin(mech, robot, distances, reach), None
+    q = configurations(robot, np.asarray(native.setup.base, dtype=float)[None, :])[0]
+    env = turn_envelope(model, q, native.origin, native.basis[2], carried_joints(robot, native))
+    if env is None:
+        return SerialCollisionMargin(mech, robot, distances, reach), None
+    return SerialCollisionMargin(mech, robot, AnalyticDistances(env.model), native, exact=env.exact), env
+
+
 class SerialCollisionMargin:
     """The collision-aware margin of a serial arm (module docstring) as a column engine margin:
     points (N, d) -> (N, 2 + W) columns: the kinematic margin k, the margin with each watched pair
@@ -129,11 +184,15 @@ class SerialCollisionMargin:
     through it."""
 
     def __init__(self, mech: Mechanism, robot: Any, distances: AnalyticDistances, reach: Reach,
-                 watched: Any = (), prescan: Prescan | None = None, on_profile: bool = False) -> None:
+                 watched: Any = (), prescan: Prescan | None = None, on_profile: bool = False,
+                 exact: np.ndarray | None = None) -> None:
         self.mech, self.robot, self.distances, self.reach = mech, robot, distances, reach
         # the pre-scan's one column of k: an arm has no branches, its margin is the union's
         self.branches, self.limits = (UNION,), "all"
         self.watched = np.asarray(watched, dtype=np.int64)
+        self.exact = None if exact is None else np.asarray(exact, dtype=np.int64)
+        """With a turn envelope (`measure_collision_workspace`): the pairs of the upper bound, whose
+        target (the union with these pairs alone) follows the watched pairs' columns."""
         self.prescan, self.on_profile = prescan, on_profile
         self.kinematic = ReachMargin(reach, on_profile)
         self.search_budget: int | None = SEARCHES if reach.setup.mode == "spatial" else None
@@ -146,18 +205,18 @@ class SerialCollisionMargin:
     def on_the_profile(self) -> SerialCollisionMargin:
         """The same margin on the (rho, z) profile (revolved mode)."""
         return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach, self.watched, self.prescan,
-                                     True)
+                                     True, self.exact)
 
     def with_prescan(self, watched: Any, prescan: Prescan) -> SerialCollisionMargin:
         """This margin with `watched` pairs, the distances evaluated in `prescan`'s close cells only
         (a revolved arm's pre-scan is of its profile)."""
         return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach, watched, prescan,
-                                     self.on_profile)
+                                     self.on_profile, self.exact)
 
     def for_check(self) -> SerialCollisionMargin:
         """The check run's margin: the search with twice the samples and restarts."""
         return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach.checker, self.watched,
-                                     self.prescan, self.on_profile)
+                                     self.prescan, self.on_profile, self.exact)
 
     def _world(self, pts: np.ndarray) -> np.ndarray:
         return self.reach.profile_world(pts) if self.on_profile else self.reach.world(pts)
@@ -173,14 +232,14 @@ class SerialCollisionMargin:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """At points (N, d): k (N,), the best configuration's smallest distance (N,) (+inf where
         not evaluated: k <= 0 or outside the pre-scan's close cells), each watched pair's best
-        distance (N, W), every pair's distances at the best configuration (N, P) and its chain
+        distance (N, W) (then, with `exact`, the best of the smallest over those pairs), every pair's distances at the best configuration (N, P) and its chain
         values (N, n) (the search's solution where not evaluated)."""
         pts = np.asarray(points, dtype=float)
         if self.profile_margin is not None:  # unchanged by the base's turn: the profile's
             return self.profile_margin.evaluate(self.reach.profile_of(pts), signs)
         world = self._world(pts)
         k, Q0 = (self.reach.profile_search(pts) if self.on_profile else self.reach.distance(world))
-        P, W = len(self.distances.kinds), len(self.watched)
+        P, W = len(self.distances.kinds), len(self.watched) + (self.exact is not None)
         best, watch, at = np.full(len(pts), np.inf), np.full((len(pts), W), np.inf), np.full((len(pts), P), np.inf)
         inside = k > 0
         if self.prescan is not None:
@@ -189,7 +248,7 @@ class SerialCollisionMargin:
         if not len(idx) or not P:
             return k, best, watch, at, Q0
         D = self.distances.distances(self.full_configurations(Q0[idx]), signs=signs)
-        best[idx], watch[idx], at[idx] = D.min(axis=1), D[:, self.watched], D
+        best[idx], watch[idx], at[idx] = D.min(axis=1), self._grouped(D), D
         qbest = np.array(Q0)
         # colliding at the first solution: each restart's, then (still colliding) ESCALATE x as many
         n = self.reach.restarts
@@ -210,7 +269,7 @@ class SerialCollisionMargin:
             best[sel] = low[better, c[better]]
             at[sel] = Ds[better, c[better]]
             qbest[sel] = Qs[better, c[better]]
-            watch[more] = np.maximum(watch[more], Ds[:, :, self.watched].max(axis=1))
+            watch[more] = np.maximum(watch[more], self._grouped(Ds).max(axis=1))
         if self.reach.orientation is None and int(self.reach.searched.sum()) > len(self.reach.setup.rows):  # redundant
             self._escape(world, idx[best[idx] <= 0], qbest, best, watch, at, signs)
         return k, best, watch, at, qbest
@@ -249,8 +308,17 @@ class SerialCollisionMargin:
             better = (low > best[rows]) & (norm > 1e-12)
             sel = rows[better]
             best[sel], at[sel], Q[sel] = low[better], D[better], Qn[better, 0]
-            watch[sel] = np.maximum(watch[sel], D[better][:, self.watched])
+            watch[sel] = np.maximum(watch[sel], self._grouped(D[better]))
             rows = sel[low[better] <= 0]
+
+    def _grouped(self, D: np.ndarray) -> np.ndarray:
+        """(..., W) the watched pairs' distances of D (..., P), then, with `exact`, the smallest
+        over those pairs (+inf: none)."""
+        out = D[..., self.watched]
+        if self.exact is None:
+            return out
+        low = D[..., self.exact].min(axis=-1) if len(self.exact) else np.full(D.shape[:-1], np.inf)
+        return np.concatenate([out, low[..., None]], axis=-1)
 
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
         """(M, P) pair distances at the best configuration found at the points `inside` (a mask)
@@ -338,5 +406,5 @@ def collision_grid(mech: Mechanism, robot: Any, model: CollisionModel, step: flo
                          margin)
 
 
-__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "collision_grid", "collision_reach",
-           "turn_invariant"]
+__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "Turn", "carried_joints", "collision_grid",
+           "collision_reach", "serial_margin", "turn_invariant"]

@@ -215,6 +215,8 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 *([("tool held at", held["text"])] if held else []),
                 *([("search", _search_text(payload["collisions"]["search"]))] if "search" in payload["collisions"]
                   else []),
+                *([("fixed bodies", _turn_text(payload["collisions"]["turn"], unit))]
+                  if "lower" in payload["collisions"].get("turn", {}) else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
@@ -228,9 +230,18 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
 
 def _search_text(search: dict[str, Any]) -> str:
     """A serial arm's search (`analyses.serial_collisions`): where it ran and its effort."""
-    where = {"revolved": "on the profile (every pair turns with the base)",
+    where = {"revolved": "on the profile (every pair unchanged by the base's turn)",
              "spatial": "in 3-D", "planar": "in the arm's plane"}.get(search["mode"], search["mode"])
     return f"{where}; {search['samples']:,} samples, {search['restarts']} restarts"
+
+
+def _turn_text(turn: dict[str, Any], unit: str) -> str:
+    """The turn envelope's bracket of a serial arm's fixed bodies (`analyses.collisions`)."""
+    bodies = ", ".join(e["link"] for e in turn["enveloped"])
+    bracket = (f"{bodies} bracketed: {fmt(turn['lower'], 6)} +/- {fmt(turn['lower_error_estimate'], 2)} (swept over "
+               f"a full turn) to {fmt(turn['upper'], 6)} +/- {fmt(turn['upper_error_estimate'], 2)} {unit} (their "
+               f"pairs left out), half-width {fmt(turn['half_width'], 2)}")
+    return bracket if turn["route"] == "envelope" else f"{bracket}: too wide, measured in 3-D"
 
 
 _LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}

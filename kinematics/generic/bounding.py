@@ -107,7 +107,7 @@ def bound_model(model: Any, pairs: np.ndarray) -> BoundModel | None:
             if fit is None:
                 return None
             centre, axis, radius, half = fit
-            placement = g.placement * pin.SE3(_frame_of(axis), centre)
+            placement = g.placement * pin.SE3(frame_along(axis), centre)
             shape = coal.Capsule(radius, 2.0 * half)
         index[k] = geometry.ngeoms
         geometry.addGeometryObject(pin.GeometryObject(g.name, g.parentJoint, g.parentFrame, placement, shape))
@@ -127,7 +127,7 @@ def bound_model(model: Any, pairs: np.ndarray) -> BoundModel | None:
     return BoundModel(model.robot, geometry, tuple(kept), np.array(of, dtype=np.int64))
 
 
-def _frame_of(axis: np.ndarray) -> np.ndarray:
+def frame_along(axis: np.ndarray) -> np.ndarray:
     """A rotation whose z column is the unit vector `axis`."""
     z = axis / np.linalg.norm(axis)
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -136,4 +136,4 @@ def _frame_of(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-__all__ = ["INFLATE", "BoundModel", "bound_model", "bounding_capsule", "capsule_of_points"]
+__all__ = ["INFLATE", "BoundModel", "bound_model", "bounding_capsule", "capsule_of_points", "frame_along"]
