@@ -4,11 +4,13 @@ self-collisions through coal).
 Per robot: the kinematic `workspace-volume` (`measure_workspace`: the reach search on the
 revolved profile where the base turns fully) and `--collisions`
 (`analyses.collisions.measure_collision_workspace` -> `analyses.serial_collisions`: pairs with
-the base link change with the base's turn, so the search runs in 3-D; the same run measures the
-kinematic union in 3-D), at the same step and rtol; wall and CPU seconds, the time ratio, the
-volume the collisions remove and the pairs that bind most.
+the base link change with the base's turn; `--turns auto` brackets them on the profile by the
+base link's turn envelope, `--turns spatial` searches in 3-D; the same run measures the kinematic
+union), at the same step and rtol; wall and CPU seconds, the time ratio, the volume the
+collisions remove, the bracket and the pairs that bind most, one row per robot and turn.
 
-Run: python benchmarks/bench_serial_collisions.py [--robots ur5] [--rtol 0.1] [--step 0.1] [--no-check] [--quick] [--json]
+Run: python benchmarks/bench_serial_collisions.py [--robots ur5] [--turns auto spatial] [--rtol 0.1] [--step 0.1]
+     [--no-check] [--quick] [--json]
 The JSON holds JSON_KEYS: `rows`, one per robot with ROW_KEYS, and `machine`.
 """
 
@@ -25,22 +27,27 @@ from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot
 
 JSON_KEYS = ("rows", "machine")
-ROW_KEYS = ("robot", "rtol", "step", "check", "kinematic_volume", "kinematic_error", "kinematic_seconds",
+ROW_KEYS = ("robot", "turn", "route", "bracket", "rtol", "step", "check", "kinematic_volume", "kinematic_error", "kinematic_seconds",
             "kinematic_cpu_seconds", "same_run_kinematic_volume", "same_run_kinematic_error", "collision_volume",
             "collision_error", "collision_seconds", "collision_cpu_seconds", "time_ratio", "removed", "search",
             "binding_pairs", "converged", "points_evaluated")
 
 
-def measure(robot_name: str, rtol: float, step: float, check: bool, max_points: int | None) -> dict:
+def measure(robot_name: str, turn: str, rtol: float, step: float, check: bool, max_points: int | None) -> dict:
     robot = load_robot(robot_name)
     mech = mechanism_of(robot)
     t, c = time.perf_counter(), time.process_time()
     kin = measure_workspace(mech, step=step, rtol=rtol, check=check)
     kin_s, kin_c = time.perf_counter() - t, time.process_time() - c
     t, c = time.perf_counter(), time.process_time()
-    cw = measure_collision_workspace(mech, robot, step=step, rtol=rtol, check=check, max_points=max_points)
+    cw = measure_collision_workspace(mech, robot, step=step, rtol=rtol, check=check, max_points=max_points,
+                                     turn=turn)  # type: ignore[arg-type]
     col_s, col_c = time.perf_counter() - t, time.process_time() - c
-    return {"robot": robot_name, "rtol": rtol, "step": step, "check": check,
+    bounds = cw.collision.get("turn", {})
+    return {"robot": robot_name, "turn": turn, "route": bounds.get("route"),
+            "bracket": {k: bounds[k] for k in ("lower", "lower_error_estimate", "upper", "upper_error_estimate",
+                                               "half_width") if k in bounds} or None,
+            "rtol": rtol, "step": step, "check": check,
             "kinematic_volume": kin.total, "kinematic_error": kin.error, "kinematic_seconds": kin_s,
             "kinematic_cpu_seconds": kin_c, "same_run_kinematic_volume": cw.kinematic,
             "same_run_kinematic_error": cw.kinematic_error, "collision_volume": cw.workspace.total,
@@ -53,6 +60,8 @@ def measure(robot_name: str, rtol: float, step: float, check: bool, max_points: 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", nargs="+", default=["ur5"])
+    ap.add_argument("--turns", nargs="+", default=["auto"], choices=["auto", "envelope", "spatial"],
+                    help="how pairs the base's turn changes are measured (`serial_collisions.Turn`)")
     ap.add_argument("--rtol", type=float, default=0.1)
     ap.add_argument("--step", type=float, default=0.1, help="column step [m]")
     ap.add_argument("--no-check", dest="check", action="store_false", help="no check run (half the step, "
@@ -61,7 +70,8 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = parse(ap, {"rtol": 0.3, "step": 0.3, "check": False, "max_points": 8_000})
     machine = calibration()
-    rows = [measure(r, args.rtol, args.step, args.check, args.max_points) for r in args.robots]
+    rows = [measure(r, turn, args.rtol, args.step, args.check, args.max_points) for r in args.robots
+            for turn in args.turns]
     out = {"rows": rows, "machine": machine}
     if args.json:
         print(dump(out))
@@ -69,13 +79,17 @@ def main() -> None:
     print(machine_line(machine))
     for r in rows:
         pairs = ", ".join(f"{a}-{b} {p['removed']:.3g}" for p in r["binding_pairs"] for a, b in [p["links"]])
-        print(f"{r['robot']}, rtol {r['rtol']:g}, step {r['step']:g} m, check {r['check']}: kinematic "
+        b = r["bracket"]
+        bracket = (f"; bracket {b['lower']:.6g} +/- {b['lower_error_estimate']:.2g} to {b['upper']:.6g} +/- "
+                   f"{b['upper_error_estimate']:.2g}" if b else "")
+        print(f"{r['robot']}, turn {r['turn']} (route {r['route']}), rtol {r['rtol']:g}, step {r['step']:g} m, "
+              f"check {r['check']}: kinematic "
               f"{r['kinematic_volume']:.5g} +/- {r['kinematic_error']:.2g} m^3 in {r['kinematic_seconds']:.2f} s "
               f"({r['kinematic_cpu_seconds']:.2f} s CPU); collision-free {r['collision_volume']:.5g} +/- "
               f"{r['collision_error']:.2g} m^3 (same run's kinematic {r['same_run_kinematic_volume']:.5g} +/- "
               f"{r['same_run_kinematic_error']:.2g}, search {r['search']['mode']}) in {r['collision_seconds']:.1f} s "
               f"({r['collision_cpu_seconds']:.1f} s CPU) ({r['time_ratio']:.0f} x); converged {r['converged']}; "
-              f"{r['points_evaluated']} points; binding: {pairs or 'none'}")
+              f"{r['points_evaluated']} points; binding: {pairs or 'none'}{bracket}")
 
 
 if __name__ == "__main__":

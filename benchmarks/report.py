@@ -138,8 +138,8 @@ def _collisions(o: dict[str, Any]) -> list[Row]:
 
 
 def _serial_collisions(o: dict[str, Any]) -> list[Row]:
-    return [((f"{r['robot']} volume with self-collisions (rtol {r['rtol']:g}, step {r['step']:g} m, search "
-              f"{r['search']['mode']}; wall / CPU)"),
+    return [((f"{r['robot']} volume with self-collisions (rtol {r['rtol']:g}, step {r['step']:g} m, turn "
+              f"{r['turn']}: {r['route']}, search {r['search']['mode']}; wall / CPU)"),
              (f"{num(r['collision_volume'], 4)} +/- {num(r['collision_error'], 2)} m^3 (kinematic "
               f"{num(r['kinematic_volume'], 4)}) in {sec(r['collision_seconds'])} / {sec(r['collision_cpu_seconds'])} "
               f"CPU, {num(r['time_ratio'], 2)} x the kinematic run")) for r in o["rows"]]

@@ -119,6 +119,38 @@ def test_box_and_sphere_bands_by_hand():
     assert (band.lo, band.hi) == pytest.approx((0.15, 0.25), abs=1e-12)
 
 
+def test_a_stepped_mesh_is_bounded_by_its_own_triangles():
+    """A flange and a shaft (coaxial cylinders of radius 0.1 m, z 0-0.02 m, and 0.05 m, z 0.02-0.12
+    m, as triangle meshes, their vertices on the circles): bounded through the mesh, two bands, the
+    flange's radius up to the slice holding z = 0.02 m (64 slices of 0.12 m: to 0.020625 m) and the
+    shaft's above; through the mesh's convex hull (a cone between them) every band above the flange
+    is wider."""
+    import coal
+    import trimesh
+
+    flange = trimesh.creation.cylinder(radius=0.1, height=0.02)
+    flange.apply_translation([0, 0, 0.01])
+    shaft = trimesh.creation.cylinder(radius=0.05, height=0.1)
+    shaft.apply_translation([0, 0, 0.07])
+    both = trimesh.util.concatenate([flange, shaft])
+    mesh = coal.BVHModelOBBRSS()
+    mesh.beginModel(len(both.faces), len(both.vertices))
+    tris, verts = coal.StdVec_Triangle(), coal.StdVec_Vec3s()
+    for f in both.faces:
+        tris.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
+    for v in np.asarray(both.vertices):
+        verts.append(v)
+    mesh.addSubModel(verts, tris)
+    mesh.endModel()
+    mesh.buildConvexHull(True, "Qt")
+    o, u = np.zeros(3), np.array([0.0, 0.0, 1.0])
+    low, high = envelope_bands(mesh.convex, pin.SE3.Identity(), o, u, mesh=mesh)
+    assert (low.lo, low.hi, high.hi) == pytest.approx((0.0, 0.12 * 11 / 64, 0.12), abs=1e-12)
+    assert (low.radius, high.radius) == pytest.approx((0.1, 0.05), abs=2e-12)
+    hull = envelope_bands(mesh.convex, pin.SE3.Identity(), o, u)
+    assert all(b.radius > 0.06 for b in hull)
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_bands_of_a_convex_polytope_hold_it_tightly(seed):

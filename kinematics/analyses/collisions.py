@@ -364,29 +364,6 @@ def _serial_route(mech: Mechanism, robot: Any, cm: CollisionModel, dist: Analyti
     return plain.with_prescan(watched, scan), scan, found, watched, env, extra
 
 
-def _bracket(res: ColumnVolume, B: int, low: int, high: int, rtol: float) -> tuple[ColumnVolume, dict[str, Any]]:
-    """The run's B branch targets and the union, the bracket of `low` (the lower bound, the
-    union's column) and `high` (the upper bound): the bracket's midpoint: error the half-width plus the larger of
-    the two error estimates (the true measure lies in [low - its error, high + its error]),
-    converged where both bounds are and that error is <= rtol x the midpoint; the half-width is the
-    error no finer step reduces (`fixed_error`). Also the report's entries of the two bounds."""
-    keep = list(range(B))
-    lo_v, hi_v = float(res.estimate[low]), float(res.estimate[high])
-    half = 0.5 * max(hi_v - lo_v, 0.0)
-    mid = 0.5 * (lo_v + hi_v)
-    err = half + max(float(res.error[low]), float(res.error[high]))
-    ok = bool(res.target_converged[low] and res.target_converged[high] and err <= rtol * abs(mid))
-    pick = [*keep, low]
-    out = dataclasses.replace(
-        res, estimate=np.append(res.estimate[keep], mid), error=np.append(res.error[keep], err),
-        check_difference=res.check_difference[pick], target_converged=np.append(res.target_converged[keep], ok),
-        check_agrees=np.append(res.check_agrees[keep], bool(res.check_agrees[low] and res.check_agrees[high])),
-        fixed_error=np.append(np.zeros(len(keep)), half), converged=bool(res.converged and ok), rtol=rtol)
-    bounds = {"route": "envelope", "lower": lo_v, "lower_error_estimate": float(res.error[low]),
-              "upper": hi_v, "upper_error_estimate": float(res.error[high]), "half_width": half}
-    return out, bounds
-
-
 def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.005, rtol: float | None = 1e-3,
                                 branches: Sequence[str] | None = None, limits: str = "all",
                                 progress: bool = False, check: bool = True,
@@ -460,7 +437,9 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
         kin, kin_err = float(res.estimate[B]), float(res.error[B])
         removals = [(kin - float(res.estimate[B + 1 + n]), kin_err + float(res.error[B + 1 + n])) for n in range(W)]
         if env is not None:
-            res, bounds = _bracket(res, B, B + 2 + W, B + 1 + W, rtol)
+            from kinematics.analyses.serial_collisions import bracket
+
+            res, bounds = bracket(res, B, B + 2 + W, B + 1 + W, rtol)
             extra["turn"] = {**bounds, "enveloped": [
                 {"link": link, "geometry": name, "bands": [{"from_m": b.lo, "to_m": b.hi, "radius_m": b.radius}
                                                            for b in bands]} for link, name, bands in env.enveloped]}

@@ -63,6 +63,7 @@ from kinematics.mechanisms.serial.reach import Reach, ReachMargin
 from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
 
 if TYPE_CHECKING:
+    from kinematics.analyses.columns import ColumnVolume
     from kinematics.generic.collision import CollisionModel
     from kinematics.generic.turn_envelope import TurnEnvelope
 
@@ -174,6 +175,29 @@ def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances:
     if env is None:
         return SerialCollisionMargin(mech, robot, distances, reach), None
     return SerialCollisionMargin(mech, robot, AnalyticDistances(env.model), native, exact=env.exact), env
+
+
+def bracket(res: ColumnVolume, B: int, low: int, high: int, rtol: float) -> tuple[ColumnVolume, dict[str, Any]]:
+    """A turn envelope's run (`Turn`) as the B branch targets of `res` and the union, the midpoint
+    of the bracket of targets `low` (the lower bound) and `high` (the upper bound): its error the
+    half-width plus the larger of the two error estimates (the true measure lies in [low - its error, high + its error]),
+    converged where both bounds are and that error is <= rtol x the midpoint; the half-width is the
+    error no finer step reduces (`fixed_error`). Also the report's entries of the two bounds."""
+    keep = list(range(B))
+    lo_v, hi_v = float(res.estimate[low]), float(res.estimate[high])
+    half = 0.5 * max(hi_v - lo_v, 0.0)
+    mid = 0.5 * (lo_v + hi_v)
+    err = half + max(float(res.error[low]), float(res.error[high]))
+    ok = bool(res.target_converged[low] and res.target_converged[high] and err <= rtol * abs(mid))
+    pick = [*keep, low]
+    out = dataclasses.replace(
+        res, estimate=np.append(res.estimate[keep], mid), error=np.append(res.error[keep], err),
+        check_difference=res.check_difference[pick], target_converged=np.append(res.target_converged[keep], ok),
+        check_agrees=np.append(res.check_agrees[keep], bool(res.check_agrees[low] and res.check_agrees[high])),
+        fixed_error=np.append(np.zeros(len(keep)), half), converged=bool(res.converged and ok), rtol=rtol)
+    bounds = {"route": "envelope", "lower": lo_v, "lower_error_estimate": float(res.error[low]),
+              "upper": hi_v, "upper_error_estimate": float(res.error[high]), "half_width": half}
+    return out, bounds
 
 
 class SerialCollisionMargin:
@@ -406,5 +430,5 @@ def collision_grid(mech: Mechanism, robot: Any, model: CollisionModel, step: flo
                          margin)
 
 
-__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "Turn", "carried_joints", "collision_grid",
+__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "Turn", "bracket", "carried_joints", "collision_grid",
            "collision_reach", "serial_margin", "turn_invariant"]

@@ -15,9 +15,10 @@ carried bodies keep their distances when the base turns.
 The profile is bounded per slice [z_a, z_b] of F's extent along u (rho = |p - o - ((p - o).u) u|
 is convex in p, so on a convex piece its largest value is at a vertex of the piece):
 
-* a convex polytope (a mesh's hull, a box): the largest rho over its vertices inside the slab and
-  the points where its edges cross the slab's two planes (the slab's part of the polytope has no
-  other vertices);
+* a convex polytope (a box, a hull) or a triangle mesh: the largest rho over its vertices inside
+  the slab and the points where its edges cross the slab's two planes (the slab's part of a
+  polytope has no other vertices; a solid's largest rho at a height lies on its surface, whose
+  pieces in the slab are clipped triangles); a mesh is bounded by its own triangles, not its hull;
 * a capsule, cylinder or sphere (through its bounding capsule, `bounding.bounding_capsule`: a
   segment thickened by r): the largest rho over the segment's part within [z_a - r, z_b + r],
   plus r.
@@ -72,8 +73,9 @@ def axial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.
 
 def _polytope_profile(vertices: np.ndarray, edges: np.ndarray, origin: np.ndarray, axis: np.ndarray,
                       cuts: np.ndarray) -> np.ndarray:
-    """Largest distance from the axis on each slab [cuts[i], cuts[i+1]] of a convex polytope
-    (world vertices (K, 3), edges (E, 2) vertex indices); -inf where the slab misses it."""
+    """Largest distance from the axis on each slab [cuts[i], cuts[i+1]] of a convex polytope or a
+    closed triangle mesh's solid (world vertices (K, 3), edges (E, 2) vertex indices); -inf where
+    the slab misses it."""
     z, rho = axial(vertices, origin, axis)
     n = len(cuts) - 1
     out = np.full(n, -np.inf)
@@ -137,15 +139,25 @@ def _merge(cuts: np.ndarray, radii: np.ndarray, bands: int) -> list[Band]:
 
 
 def envelope_bands(geometry: Any, placement: Any, origin: np.ndarray, axis: np.ndarray,
-                   bands: int = MAX_BANDS) -> list[Band] | None:
+                   bands: int = MAX_BANDS, mesh: Any = None) -> list[Band] | None:
     """The coaxial cylinders (module docstring) holding every turn of the coal shape `geometry`
     placed at `placement` (pin.SE3, world frame) about the axis (origin, unit direction), or None
     for a shape with no envelope (a half-space, which is either its own or has none, or a shape
-    kind not handled)."""
+    kind not handled). `mesh`: the triangle mesh (a coal BVH model) whose hull `geometry` is,
+    bounded itself (its vertices and triangle edges: the solid's largest rho at a height lies on its
+    surface, so the slices' bound is exact for it, and tighter than the hull's)."""
     import coal
     from scipy.spatial import ConvexHull
 
     R, t = np.asarray(placement.rotation), np.asarray(placement.translation)
+    if mesh is not None:
+        world = np.asarray(mesh.vertices(), dtype=float) @ R.T + t
+        tris = np.array([[tri[0], tri[1], tri[2]] for tri in (mesh.tri_indices(i) for i in range(mesh.num_tris))],
+                        dtype=np.int64).reshape(-1, 3)
+        edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [0, 2]]]), axis=1), axis=0)
+        z = axial(world, origin, axis)[0]
+        cuts = np.linspace(z.min(), z.max(), SLICES + 1)
+        return _merge(cuts, _polytope_profile(world, edges, origin, axis, cuts), bands)
     if isinstance(geometry, coal.ConvexBase | coal.Box):
         if isinstance(geometry, coal.Box):
             h = np.asarray(geometry.halfSide, dtype=float)
@@ -242,7 +254,7 @@ def turn_envelope(model: Any, q: np.ndarray, origin: np.ndarray, axis: np.ndarra
     for k in sorted(fixed):
         if coaxial(objs[k].geometry, gdata.oMg[k], origin, axis):
             continue
-        found = envelope_bands(objs[k].geometry, gdata.oMg[k], origin, axis, bands)
+        found = envelope_bands(objs[k].geometry, gdata.oMg[k], origin, axis, bands, model.meshes.get(objs[k].name))
         if found is None:
             return None
         swap[k] = found
