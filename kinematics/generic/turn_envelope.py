@@ -57,7 +57,7 @@ COAXIAL_TOL = 1e-9
 
 @dataclass(frozen=True)
 class Band:
-    """A coaxial cylinder: heights [lo, hi] [m] along the axis from its origin, radius [m]."""
+    """A coaxial cylinder: heights lo to hi [m] along the axis from its origin, radius [m]."""
 
     lo: float
     hi: float
