@@ -271,3 +271,12 @@ def test_tall_pedestal_falls_back_to_3d_inside_the_bracket(tmp_path, capsys, mon
     _check_lower({"lower": lower, "lower_error_estimate": lower_err + 1e-5}, TALL)  # + the report's 6 digits
     assert upper - lower > 0.04
     assert lower - lower_err - error <= volume <= upper + upper_err + error
+
+
+def test_turn_flag_only_for_a_serial_arm_with_collisions(capsys):
+    """`--turn` other than auto without --collisions, or on a robot that is not a serial arm: one
+    line naming the flag, exit 2."""
+    for argv in (["workspace-volume", "ur5", "--turn", "spatial"],
+                 ["workspace-volume", "p2us", "--collisions", "--turn", "envelope"]):
+        code, out, err = run(capsys, *argv)
+        assert code == 2 and out == "" and err.count("\n") == 1 and "--turn" in err, (argv, err)

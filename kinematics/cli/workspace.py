@@ -44,6 +44,12 @@ def register(command: Command) -> None:
     collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
                       "serial arms: the best configuration their search finds, also with --orientation / --tool-axis)")
     orientation_args(p, "the volume of tool positions reachable")
+    p.add_argument("--turn", choices=["auto", "envelope", "spatial"], default="auto",
+                   help="serial arms with --collisions / --obstacles and a full-turn base: how pairs of a body fixed "
+                        "in the world with bodies the base carries are measured: envelope (on the profile, bracketed "
+                        "by the fixed body's turn envelope and by leaving its pairs out; the half-width enters the "
+                        "error), spatial (in 3-D), auto (the bracket where it meets --rtol, else 3-D; default; --json "
+                        "key collisions.turn)")
 
 
 def cmd_workspace_volume(args: argparse.Namespace) -> int:
@@ -99,7 +105,10 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     # (a generic closed loop compiles its solver here: its branches come from an atlas search)
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
-    if getattr(args, "collisions", False) or getattr(args, "obstacles", None):
+    colliding = getattr(args, "collisions", False) or getattr(args, "obstacles", None)
+    if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
+        raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
+    if colliding:
         from kinematics.analyses.collisions import collision_refusal
 
         refused = collision_refusal(mech)
@@ -178,7 +187,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                      limit=MAX_COLLISION_VIEW_POINTS, hint=f"a serial arm's collision-free figure at --step "
                                                            f"{args.step:g} m; use a larger --step")
     cw = measure_collision_workspace(mech, robot, step=args.step, rtol=rtol, branches=branches or None, limits=args.limits,
-                                     progress=show_progress(args), collision_model=checks)
+                                     progress=show_progress(args), collision_model=checks, turn=getattr(args, "turn", "auto"))
     margin_of = margin_builder(mech, robot, checks, args.limits)
     if args.points:  # the collision-aware union: CollisionMargin's last column
         pts = _inside_points(mech, args.limits, args.step, branches, margin_of(branches))
