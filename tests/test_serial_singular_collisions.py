@@ -203,6 +203,13 @@ def test_post_and_wall_together(arm3, capsys):  # noqa: F811
         for lo, hi in pts[k]["base_angles"]["free_intervals"]:
             assert wall[k, (psi >= lo) & (psi <= hi)].all()
     assert d["collisions"]["free_at_no_base_angle"] == (post < 0).sum()
+    # the human table says so in words: a box shown colliding with the post is free at no base angle
+    code, out, err = run(capsys, "singularities", str(arm3 / "arm3p.urdf"), "--collisions", "--obstacles",
+                         str(arm3 / "wall.yaml"), "--max-points", "100000")
+    shown = verdicts[:: max(1, n // 10)]
+    assert code == 0 and (shown == "none").any(), err
+    assert out.count("; free at no base angle\n") + out.count("; free at no base angle;") == (shown == "none").sum()
+    assert out.count("; free at some base angles") == (shown == "some").sum() and "at none base" not in out
 
 
 def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):  # noqa: F811

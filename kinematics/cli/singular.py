@@ -350,12 +350,16 @@ _VERDICT = {
 }
 
 
+_BASE_ANGLES = {"every": "every base angle", "some": "some base angles", "none": "no base angle",
+                "none found": "no base angle found"}
+
+
 def _serial_collision_cell(point: dict[str, Any]) -> str:
     """One listed box's collision verdict for the human table: colliding (its pair) or free at the
     listed angle, the free base angles where the turn matters, and a whole box certified free."""
     cell = f"colliding ({' - '.join(point['pair'])})" if point["colliding"] else "free"
     if "base_angles" in point:
-        cell += f"; free at {point['base_angles']['free']} base angle{'s' if point['base_angles']['free'] == 'some' else ''}"
+        cell += "; free at " + _BASE_ANGLES[point["base_angles"]["free"]]
     return cell + ("; whole box free" if point["box_free"] else "")
 
 
