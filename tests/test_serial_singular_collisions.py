@@ -129,7 +129,7 @@ def test_base_step_deg_sets_the_finest_base_angle_interval(arm3, capsys):  # noq
     for deg in (None, 6):
         code, d, err = run_json(capsys, "singularities", urdf, "--obstacles", wall, "--max-points", "20000",
                                 *(["--base-step-deg", str(deg)] if deg else []))
-        assert code == 0, err
+        assert code == 0 and "warning" not in err, err
         step = math.radians(deg or 1)
         assert abs(d["collisions"]["base_angle_step_rad"] - step) < 1e-15
         pts = d["singular_points"]
@@ -214,10 +214,12 @@ def test_post_and_wall_together(arm3, capsys):  # noqa: F811
 
 def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):  # noqa: F811
     """A yaw of range [-1, 1] rad: the scan is spatial, the yaw one of the box's joints, so each
-    verdict is the listed configuration's own (its listed yaw), by hand."""
+    verdict is the listed configuration's own (its listed yaw), by hand; --base-step-deg, given,
+    is unused and a warning says so."""
     code, d, err = run_json(capsys, "singularities", str(arm3 / "arm3.urdf"), "--obstacles", str(arm3 / "wall.yaml"),
-                            "--range", "yaw=-1:1", "--max-points", "100000")
-    assert code == 0, err
+                            "--range", "yaw=-1:1", "--max-points", "100000", "--base-step-deg", "5")
+    assert code == 0 and err.startswith("warning: --base-step-deg unused") and err.count("\n") == 1, err
+    assert "base_angle_step_rad" not in d["collisions"]
     assert d["mode"] == "spatial" and d["collisions"]["base_angle"] == "in the configuration"
     q = np.array([p["q"] for p in d["singular_points"]])
     gap = _wall_gap(q)

@@ -53,7 +53,7 @@ def register(command: Command) -> None:
                    help="planar arm: joint-grid step in degrees (default 1)")
     p.add_argument("--base-step-deg", type=base_step_deg, default=None, metavar="DEG",
                    help="serial arms with --collisions/--obstacles: the finest base-angle interval [deg] of the "
-                        "certified collision-free base angles, where the base's angle matters (default 1; in (0, "
+                        "certified collision-free base angles, where the base's angle matters (else unused, with a warning; default 1; in (0, "
                         f"{MAX_BASE_STEP_DEG:g}]; --json key collisions.base_angle_step_rad)")
     serial_args(p)
     collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
@@ -309,6 +309,10 @@ def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any, st
     shape = (len(pts), robot.nv)
     res = singular_collisions(robot, ws, checks, np.array([p["q"] for p in pts]).reshape(shape),
                               np.array([p["half_width"] for p in pts]).reshape(shape), STEP if step is None else step)
+    if step is not None and res.base_angle != "varies":
+        import sys
+
+        print(f"warning: --base-step-deg unused: the base angle {_UNUSED[res.base_angle]}", file=sys.stderr)
     widths = res.free_measure()
     for k, item in enumerate(pts):
         item["colliding"] = bool(res.colliding[k])
@@ -349,6 +353,10 @@ _VERDICT = {
                             "unchecked: half_width beside)",
 }
 
+
+_UNUSED = {"invariant": "changes no checked pair's distance (every verdict holds at every base angle)",
+           "in the configuration": "is one of the scan's box joints (a base turning less than a full turn, or "
+                                   "a planar or spatial scan): each verdict is at the listed configuration"}
 
 _BASE_ANGLES = {"every": "every base angle", "some": "some base angles", "none": "no base angle",
                 "none found": "no base angle found"}
