@@ -143,6 +143,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "ur5", "--limits", "actuators"], "URDF's joint limits"),
     (["singularities", "ur5", "--plot", "w.png"], "no figure"),
     (["singularities", "ur5", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
+    (["singularities", "ur5", "--collisions", "--base-step-deg", "0"], "must be in (0, 90] degrees"),
+    (["singularities", "ur5", "--collisions", "--base-step-deg", "90.01"], "must be in (0, 90] degrees"),
+    (["singularities", "ur5", "--collisions", "--base-step-deg", "nan"], "must be in (0, 90] degrees"),
+    (["singularities", "ur5", "--collisions", "--base-step-deg", "deg"], "expected a number of degrees"),
+    (["singularities", "ur5", "--base-step-deg", "5"], "--base-step-deg: is for serial arms with --collisions"),
+    (["singularities", "scara", "--collisions", "--base-step-deg", "5"], "is for serial arms"),
     (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "over the 200,000 limit"),  # before the volume
     (["show", "ur5", "--workspace", "--collisions", "--step", "0.005", "--export", "x.html"], "too fine a step"),
     (["show", "ur5", "--workspace", "--collisions", "--limits", "actuators", "--export", "x.html"], "joint limits only"),

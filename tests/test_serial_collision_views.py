@@ -54,6 +54,13 @@ def test_planar_arm_grid_is_split_as_by_hand(tmp_path):
     assert ok.mean() > 0.99 and g.free[ok].any() and (~g.free[ok]).any()
     assert np.array_equal(g.free[ok], clear[at][ok] > 0)
     assert g.pair[g.free].max() == -1 and all("wall" in cm.pair_links[k] for k in g.pair[~g.free])
+    # the JSON block (`show --json`): both arm - wall pairs bind, the more frequent first
+    c = g.as_dict()
+    assert (c["grid_points"], c["reached"], c["free"]) == (len(p), len(g.points), int(g.free.sum()))
+    links = [cm.pair_links[k] for k in g.pair[~g.free]]
+    want = sorted(((list(k), links.count(k)) for k in set(links)), key=lambda x: -x[1])
+    assert len(want) == 2 and want[0][1] > want[1][1]
+    assert [(b["links"], b["points"]) for b in c["binding_pairs"]] == want
 
 
 def test_spatial_arm_grid_beside_a_wall_is_split_as_by_hand(arm3):  # noqa: F811
@@ -64,12 +71,7 @@ def test_spatial_arm_grid_beside_a_wall_is_split_as_by_hand(arm3):  # noqa: F811
     cm = collision_model_of(robot, load_obstacles(arm3 / "wall.yaml"), self_collisions=False)
     g = collision_grid(mechanism_of(robot), robot, cm)
     assert g.mode == "spatial" and g.grid_points == 24**3 and abs(g.step - 1.4 / 24) < 1e-12
-    axis = np.arange(-0.7 + g.step / 2, 0.7, g.step)
-    p = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    r = np.linalg.norm(p, axis=1)
-    shell = np.minimum(r - (L1 - L2), L1 + L2 - r)
-    clear = _wall_clearance(p)
-    sure = (np.abs(clear) > SURE) & (np.abs(shell) > SURE)
+    p, shell, clear, sure = _wall_grid_by_hand()
     got = {tuple(np.round(x, 9)) for x in g.points}
     want = {tuple(np.round(x, 9)) for x in p[sure & (shell > 0)]}
     assert want <= got and not (got - want) & {tuple(np.round(x, 9)) for x in p[sure & (shell < 0)]}
@@ -79,6 +81,19 @@ def test_spatial_arm_grid_beside_a_wall_is_split_as_by_hand(arm3):  # noqa: F811
     assert ok.mean() > 0.99 and 500 < (~g.free[ok]).sum() < ok.sum() - 500
     assert np.array_equal(g.free[ok], clear[at][ok] > 0)
     assert {cm.pair_links[k] for k in g.pair[~g.free]} <= {("link1", "wall"), ("link2", "wall")}
+
+
+def _wall_grid_by_hand() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The 3R arm beside the wall on the view's default grid (24 cell centres per axis over the
+    reach ball's box [-0.7, 0.7]^3): the points, the shell's margin (> 0: reached), the clearance
+    by hand (`_wall_clearance`, > 0: free) and where both are away from zero (`SURE`)."""
+    step = 1.4 / 24
+    axis = np.arange(-0.7 + step / 2, 0.7, step)
+    p = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    r = np.linalg.norm(p, axis=1)
+    shell = np.minimum(r - (L1 - L2), L1 + L2 - r)
+    clear = _wall_clearance(p)
+    return p, shell, clear, (np.abs(clear) > SURE) & (np.abs(shell) > SURE)
 
 
 def test_revolved_arm_grid_with_a_post_is_its_profile(arm3):  # noqa: F811
@@ -172,7 +187,9 @@ def test_cli_show_and_plot_of_a_serial_arm_with_obstacles(arm3, capsys):  # noqa
     urdf, wall, html = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml"), arm3 / "scene.html"
     code, d, err = run_json(capsys, "show", urdf, "--workspace", "--obstacles", wall, "--export", str(html))
     assert code == 0, err
-    assert set(d) == {"robot", "export", "warnings", "skipped_visuals", "plane"} and d["export"] == str(html)
+    assert set(d) == {"robot", "export", "warnings", "skipped_visuals", "collisions", "plane"}
+    assert d["export"] == str(html)
+    _grid_counts_hold_by_hand(d["collisions"])
     page = html.read_text()
     assert "colliding: link2 - wall binds" in page and "obstacle wall" in page
     assert "collision-free workspace (" in page and "13,824 points searched" in page
@@ -187,6 +204,43 @@ def test_cli_show_and_plot_of_a_serial_arm_with_obstacles(arm3, capsys):  # noqa
         code, _, err = run(capsys, *argv)
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
     assert not (arm3 / "x.html").exists() and not (arm3 / "x.png").exists()
+
+
+def _grid_counts_hold_by_hand(c):
+    """`show --json`'s collisions block of the 3R arm beside the wall: its grid's counts are those
+    by hand (`_wall_grid_by_hand`) up to the points within SURE of a boundary, and every colliding
+    point is bound by an arm - wall pair, the most frequent pair first."""
+    _, shell, clear, sure = _wall_grid_by_hand()
+    unsure = int((~sure).sum())
+    assert c["mode"] == "spatial" and c["grid_points"] == 24**3 and abs(c["step_m"] - 1.4 / 24) < 1e-12
+    assert c["pairs_checked"] == 2 and c["obstacles"] == ["wall"]
+    assert c["free"] + c["colliding"] == c["reached"]
+    assert abs(c["reached"] - int((shell > 0).sum())) <= unsure
+    assert abs(c["free"] - int(((shell > 0) & (clear > 0)).sum())) <= unsure
+    assert abs(c["colliding"] - int(((shell > 0) & (clear <= 0)).sum())) <= unsure < 0.01 * c["colliding"]
+    counts = [b["points"] for b in c["binding_pairs"]]
+    assert sum(counts) == c["colliding"] and counts == sorted(counts, reverse=True)
+    assert {tuple(b["links"]) for b in c["binding_pairs"]} <= {("link1", "wall"), ("link2", "wall")}
+
+
+def test_cli_show_reports_a_serial_arms_collision_grid(arm3, capsys):  # noqa: F811
+    """`show ARM --workspace --obstacles` without --json: the grid's counts as a short report with
+    units (the step in m, the points by kind), the same counts as its JSON block."""
+    urdf, wall, html = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml"), str(arm3 / "human.html")
+    code, out, err = run(capsys, "show", urdf, "--workspace", "--obstacles", wall, "--export", html)
+    assert code == 0, err
+    lines = dict(re.findall(r"^(\S[^:\n]*?) +: (.*)$", out, flags=re.M))
+    c = {"grid_points": lines["grid points searched"], "reached": lines["reached by the search"],
+         "free": lines["collision-free"], "colliding": lines["colliding"]}
+    counts = {k: int(v.split()[0].replace(",", "")) for k, v in c.items()}
+    assert all(v.split()[1] == "points" for k, v in c.items() if k != "grid_points")
+    assert re.search(r"^collision check on a 3-D grid, step 0\.05833 m$", out, flags=re.M)
+    _grid_counts_hold_by_hand({"mode": "spatial", "step_m": 1.4 / 24, "pairs_checked": int(lines["pairs checked"]),
+                               "obstacles": [lines["obstacles"]], **counts,
+                               "binding_pairs": [{"links": m[0].split(" - "), "points": int(m[1].replace(",", ""))}
+                                                 for m in re.findall(r"(\w+ - \w+) \(([\d,]+)\)",
+                                                                     lines["binding pairs"])]})
+    assert out.rstrip().endswith(f"wrote {html}")
 
 
 def test_a_link_with_two_shapes_is_one_cloud(tmp_path):
@@ -214,3 +268,8 @@ def test_a_link_with_two_shapes_is_one_cloud(tmp_path):
     assert labels == [f"colliding: link2 - wall binds ({sum(int((pair[hit] == k).sum()) for k in link2)} points)"]
     assert sorted(scene._window.tree["meshcat"]["overlays"]["colliding"]) == sorted(
         f"{a}--{b}" for a, b in {cm.pair_links[k] for k in pair[hit]})
+    # the serial grid's JSON block counts link 2's two shapes as one pair too
+    g = collision_grid(SerialArm(robot), robot, cm, step)
+    shapes = [k for k in range(len(cm.pairs)) if cm.pair_links[k] == ("link2", "wall")]
+    assert len(shapes) == 2 and all((g.pair == k).any() for k in shapes)
+    assert {"links": ["link2", "wall"], "points": int(np.isin(g.pair, shapes).sum())} in g.as_dict()["binding_pairs"]

@@ -75,18 +75,7 @@ def test_wall_flags_and_free_base_angles_by_hand(arm3, capsys, rng):  # noqa: F8
     for p, a, b in zip(pts, ue, up, strict=True):  # the tool's link binds where it reaches farther
         if p["colliding"] and abs(a - b) > 1e-9:
             assert p["pair"] == ["link2" if b > a else "link1", "wall"]
-    psi = np.linspace(-math.pi, math.pi, 72_000, endpoint=False)
-    free = _free_turn(q, psi)
-    true = free.mean(axis=1) * 2 * math.pi
-    short = []
-    for k, p in enumerate(pts):
-        b = p["base_angles"]
-        for lo, hi in b["free_intervals"]:
-            inside = (psi >= lo) & (psi <= hi)
-            assert free[k, inside].all(), (p, lo, hi)
-        assert b["free_rad"] <= true[k] + 2 * math.pi / 72_000  # the grid's own spacing
-        short.append(true[k] - b["free_rad"])
-        assert b["free"] == ("every" if free[k].all() else "some")  # the yaw at pi/2 puts the arm at x = 0
+    short = _shortfalls(pts, q)
     assert max(short) < 8 * STEP and np.mean(short) < 2 * STEP
     verdicts = [p["base_angles"]["free"] for p in pts]
     assert c["free_at_every_base_angle"] == verdicts.count("every") and c["free_at_no_base_angle"] == 0
@@ -107,6 +96,65 @@ def test_wall_flags_and_free_base_angles_by_hand(arm3, capsys, rng):  # noqa: F8
     for p in np.array(pts)[settled]:  # random configurations of a settled box clear the wall
         box = np.array(p["q"]) + rng.uniform(-1, 1, (200, 3)) * np.array(p["half_width"])
         assert (_wall_gap(box) > 0).all()
+
+
+def _shortfalls(pts: list, q: np.ndarray, exact: bool = True) -> np.ndarray:
+    """Per listed point of the 3R arm beside the wall, how much of the free turn by hand (on a
+    72,000-angle grid) its certified free base-angle intervals miss [rad], after checking every
+    interval lies in that free set and the verdict is "every" or "some" as it is whole or not
+    (not `exact`: "every" only where it is whole; a coarse step may leave a thin gap uncertified)."""
+    psi = np.linspace(-math.pi, math.pi, 72_000, endpoint=False)
+    free = _free_turn(q, psi)
+    true = free.mean(axis=1) * 2 * math.pi
+    short = []
+    for k, p in enumerate(pts):
+        b = p["base_angles"]
+        for lo, hi in b["free_intervals"]:
+            inside = (psi >= lo) & (psi <= hi)
+            assert free[k, inside].all(), (p, lo, hi)
+        assert b["free_rad"] <= true[k] + 2 * math.pi / 72_000  # the grid's own spacing
+        short.append(true[k] - b["free_rad"])
+        if exact or b["free"] == "every" or not free[k].all():  # the yaw at pi/2 puts the arm at x = 0
+            assert b["free"] == ("every" if free[k].all() else "some")
+    return np.array(short)
+
+
+def test_base_step_deg_sets_the_finest_base_angle_interval(arm3, capsys):  # noqa: F811
+    """--base-step-deg 6 (the default 1): the intervals stay inside the free set by hand and fall
+    short of it by a few of the coarser steps at most, so they miss more of it than at 1 degree
+    (each of the free set's ends costs up to a step); the JSON gives the step in radians, the
+    human report in degrees."""
+    urdf, wall = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml")
+    short = {}
+    for deg in (None, 6):
+        code, d, err = run_json(capsys, "singularities", urdf, "--obstacles", wall, "--max-points", "20000",
+                                *(["--base-step-deg", str(deg)] if deg else []))
+        assert code == 0 and "warning" not in err, err
+        step = math.radians(deg or 1)
+        assert abs(d["collisions"]["base_angle_step_rad"] - step) < 1e-15
+        pts = d["singular_points"]
+        short[deg] = s = _shortfalls(pts, np.array([p["q"] for p in pts]), exact=deg is None)
+        assert max(s) < 8 * step and np.mean(s) < 2 * step
+    # each end of a free set is missed by up to a step, ~ half a step on average: 6 times the step,
+    # several times the shortfall (0.64 deg on average at 1 deg, 5.8 deg at 6 deg when written)
+    assert np.mean(short[6]) > 3 * np.mean(short[None])
+    code, out, err = run(capsys, "singularities", urdf, "--obstacles", wall, "--max-points", "20000",
+                         "--base-step-deg", "6")
+    assert code == 0 and "(base-angle step 6 deg)" in out, err
+
+
+def test_base_step_deg_bad_input(arm3, capsys):  # noqa: F811
+    """--base-step-deg not finite, not positive or over 90, or without collisions, or on a robot
+    with closed forms: one line on stderr naming the valid range or use, exit 2."""
+    urdf, wall = str(arm3 / "arm3.urdf"), str(arm3 / "wall.yaml")
+    for bad in ("0", "-1", "nan", "inf", "90.5", "1e9", "one"):
+        code, _, err = run(capsys, "singularities", urdf, "--obstacles", wall, "--base-step-deg", bad)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "--base-step-deg" in err, (bad, err)
+        assert "(0, 90] degrees" in err or "number of degrees" in err, err
+    for argv in ([urdf], ["scara", "--collisions"]):
+        code, _, err = run(capsys, "singularities", *argv, "--base-step-deg", "5")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "--base-step-deg" in err and "--collisions or --obstacles" in err, err
 
 
 def test_post_turning_with_the_arm_is_invariant(arm3, capsys):  # noqa: F811
@@ -155,14 +203,23 @@ def test_post_and_wall_together(arm3, capsys):  # noqa: F811
         for lo, hi in pts[k]["base_angles"]["free_intervals"]:
             assert wall[k, (psi >= lo) & (psi <= hi)].all()
     assert d["collisions"]["free_at_no_base_angle"] == (post < 0).sum()
+    # the human table says so in words: a box shown colliding with the post is free at no base angle
+    code, out, err = run(capsys, "singularities", str(arm3 / "arm3p.urdf"), "--collisions", "--obstacles",
+                         str(arm3 / "wall.yaml"), "--max-points", "100000")
+    shown = verdicts[:: max(1, n // 10)]
+    assert code == 0 and (shown == "none").any(), err
+    assert out.count("; free at no base angle\n") + out.count("; free at no base angle;") == (shown == "none").sum()
+    assert out.count("; free at some base angles") == (shown == "some").sum() and "at none base" not in out
 
 
 def test_base_turning_less_than_a_turn_keeps_its_listed_angle(arm3, capsys):  # noqa: F811
     """A yaw of range [-1, 1] rad: the scan is spatial, the yaw one of the box's joints, so each
-    verdict is the listed configuration's own (its listed yaw), by hand."""
+    verdict is the listed configuration's own (its listed yaw), by hand; --base-step-deg, given,
+    is unused and a warning says so."""
     code, d, err = run_json(capsys, "singularities", str(arm3 / "arm3.urdf"), "--obstacles", str(arm3 / "wall.yaml"),
-                            "--range", "yaw=-1:1", "--max-points", "100000")
-    assert code == 0, err
+                            "--range", "yaw=-1:1", "--max-points", "100000", "--base-step-deg", "5")
+    assert code == 0 and err.startswith("warning: --base-step-deg unused") and err.count("\n") == 1, err
+    assert "base_angle_step_rad" not in d["collisions"]
     assert d["mode"] == "spatial" and d["collisions"]["base_angle"] == "in the configuration"
     q = np.array([p["q"] for p in d["singular_points"]])
     gap = _wall_gap(q)

@@ -61,7 +61,7 @@ from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.collision import CollisionModel
 
 STEP = math.radians(1.0)
-"""[rad] The base-angle bisection stops at intervals this wide."""
+"""[rad] The base-angle bisection stops at intervals this wide (default; the CLI's --base-step-deg)."""
 
 START = 16
 """Intervals the base's turn is first cut into."""

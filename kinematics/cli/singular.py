@@ -26,6 +26,22 @@ if TYPE_CHECKING:
     from kinematics.model.robot import Robot
 
 
+MAX_BASE_STEP_DEG = 90.0
+"""[deg] The coarsest --base-step-deg: a quarter turn (the turn is first cut into 16 intervals of
+22.5 deg, so any step from 22.5 deg up certifies on those alone)."""
+
+
+def base_step_deg(text: str) -> float:
+    """--base-step-deg: a finite angle in (0, MAX_BASE_STEP_DEG] degrees."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of degrees, got {text!r}") from None
+    if not (math.isfinite(v) and 0 < v <= MAX_BASE_STEP_DEG):
+        raise argparse.ArgumentTypeError(f"must be in (0, {MAX_BASE_STEP_DEG:g}] degrees, got {text}")
+    return v
+
+
 def register(command: Command) -> None:
     p = command("singularities", cmd_singularities,
                 "type I/II/III singular loci over a grid (p2us, delta, any closed loop); theta2 = 0 boundary "
@@ -35,6 +51,10 @@ def register(command: Command) -> None:
     p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")
     p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
                    help="planar arm: joint-grid step in degrees (default 1)")
+    p.add_argument("--base-step-deg", type=base_step_deg, default=None, metavar="DEG",
+                   help="serial arms with --collisions/--obstacles: the finest base-angle interval [deg] of the "
+                        "certified collision-free base angles, where the base's angle matters (else unused, with a warning; default 1; in (0, "
+                        f"{MAX_BASE_STEP_DEG:g}]; --json key collisions.base_angle_step_rad)")
     serial_args(p)
     collision_args(p, "; flags the singular points inside the workspace whose configuration collides "
                       "(p2us, delta, the planar arm, closed loops with singular fields; serial arms: each listed joint "
@@ -104,7 +124,7 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
         "seconds": ws.seconds,
     }
     if checks is not None:
-        _flag_serial(payload, robot, ws, checks)
+        _flag_serial(payload, robot, ws, checks, None if args.base_step_deg is None else math.radians(args.base_step_deg))
 
     def human() -> str:
         rad = payload["radius_m"]
@@ -141,7 +161,10 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     mech = mechanism_of(robot)
     checks = collision_checks(args, robot)
-    if not ({"joint_singularities", "singular_fields"} & mech.capabilities):
+    serial = not ({"joint_singularities", "singular_fields"} & mech.capabilities)
+    if args.base_step_deg is not None and (checks is None or not serial):
+        raise InvalidInputError("--base-step-deg", "is for serial arms with --collisions or --obstacles")
+    if serial:
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
         return _serial_singularities(args, robot, out, checks)
@@ -272,19 +295,24 @@ def _flag_colliding_configurations(payload: dict[str, Any], robot: Robot, checks
                              "any_collision_free": bool((~flags).any())}
 
 
-def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any) -> None:
+def _flag_serial(payload: dict[str, Any], robot: Robot, ws: Any, checks: Any, step: float | None) -> None:
     """Mark each listed singular box `colliding` at its centre as listed (with the binding `pair`)
-    and, where the base's angle changes some pair's distance, with its certified free base angles
-    (`analyses.serial_singular_collisions`); add the counts."""
+    and, where the base's angle changes some pair's distance, with its certified free base angles,
+    bisected down to intervals `step` [rad] wide (None: the library's STEP) (`analyses.serial_singular_collisions`);
+    add the counts."""
     import numpy as np
 
     from kinematics.analyses.collisions import summary
-    from kinematics.analyses.serial_singular_collisions import singular_collisions
+    from kinematics.analyses.serial_singular_collisions import STEP, singular_collisions
 
     pts = payload["singular_points"]
     shape = (len(pts), robot.nv)
     res = singular_collisions(robot, ws, checks, np.array([p["q"] for p in pts]).reshape(shape),
-                              np.array([p["half_width"] for p in pts]).reshape(shape))
+                              np.array([p["half_width"] for p in pts]).reshape(shape), STEP if step is None else step)
+    if step is not None and res.base_angle != "varies":
+        import sys
+
+        print(f"warning: --base-step-deg unused: the base angle {_UNUSED[res.base_angle]}", file=sys.stderr)
     widths = res.free_measure()
     for k, item in enumerate(pts):
         item["colliding"] = bool(res.colliding[k])
@@ -326,12 +354,20 @@ _VERDICT = {
 }
 
 
+_UNUSED = {"invariant": "changes no checked pair's distance (every verdict holds at every base angle)",
+           "in the configuration": "is one of the scan's box joints (a base turning less than a full turn, or "
+                                   "a planar or spatial scan): each verdict is at the listed configuration"}
+
+_BASE_ANGLES = {"every": "every base angle", "some": "some base angles", "none": "no base angle",
+                "none found": "no base angle found"}
+
+
 def _serial_collision_cell(point: dict[str, Any]) -> str:
     """One listed box's collision verdict for the human table: colliding (its pair) or free at the
     listed angle, the free base angles where the turn matters, and a whole box certified free."""
     cell = f"colliding ({' - '.join(point['pair'])})" if point["colliding"] else "free"
     if "base_angles" in point:
-        cell += f"; free at {point['base_angles']['free']} base angle{'s' if point['base_angles']['free'] == 'some' else ''}"
+        cell += "; free at " + _BASE_ANGLES[point["base_angles"]["free"]]
     return cell + ("; whole box free" if point["box_free"] else "")
 
 
@@ -340,5 +376,6 @@ def _serial_collision_line(c: dict[str, Any]) -> str:
     boxes = f"; whole boxes certified free: {c['boxes_certified_free']}"
     if c["base_angle"] == "varies":
         return (f"{line}, base at the listed angle); free at every base angle {c['free_at_every_base_angle']}, "
-                f"at some {c['free_at_some_base_angle']}, at none found {c['free_at_no_base_angle']}{boxes}")
+                f"at some {c['free_at_some_base_angle']}, at none found {c['free_at_no_base_angle']} (base-angle "
+                f"step {math.degrees(c['base_angle_step_rad']):.4g} deg){boxes}")
     return line + (", at every base angle)" if c["base_angle"] == "invariant" else ")") + boxes

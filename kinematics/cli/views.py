@@ -52,7 +52,8 @@ def register(command: Command) -> None:
                                                   "boundary from `workspace-mesh`")
     collision_args(p, "; with --workspace: the points where every branch collides drawn by binding pair, and "
                       "the obstacles (p2us, delta, the planar arm, closed loops, serial arms: the best configuration their "
-                      "search finds, on a --step grid)")
+                      "search finds, on a --step grid; their counts printed, --json key collisions: mode, step_m, "
+                      "grid_points, reached, free, colliding, binding_pairs)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")
     p.add_argument("--serve-seconds", type=non_negative, metavar="S", help=argparse.SUPPRESS)
 
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
+    grid = _serial_collision_grid(args, robot, mech, checks, three_limb)
     mesh = _load_mesh(args.mesh) if args.mesh else None
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
@@ -117,15 +119,13 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             else:
                 if args.guide is not None:
                     raise InvalidInputError("--guide", "guidance runs are for planar arms")
-                if checks is not None and args.limits != "all":
-                    raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
                 ws = None
                 if (args.workspace and checks is None) or args.singularities:  # the cell engine's
                     from kinematics.cli.singular import serial_scan
 
                     ws = serial_scan(args, robot)
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
-                                scene=scene, collisions=checks, step=args.step)
+                                scene=scene, collisions=checks, step=args.step, grid=grid)
         else:
             viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float),
                                  workspace=args.workspace, singularities=args.singularities, limits=args.limits,
@@ -135,14 +135,20 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             scene.fit_camera()
         print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
               end="", file=sys.stderr)
-        notes = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
+        notes: dict[str, Any] = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
+        if grid is not None:
+            from kinematics.analyses.collisions import summary
+
+            notes["collisions"] = {**summary(grid.margin.distances.model, grid.margin.distances), **grid.as_dict()}
+        report = "" if grid is None else _grid_report(notes["collisions"]) + "\n"
         if args.export:
             scene.export(args.export)
             payload = {"robot": robot.name, "export": args.export, **notes}
-            out(args, payload, lambda: f"wrote {args.export}")
+            out(args, payload, lambda: f"{report}wrote {args.export}")
             return 0
         payload = {"robot": robot.name, "url": scene.url, **notes}
-        out(args, payload, lambda: f"Meshcat viewer for {robot.name}: {scene.url}\n(serving; Ctrl-C to stop)")
+        out(args, payload,
+            lambda: f"{report}Meshcat viewer for {robot.name}: {scene.url}\n(serving; Ctrl-C to stop)")
         sys.stdout.flush()
         try:
             if args.serve_seconds is not None:
@@ -155,6 +161,43 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         return 0
     finally:
         scene.close()
+
+
+def _serial_collision_grid(args: argparse.Namespace, robot: Any, mech: Any, checks: Any, three_limb: bool) -> Any:
+    """A serial arm's collision grid for `--workspace --collisions/--obstacles`
+    (`serial_collisions.collision_grid`; None for the other robots, whose views split their own
+    grids, and without checks), computed before the scene starts so bad input starts no server."""
+    if checks is None or three_limb or robot.loops is not None or "joint_singularities" in mech.capabilities:
+        return None
+    from kinematics.analyses.serial_collisions import collision_grid
+
+    if args.limits != "all":
+        raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
+    return collision_grid(mech, robot, checks, args.step)
+
+
+def _grid_report(c: dict[str, Any]) -> str:
+    """The human lines of a serial arm's collision grid (`CollisionGrid.as_dict` with the model's
+    `summary`): the grid, the points reached, free and colliding, the binding pairs."""
+    from kinematics.cli.report import fmt, key_values
+
+    what = "profile points" if c["mode"] == "revolved" else "points"
+    grid = {"revolved": "(rho, z) profile grid (a point stands for its circle about the base axis)",
+            "planar": "grid of the plane"}.get(c["mode"], "3-D grid")
+    share = f" ({100 * c['free'] / c['reached']:.1f} % of reached)" if c["reached"] else ""
+    pairs = ", ".join(f"{' - '.join(p['links'])} ({p['points']:,})" for p in c["binding_pairs"])
+    return "\n".join([
+        f"collision check on a {grid}, step {fmt(c['step_m'], 4)} m",
+        key_values([
+            ("grid points searched", f"{c['grid_points']:,}"),
+            ("reached by the search", f"{c['reached']:,} {what}"),
+            ("collision-free", f"{c['free']:,} {what}{share}"),
+            ("colliding", f"{c['colliding']:,} {what}"),
+            ("binding pairs", pairs or "none"),
+            ("pairs checked", str(c["pairs_checked"])),
+            *([("obstacles", ", ".join(c["obstacles"]))] if c["obstacles"] else []),
+        ], digits=None),
+    ])
 
 
 def _load_mesh(path: str) -> Any:

@@ -126,7 +126,7 @@ VIEW_CELLS = 100_000
 
 def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: Any = None,
                 singularities: bool = False, scene: Scene | None = None, collisions: Any = None,
-                step: float | None = None) -> Scene:
+                step: float | None = None, grid: Any = None) -> Scene:
     """Any serial robot at joint values q (default: `default_pose`), with the velocity ellipsoid
     of its tool position; with a `SerialWorkspace` (`kinematics.analyses.serial_workspace`), its certified
     cells as points coloured by the smallest radius sigma_min [m/rad] (grey where no configuration
@@ -134,7 +134,8 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
     boxes; the camera framed on all. With `collisions` (a `CollisionModel`) the workspace is drawn
     on a task-space grid of `step` [m] instead (`serial_collisions.collision_grid`, its default
     step with None): the reached points where every configuration found collides apart, by
-    binding pair, the collision-free ones in one colour, and the obstacles."""
+    binding pair, the collision-free ones in one colour, and the obstacles; `grid`: that grid
+    already computed (a `CollisionGrid` of `collisions`; `step` then unused)."""
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
     from kinematics.generic.serial import forward_kinematics, frame_jacobian
 
@@ -142,7 +143,7 @@ def serial_view(robot: Any, q: np.ndarray | None = None, *, ellipsoid: bool = Fa
     qc = robot.configuration(default_pose(robot) if q is None else q)
     scene.add_robot(robot, qc)
     if collisions is not None:
-        _serial_collision_points(scene, robot, collisions, step)
+        _serial_collision_points(scene, robot, collisions, step, grid)
     elif workspace is not None:
         _serial_workspace_points(scene, workspace)
     if singularities and workspace is not None:
@@ -199,7 +200,7 @@ def _serial_singular_points(scene: Scene, w: Any) -> None:
                      label=f"possibly singular boxes' images ({k:,} boxes, sample of {len(idx):,})")
 
 
-def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: float | None) -> None:
+def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: float | None, grid: Any) -> None:
     """A serial arm's reached grid points (`serial_collisions.collision_grid`): the colliding ones
     by binding pair (`collision_views.pair_clouds`), the collision-free ones, the obstacles; a
     revolved profile's points swept about the base axis (`_turns`)."""
@@ -208,7 +209,7 @@ def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: fl
     from kinematics.mechanisms import mechanism_of
     from kinematics.views.meshcat.collision_views import add_obstacles, pair_clouds
 
-    g = collision_grid(mechanism_of(robot), robot, collisions, step)
+    g = grid if grid is not None else collision_grid(mechanism_of(robot), robot, collisions, step)
     reach = g.margin.reach
     embed: Callable[[np.ndarray], np.ndarray] = reach.world
     what, grid = "points", f"a {'planar' if g.mode == 'planar' else '3-D'} grid"
