@@ -148,6 +148,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "ur5", "--collisions", "--base-step-deg", "nan"], "must be in (0, 90] degrees"),
     (["singularities", "ur5", "--collisions", "--base-step-deg", "deg"], "expected a number of degrees"),
     (["singularities", "ur5", "--base-step-deg", "5"], "--base-step-deg: is for serial arms with --collisions"),
+    (["workspace-volume", "ur5", "--collisions", "--turn", "sideways"], "invalid choice: 'sideways'"),
+    (["workspace-volume", "ur5", "--turn", "spatial"], "--turn: is for a serial arm's volume with --collisions"),
     (["singularities", "scara", "--collisions", "--base-step-deg", "5"], "is for serial arms"),
     (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "over the 200,000 limit"),  # before the volume
     (["show", "ur5", "--workspace", "--collisions", "--step", "0.005", "--export", "x.html"], "too fine a step"),
