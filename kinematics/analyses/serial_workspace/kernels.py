@@ -110,7 +110,7 @@ def _mark(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, 
     shape = list(grid.shape)
     shape[d - 1] += 1
     diff = np.zeros(shape, np.int32 if len(y) < np.iinfo(np.int32).max else np.int64)  # a row's sum <= len(y)
-    rows = (2 * rad / h + 2) ** (d - 1)
+    rows = (2 * np.maximum(rad, 0.0) / h + 2) ** (d - 1)  # rows a ball crosses, at most
     batch = max(BATCH_ROWS * grid.size, MIN_BATCH_ROWS)
     if rows.sum() <= batch:
         _rows(y, rad, origin, h, d, diff, inner, np.arange(len(y)))
