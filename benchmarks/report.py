@@ -123,6 +123,12 @@ def _serial_workspace(o: dict[str, Any]) -> list[Row]:
             for r in o["results"]]
 
 
+def _serial_singular(o: dict[str, Any]) -> list[Row]:
+    return [(f"`singularities {r['robot']}` scan ({r['mode']}, budget {o['max_points']:,})",
+             (f"{sec(r['seconds'])}, {r['singular_boxes']:,} possibly singular boxes, {r['unsplit_boxes']:,} left "
+              f"unsplit (ball up to {num(r['unsplit_radius_m'], 2)} m)")) for r in o["rows"]]
+
+
 def _models(o: dict[str, Any]) -> list[Row]:
     if o.get("skipped"):
         return [("Gepetto models, every command", f"skipped: {o['skipped']}")]
@@ -165,6 +171,7 @@ HEADLINES: dict[str, Callable[[dict[str, Any]], list[Row]]] = {
     "bench_loop_batch": _loop_batch,
     "bench_guidance_step": _guidance,
     "bench_serial_workspace": _serial_workspace,
+    "bench_serial_singular": _serial_singular,
     "bench_models": _models,
 }
 

@@ -121,6 +121,8 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
         "radius_m": {"min": float(r.min()), "max": float(r.max())} if len(r) else None,
         "singular_points": sample,
         "points_evaluated": ws.points_evaluated, "max_points": args.max_points, "cell_m": ws.grid.cell,
+        "budget_exhausted": ws.unsplit > 0, "unsplit_boxes": ws.unsplit, "unsplit_radius_m": ws.unsplit_radius,
+        "leaf_radius_m": ws.leaf_radius,
         "seconds": ws.seconds,
     }
     if checks is not None:
@@ -137,6 +139,7 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
                 ("possibly singular boxes", f"{len(r):,}"),
                 ("image radius [m]", f"{fmt(rad['min'], 3)} .. {fmt(rad['max'], 3)}" if rad else "-"),
                 ("configurations evaluated", f"{ws.points_evaluated:,} of a {args.max_points:,} budget"),
+                ("budget", _budget_line(ws)),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "tolerance: " + payload["tolerance"],
@@ -148,6 +151,15 @@ def _serial_singularities(args: argparse.Namespace, robot: Robot, out: Out, chec
 
     out(args, payload, human)
     return 0
+
+
+def _budget_line(ws: Any) -> str:
+    """Whether the budget finished every box, or how coarse it left the listed balls."""
+    if not ws.unsplit:
+        return f"sufficed: every box finished (image radius <= {fmt(ws.leaf_radius, 3)} m) or settled inside"
+    return (f"exhausted: {ws.unsplit:,} boxes left unsplit, image radius up to {fmt(ws.unsplit_radius, 3)} m "
+            f"(a finished box's: {fmt(ws.leaf_radius, 3)} m); the balls still hold every singular image, "
+            "only that coarsely (raise --max-points)")
 
 
 def joint_singular_points(sing: dict[str, Any]) -> list[dict[str, Any]]:

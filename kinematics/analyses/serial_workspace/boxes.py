@@ -21,14 +21,31 @@ SPLIT = 0.5
 """A box is halved along every joint contributing at least SPLIT x the largest share of eps."""
 
 
-def level_zero(s: Setup) -> tuple[np.ndarray, np.ndarray]:
+LEVEL_ZERO_SHARE = 16
+"""Level 0 takes at most 1/LEVEL_ZERO_SHARE of the budget, leaving the rest to the refinement."""
+
+
+def level_zero(s: Setup, budget: int) -> tuple[np.ndarray, np.ndarray]:
     """Level 0: boxes whose images span about a quarter of the reach along each joint (centres
-    and half-widths)."""
-    n = len(s.active)
+    and half-widths), coarsened to at most budget / LEVEL_ZERO_SHARE boxes (at least one) when
+    that is more: the boxes' image spans along the joints are then kept equal, only larger."""
     span = s.hi - s.lo
-    per = np.maximum(2, np.ceil(s.L * span / (s.reach / 4))).astype(int)
-    axes_1d = [s.lo[i] + (np.arange(per[i]) + 0.5) * span[i] / per[i] for i in range(n)]
-    centre = np.array(list(product(*axes_1d)), dtype=float).reshape(-1, n)
+    image = s.L * span  # a box's image along joint i spans about image_i / count_i
+    per = np.maximum(2, np.ceil(image / (s.reach / 4))).astype(int)
+    cap = max(1, budget // LEVEL_ZERO_SHARE)
+    if np.prod(per.astype(float)) > cap:
+        # the smallest common image span t whose counts ceil(image / t) fit the cap (bisection
+        # on t; at t = max(image) every count is 1)
+        lo_t, hi_t = s.reach / 4, float(max(image.max(), s.reach / 4))
+        for _ in range(60):
+            t = 0.5 * (lo_t + hi_t)
+            if np.prod(np.maximum(1, np.ceil(image / t))) > cap:
+                lo_t = t
+            else:
+                hi_t = t
+        per = np.maximum(1, np.ceil(image / hi_t)).astype(int)
+    axes_1d = [s.lo[i] + (np.arange(per[i]) + 0.5) * span[i] / per[i] for i in range(len(per))]
+    centre = np.array(list(product(*axes_1d)), dtype=float).reshape(-1, len(per))
     half = np.repeat((span / per / 2)[None, :], len(centre), axis=0)
     return centre, half
 

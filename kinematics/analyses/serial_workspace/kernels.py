@@ -27,11 +27,15 @@ def _span(c, r, o, h, n, inner):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _mark(y, rad, origin, h, d, grid, inner):  # pragma: no cover - compiled
-    """Set the cells wholly inside (inner) or meeting (not inner) the closed balls B(y_k, rad_k),
-    one row span at a time."""
-    nx, ny, nz = grid.shape
-    for k in range(y.shape[0]):
+def _rows(y, rad, origin, h, d, diff, inner, which):  # pragma: no cover - compiled
+    """For each ball B(y_k, rad_k), k in `which`, add +1 / -1 at the ends of the row spans of the
+    cells wholly inside it (inner) or meeting it (not inner) in `diff`, the grid with one more
+    entry along its last axis (2-D: axis 1); `_apply` turns the sums into marks. A ball costs
+    one entry per row it crosses, not one per cell."""
+    nx = diff.shape[0]
+    ny = diff.shape[1] - 1 if d == 2 else diff.shape[1]
+    nz = diff.shape[2] - 1
+    for k in which:
         r = rad[k]
         if not r > 0.0 and (inner or r != 0.0):  # a point still touches its own cell
             continue
@@ -45,8 +49,9 @@ def _mark(y, rad, origin, h, d, grid, inner):  # pragma: no cover - compiled
             ry = math.sqrt(ry2)
             if d == 2:
                 j0, j1 = _span(y[k, 1], ry, origin[1], h, ny, inner)
-                for j in range(j0, j1 + 1):
-                    grid[i, j, 0] = 1
+                if j1 >= j0:
+                    diff[i, j0, 0] += 1
+                    diff[i, j1 + 1, 0] -= 1
                 continue
             j0, j1 = _span(y[k, 1], ry, origin[1], h, ny, False)
             for j in range(j0, j1 + 1):
@@ -56,18 +61,93 @@ def _mark(y, rad, origin, h, d, grid, inner):  # pragma: no cover - compiled
                 if rz2 < 0.0:
                     continue
                 m0, m1 = _span(y[k, 2], math.sqrt(rz2), origin[2], h, nz, inner)
-                for m in range(m0, m1 + 1):
+                if m1 >= m0:
+                    diff[i, j, m0] += 1
+                    diff[i, j, m1 + 1] -= 1
+
+
+@njit(cache=True)
+def _apply(diff, grid, d):  # pragma: no cover - compiled
+    """Set the grid cells whose running sum of `diff` along the rows is positive; clear `diff`."""
+    nx, ny, nz = grid.shape
+    for i in range(nx):
+        if d == 2:
+            acc = 0
+            for j in range(ny):
+                acc += diff[i, j, 0]
+                diff[i, j, 0] = 0
+                if acc > 0:
+                    grid[i, j, 0] = 1
+            diff[i, ny, 0] = 0
+            continue
+        for j in range(ny):
+            acc = 0
+            for m in range(nz):
+                acc += diff[i, j, m]
+                diff[i, j, m] = 0
+                if acc > 0:
                     grid[i, j, m] = 1
+            diff[i, j, nz] = 0
 
 
-def mark_within(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray) -> None:
-    """Set grid cells lying wholly inside the ball B(y_k, rad_k)."""
-    _mark(y, rad, origin, h, d, grid, True)
+BATCH_ROWS = 4
+"""Balls are marked in batches of about BATCH_ROWS x the grid's cells in rows (at least
+MIN_BATCH_ROWS) before the grid's distance transform is taken again to drop the balls that can
+add nothing: a transform costs about as much as marking that many rows."""
+
+MIN_BATCH_ROWS = 1 << 21
 
 
-def mark_touching(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray) -> None:
-    """Set grid cells that meet the closed ball B(y_k, rad_k)."""
-    _mark(y, rad, origin, h, d, grid, False)
+def _mark(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray, inner: bool,
+          care: np.ndarray | None) -> None:
+    """Set the cells wholly inside (inner) or meeting (not inner) the closed balls B(y_k, rad_k).
+
+    When the balls' rows exceed a batch (`BATCH_ROWS`), the largest are marked first, and a ball
+    is dropped once no unmarked cell of `care` (None: every cell) lies within its radius: the
+    distance transform of those cells, taken after each batch, bounds the distance from the
+    ball's centre to them (less a cell diagonal). Outside `care` the marks are then a subset of
+    the balls' cells; inside it they are exactly those cells."""
+    shape = list(grid.shape)
+    shape[d - 1] += 1
+    diff = np.zeros(shape, np.int32 if len(y) < np.iinfo(np.int32).max else np.int64)  # a row's sum <= len(y)
+    rows = (2 * np.maximum(rad, 0.0) / h + 2) ** (d - 1)  # rows a ball crosses, at most
+    batch = max(BATCH_ROWS * grid.size, MIN_BATCH_ROWS)
+    if rows.sum() <= batch:
+        _rows(y, rad, origin, h, d, diff, inner, np.arange(len(y)))
+        _apply(diff, grid, d)
+        return
+    from scipy.ndimage import distance_transform_edt
+
+    cell = np.floor((y[:, :d] - origin[:d]) / h)
+    centre_in = np.all((cell >= 0) & (cell < np.array(grid.shape[:d])), axis=1)
+    cell = np.clip(cell, 0, np.array(grid.shape[:d]) - 1).astype(np.int64)
+    todo = np.argsort(-rad, kind="stable")
+    while len(todo):
+        take = max(1, int(np.searchsorted(np.cumsum(rows[todo]), batch)))
+        _rows(y, rad, origin, h, d, diff, inner, todo[:take])
+        _apply(diff, grid, d)
+        todo = todo[take:]
+        open_ = grid == 0 if care is None else (grid == 0) & (care == 1)
+        if not open_.any():
+            return
+        dist = distance_transform_edt(~open_ if d == 3 else ~open_[:, :, 0])
+        c = cell[todo]
+        at = dist[tuple(c.T)] if d == 3 else dist[c[:, 0], c[:, 1]]
+        # |p - y| >= (dist - sqrt(d)) h for every point p of an open cell (centre-to-centre
+        # distance less two half diagonals): such balls meet no open cell.
+        todo = todo[~centre_in[todo] | ((at - math.sqrt(d)) * h <= rad[todo] * (1 + 1e-9))]
+
+
+def mark_within(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray,
+                care: np.ndarray | None = None) -> None:
+    """Set grid cells lying wholly inside the ball B(y_k, rad_k) (outside `care`, maybe fewer)."""
+    _mark(y, rad, origin, h, d, grid, True, care)
+
+
+def mark_touching(y: np.ndarray, rad: np.ndarray, origin: np.ndarray, h: float, d: int, grid: np.ndarray,
+                  care: np.ndarray | None = None) -> None:
+    """Set grid cells that meet the closed ball B(y_k, rad_k) (outside `care`, maybe fewer)."""
+    _mark(y, rad, origin, h, d, grid, False, care)
 
 
 @njit(cache=True)

@@ -62,14 +62,14 @@ def serial_workspace(
     kin = BatchedKinematics.from_robot(robot, frame)
     s = setup(robot, kin)
     d = 2 if s.mode in ("planar", "revolved") else 3
-    centre, half = level_zero(s)
+    centre, half = level_zero(s, max_points)
     evaluated = evaluate(robot, kin, s, centre, half)
     plane_offset = _plane_offset(robot, kin, s, centre)
     y, eps = evaluated[0], evaluated[4]
     cells = Cells.cover(s, d, y, eps, cell, resolution)
     run = _refine(robot, kin, s, cells, centre, half, evaluated, max_points, progress)
     cells.fill_components(np.zeros((0, 3)), np.zeros(0))
-    cells.touched &= meets_ball(cells.origin, cells.h, cells.shape3, d, s.reach_centre, s.reach)  # W lies in the reach ball
+    cells.touched &= cells.reach  # W lies in the reach ball
     cells.touched |= cells.inside
     return _result(robot, kin, s, cells, run, rtol, plane_offset, t0)
 
@@ -104,7 +104,8 @@ class Cells:
     certified in W (`inside`), met by a leaf's ball (`touched`), met by the ball of a leaf that
     may map onto the boundary (`boundary_leaves`), the per-cell dexterity (Yoshikawa `gw`,
     condition number `gc`, smallest radius `gr`; NaN where no configuration was evaluated) and
-    each cell's measure (`weight`)."""
+    each cell's measure (`weight`), and the cells meeting the reach ball, where W lies (`reach`:
+    the marks outside it may be incomplete, `kernels.mark_touching`)."""
 
     d: int
     h: float
@@ -118,6 +119,7 @@ class Cells:
     gc: np.ndarray
     gr: np.ndarray
     weight: np.ndarray
+    reach: np.ndarray
 
     @classmethod
     def cover(cls, s: Setup, d: int, y: np.ndarray, eps: np.ndarray, cell: float | None,
@@ -145,7 +147,8 @@ class Cells:
                    inside=np.zeros(shape3, np.uint8), touched=np.zeros(shape3, np.uint8),
                    boundary_leaves=np.zeros(shape3, np.uint8),  # balls of final boxes that may map onto the boundary
                    gw=np.full(shape3, np.nan), gc=np.full(shape3, np.nan), gr=np.full(shape3, np.nan),
-                   weight=cell_measure(s.mode, origin, h, shape3))
+                   weight=cell_measure(s.mode, origin, h, shape3),
+                   reach=meets_ball(origin, h, shape3, d, s.reach_centre, s.reach))
 
     def fill_components(self, current_y3: np.ndarray, current_eps: np.ndarray) -> None:
         """Certify the components of the cells no critical ball meets that hold a reached point."""
@@ -154,8 +157,8 @@ class Cells:
         # dW lies in f(limit faces) u f(rank-deficient set): inside the balls of the boxes that
         # may hold such points. A face-connected component of the other cells is disjoint from dW,
         # hence wholly in W or wholly out; it is in W if it holds a reached point.
-        cover = self.boundary_leaves.copy()
-        mark_touching(current_y3, current_eps, self.origin3, self.h, self.d, cover)
+        cover = self.boundary_leaves | (self.reach == 0)  # no cell beyond the reach ball is in W
+        mark_touching(current_y3, current_eps, self.origin3, self.h, self.d, cover, self.reach)
         free = cover == 0
         labels, _ = label(free if self.d == 3 else free[:, :, 0])
         if self.d == 2:
@@ -172,9 +175,12 @@ class Cells:
 @dataclass(eq=False)
 class _Run:
     """What the refinement gathers besides the cells: configurations evaluated, a summary per
-    level, and the possibly singular boxes (task points, ball radii, centres in joint values and half-widths)."""
+    level, the boxes the budget left unsplit (how many, their largest ball) and the possibly
+    singular boxes (task points, ball radii, centres in joint values and half-widths)."""
 
     points: int = 0
+    unsplit: int = 0
+    unsplit_radius: float = 0.0
     levels: list[dict[str, float]] = field(default_factory=list)
     sing_pts: list[np.ndarray] = field(default_factory=list)
     sing_rad: list[np.ndarray] = field(default_factory=list)
@@ -219,8 +225,12 @@ def _level(cells: Cells, s: Setup, run: _Run, centre: np.ndarray, half: np.ndarr
     settled = _settled(cells, idx, eps)
     leaf, children = _leaves_and_children(s, centre, half, norms, eps, settled, max_points - run.points, h)
     final = settled | leaf
+    unsplit = leaf & (eps > LEAF * h)  # left with a ball above a leaf's: the budget ran out
+    if unsplit.any():
+        run.unsplit += int(unsplit.sum())
+        run.unsplit_radius = max(run.unsplit_radius, float(eps[unsplit].max()))
     maybe_singular &= final
-    mark_touching(y3[leaf & critical], eps[leaf & critical], cells.origin3, h, d, cells.boundary_leaves)
+    mark_touching(y3[leaf & critical], eps[leaf & critical], cells.origin3, h, d, cells.boundary_leaves, cells.reach)
     if maybe_singular.any():
         run.sing_pts.append(y[maybe_singular])
         run.sing_rad.append(eps[maybe_singular])
@@ -230,7 +240,7 @@ def _level(cells: Cells, s: Setup, run: _Run, centre: np.ndarray, half: np.ndarr
         widths = np.zeros_like(cfg)
         widths[:, s.active] = half[maybe_singular]
         run.sing_half.append(widths)
-    mark_touching(y3[leaf], eps[leaf], cells.origin3, h, d, cells.touched)
+    mark_touching(y3[leaf], eps[leaf], cells.origin3, h, d, cells.touched, cells.reach)
     run.levels.append({"boxes": float(len(centre)), "settled": float(settled.sum()), "leaves": float(leaf.sum()),
                        "max_eps_m": float(eps.max()),
                        "lower": cells.measure(cells.inside),
@@ -250,7 +260,7 @@ def _certify(cells: Cells, s: Setup, centre: np.ndarray, half: np.ndarray, y3: n
     r = np.minimum(sig_min / (2 * s.M), r_lim) if s.M > 0 else np.where(np.isfinite(r_lim), r_lim, 1.0)
     ball = (sig_min - s.M * r) * r
     # Cap the marking to what settling this box needs (keeps the work ~ one cover per level).
-    mark_within(y3, np.minimum(ball, eps + 2 * h * math.sqrt(d)), cells.origin3, h, d, cells.inside)
+    mark_within(y3, np.minimum(ball, eps + 2 * h * math.sqrt(d)), cells.origin3, h, d, cells.inside, cells.reach)
     idx = np.clip(np.floor((y3 - cells.origin3) / h).astype(np.int64), 0, np.array(cells.shape3) - 1)
     idx[:, d:] = 0
     with np.errstate(divide="ignore"):
@@ -340,4 +350,7 @@ def _result(robot: Robot, kin: BatchedKinematics, s: Setup, cells: Cells, run: _
         levels=tuple(run.levels),
         plane_offset=plane_offset,
         singular_half_widths=np.concatenate(run.sing_half) if run.sing_half else np.zeros((0, robot.nv)),
+        unsplit=run.unsplit,
+        unsplit_radius=run.unsplit_radius,
+        leaf_radius=LEAF * cells.h,
     )

@@ -71,6 +71,10 @@ class SerialWorkspace:
             singular_half_widths: (K, nv) their half-widths [rad or m] (0 for the joints not
             sampled: those that never move the point, and a revolved arm's base joint, whose
             every angle the box stands for).
+        unsplit: boxes the budget (`max_points`) left unsplit with an image ball above
+            `leaf_radius` (0: the budget sufficed; the bounds and the singular balls stay valid,
+            only coarser); unsplit_radius: the largest of their balls [m]; leaf_radius: the
+            radius below which a box is finished, half a cell [m].
     """
 
     robot: str
@@ -103,6 +107,9 @@ class SerialWorkspace:
     levels: tuple[dict[str, float], ...] = field(default=())
     plane_offset: float = 0.0
     singular_half_widths: np.ndarray | None = None
+    unsplit: int = 0
+    unsplit_radius: float = 0.0
+    leaf_radius: float = 0.0
 
     @property
     def planar(self) -> bool:
@@ -151,6 +158,9 @@ class SerialWorkspace:
             "joints": list(self.joints),
             "fixed_joints": list(self.fixed),
             "singular_boxes": len(self.singular_radius),
+            "unsplit_boxes": self.unsplit,
+            "unsplit_radius_m": self.unsplit_radius,
+            "leaf_radius_m": self.leaf_radius,
             "levels": list(self.levels),
         }
         if self.axis_direction is not None and self.axis_origin is not None:
