@@ -249,12 +249,29 @@ def _number(text: str, before: str) -> tuple[float, float]:
     return float(m.group(1)), float(m.group(2))
 
 
-def test_tall_pedestal_falls_back_to_3d_inside_the_bracket(tmp_path, capsys, monkeypatch, few_restarts):
-    """`workspace-volume --collisions` of the 3R arm on the tall pedestal (the human report): the
-    bracket (lower bound by hand, `_check_lower`) is too wide for rtol 1e-2 (half-width 0.023 of
-    1.41 m^3), so the volume is measured in 3-D (the search at the pedestal's every azimuth,
-    another path to the same set), which lies inside the bracket, each bound's error estimate and
-    the 3-D run's own added; the report says so. The 3-D run is held to 20,000 searches (its cost
+def test_tall_pedestal_bracket_too_wide(tmp_path, capsys, few_restarts):
+    """`--turn envelope --json` on the tall pedestal: the bracket is the answer, its lower bound by
+    hand (`_check_lower`), its upper the shell's, half-width 0.023 of 1.41 m^3, wider than rtol
+    1e-2: not converged (a finer step cannot narrow it)."""
+    path = tmp_path / "tall.urdf"
+    path.write_text(_pedestal_urdf(*TALL))
+    code, d, err = run_json(capsys, "workspace-volume", str(path), "--collisions", "--step", "0.12", "--rtol", "1e-2",
+                            "--turn", "envelope")
+    assert code == 0, err
+    t = d["collisions"]["turn"]
+    assert t["route"] == "envelope"
+    _check_lower(t, TALL)
+    assert abs(t["upper"] - SHELL) <= t["upper_error_estimate"]
+    assert 0.02 < t["half_width"] < 0.027
+    assert not d["converged"] and "a smaller --step cannot help" in err
+
+
+def test_tall_pedestal_auto_goes_3d_inside_the_bracket(tmp_path, capsys, monkeypatch, few_restarts):
+    """`workspace-volume --collisions` (turn "auto", the human report) on the tall pedestal: the
+    bracket estimated on the pre-scan's grid is wider than rtol 1e-2, so the volume is measured in
+    3-D at once (the search at the pedestal's every azimuth, another path to the same set), and
+    lies inside the bracket by hand (the lower bound clear of the prism's corners' cylinder, the
+    upper the shell's) within its error estimate. The 3-D run is held to 20,000 searches (its cost
     is test_serial_collisions' business): it stops on that budget, its error estimate covering."""
     import kinematics.analyses.serial_collisions as sc
 
@@ -264,13 +281,13 @@ def test_tall_pedestal_falls_back_to_3d_inside_the_bracket(tmp_path, capsys, mon
     code, out, err = run(capsys, "workspace-volume", str(path), "--collisions", "--step", "0.12", "--rtol", "1e-2")
     assert code == 0, err
     assert "search                      : in 3-D" in out
-    assert re.search(r"fixed bodies +: base bracketed: .* half-width [0-9.]+: too wide, measured in 3-D", out)
-    lower, lower_err = _number(out, "base bracketed:")
-    upper, upper_err = _number(out, "(swept over a full turn) to")
+    found = re.search(r"fixed bodies +: the turn envelope's bracket, estimated on the pre-scan's grid \(half-width "
+                      r"([0-9.]+) m\^3\), is wider than the tolerance: measured in 3-D", out)
+    assert found and 0.01 < float(found.group(1)) < 0.04  # the grid's estimate of 0.023 (48 x 48 points)
     volume, error = _number(out, "volume [m^3]                :")
-    _check_lower({"lower": lower, "lower_error_estimate": lower_err + 1e-5}, TALL)  # + the report's 6 digits
-    assert upper - lower > 0.04
-    assert lower - lower_err - error <= volume <= upper + upper_err + error
+    half, top, bottom = TALL
+    lower = _lower_volume(1e-3, half * math.sqrt(2) / math.cos(math.pi / SIDES), top, bottom)
+    assert lower - 2e-4 - error <= volume <= SHELL + error
 
 
 def test_turn_flag_only_for_a_serial_arm_with_collisions(capsys):

@@ -413,6 +413,17 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     env = None
     if "reach_search" in mech.capabilities:  # the reach search's configurations (`analyses.serial_collisions`)
         margin, scan, found, watched, env, extra = _serial_route(mech, robot, cm, dist, lo, hi, watch, turn)
+        if env is not None and turn == "auto":  # a bracket wider than the tolerance on a grid: in 3-D at once
+            from kinematics.analyses.serial_collisions import bracket_estimate
+
+            width, upper = bracket_estimate(margin, PRESCAN_CELLS)
+            if width > (1e-2 if rtol is None else rtol) * upper:
+                again = measure_collision_workspace(
+                    mech, robot, step=step, rtol=rtol, branches=branches, limits=limits, progress=progress,
+                    check=check, collision_model=cm, box=box, max_points=max_points, watch=watch, turn="spatial")
+                again.collision["turn"] = {"route": "spatial", "estimated_half_width": 0.5 * width, "why": (
+                    "the turn envelope's bracket, estimated on the pre-scan's grid, is wider than the tolerance")}
+                return again
     else:
         scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
         found, watched = _binding(scan, watch)

@@ -55,7 +55,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from kinematics.analyses.collision_prescan import Prescan
-from kinematics.errors import UnsupportedRobotError
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.batched import configurations
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms.base import UNION, Mechanism
@@ -198,6 +198,23 @@ def bracket(res: ColumnVolume, B: int, low: int, high: int, rtol: float) -> tupl
     bounds = {"route": "envelope", "lower": lo_v, "lower_error_estimate": float(res.error[low]),
               "upper": hi_v, "upper_error_estimate": float(res.error[high]), "half_width": half}
     return out, bounds
+
+
+def bracket_estimate(margin: SerialCollisionMargin, cells: int) -> tuple[float, float]:
+    """The width of a turn envelope's bracket and the upper bound's volume [m^3], estimated on a
+    grid of `cells` points per axis over the profile (each point weighed 2 pi rho by its cell's
+    area, Pappus): the points inside the upper bound but not the lower. A coarse guide (a thin
+    bracketed region can fall between grid points) for choosing the route, not a result."""
+    if margin.profile is None or margin.profile_margin is None or margin.exact is None:
+        raise InvalidInputError("margin", "bracket_estimate needs a turn envelope's margin on a profile")
+    lo, hi = margin.profile.lo, margin.profile.hi
+    h = (hi - lo) / cells
+    axes = [lo[k] + h[k] * (np.arange(cells) + 0.5) for k in range(2)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    cols = margin.profile_margin(pts)
+    upper, lower = cols[:, -2] > 0, cols[:, -1] > 0
+    weight = 2.0 * np.pi * np.abs(pts[:, 0]) * h[0] * h[1]
+    return float(weight[upper & ~lower].sum()), float(weight[upper].sum())
 
 
 class SerialCollisionMargin:
@@ -447,5 +464,6 @@ def collision_grid(mech: Mechanism, robot: Any, model: CollisionModel, step: flo
                          margin)
 
 
-__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "Turn", "bracket", "carried_joints", "collision_grid",
+__all__ = ["VIEW_CELLS", "CollisionGrid", "SerialCollisionMargin", "Turn", "bracket", "bracket_estimate", "carried_joints",
+           "collision_grid",
            "collision_reach", "serial_margin", "turn_invariant"]

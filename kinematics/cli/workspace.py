@@ -225,7 +225,8 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                 *([("search", _search_text(payload["collisions"]["search"]))] if "search" in payload["collisions"]
                   else []),
                 *([("fixed bodies", _turn_text(payload["collisions"]["turn"], unit))]
-                  if "lower" in payload["collisions"].get("turn", {}) else []),
+                  if "why" in payload["collisions"].get("turn", {}) or "lower" in payload["collisions"].get("turn", {})
+                  else []),
                 ("time [s]", f"{ws.seconds:.2f}"),
             ], digits=None),
             "",
@@ -246,6 +247,9 @@ def _search_text(search: dict[str, Any]) -> str:
 
 def _turn_text(turn: dict[str, Any], unit: str) -> str:
     """The turn envelope's bracket of a serial arm's fixed bodies (`analyses.collisions`)."""
+    if "lower" not in turn:
+        return (f"the turn envelope's bracket, estimated on the pre-scan's grid (half-width "
+                f"{fmt(turn['estimated_half_width'], 2)} {unit}), is wider than the tolerance: measured in 3-D")
     bodies = ", ".join(e["link"] for e in turn["enveloped"])
     bracket = (f"{bodies} bracketed: {fmt(turn['lower'], 6)} +/- {fmt(turn['lower_error_estimate'], 2)} (swept over "
                f"a full turn) to {fmt(turn['upper'], 6)} +/- {fmt(turn['upper_error_estimate'], 2)} {unit} (their "
