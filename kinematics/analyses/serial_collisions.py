@@ -80,7 +80,8 @@ no check run): an evaluation here is a search plus every pair's distance at its 
 ~0.2 ms on the ur5's 20 mesh pairs through coal (one core) against ~0.01 ms for a search
 alone, so the kinematic budget of 10^7 would be hours. 10^6 keeps the benchmark's ur5 run (step
 0.1 m, rtol 0.1: 1.08e6 evaluations with its check run) converging; it bounds every run, but at
-the CLI's defaults (1 cm, rtol 1e-3) the ur5 stops on it after 15 minutes with 3.575 +- 3.7 m^3,
+the CLI's defaults (1 cm, rtol 1e-3) the ur5 (in 3-D: its base link's turn envelope brackets too
+wide a volume, `Turn`) stops on it after 15 minutes with 3.575 +- 3.7 m^3,
 and where a run stops its error estimate is no use (a budget of 10^5 at step 0.02 m: 3.62 +- 7.1
 m^3, 106 s): a larger --step / --rtol is the way to an answer."""
 
