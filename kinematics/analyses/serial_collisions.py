@@ -38,12 +38,15 @@ where more configurations free more of the workspace the two runs disagree, the 
 the error estimate and marks the run not converged when it exceeds the estimates.
 
 The base's turn: a pair of bodies both carried by a full-turn base joint keeps its distances
-when the base turns (the whole pair turns rigidly), so with only such pairs the collision-free set
-is still a solid of revolution and is measured on its (rho, z) profile (Pappus), at azimuth 0.
-A pair with a body fixed to the world (the base link, an obstacle) changes with the base's angle:
-then (and for a base that turns through less than a full turn) the arm is searched and measured in
-3-D (`Reach(revolve=False)`), with the pre-scan's cells (`kinematics.analyses.collision_prescan`)
-on the 3-D grid.
+when the base turns (the whole pair turns rigidly), and so does a pair with a fixed body the turn
+leaves as it is (a floor, a post on the axis: `turn_envelope.coaxial`); with only such pairs the
+collision-free set is still a solid of revolution and is measured on its (rho, z) profile (Pappus),
+at azimuth 0. A pair with another body fixed to the world (the base link, an obstacle) changes with
+the base's angle: a volume then brackets it on the profile (`serial_margin`, `Turn`: the body's turn
+envelope below, its pairs left out above) where the bracket meets the tolerance; otherwise (and for
+a base that turns through less than a full turn) the arm is searched and measured in 3-D
+(`Reach(revolve=False)`), with the pre-scan's cells (`kinematics.analyses.collision_prescan`) on
+the 3-D grid.
 """
 
 from __future__ import annotations
