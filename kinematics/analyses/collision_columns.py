@@ -52,6 +52,7 @@ import numpy as np
 
 from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
 from kinematics.analyses.collision_fused import distances, illinois, pair_roots
+from kinematics.analyses.collision_fused_pieces import fused_pieces
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 from kinematics.mechanisms.p2us.configurations import kernel_data
@@ -96,6 +97,12 @@ COMPILED = True
 """Whether the 3-[P2(US)]'s samples and pair roots are evaluated by compiled single passes
 (`collision_fused`; else batched: configurations, then distances, the roots by `illinois` on
 `_pair_values`; the same values)."""
+
+FUSED = True
+"""Whether the 3-[P2(US)]'s close sub-intervals are sampled, tested, halved and refined to roots
+in one compiled pass each (`collision_fused_pieces`; else by the NumPy passes below over every
+sub-interval's samples; the same pieces)."""
+
 
 class CollisionColumns:
     """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
@@ -252,15 +259,26 @@ class CollisionColumns:
         first = d.min(axis=1, initial=np.inf)[:, None]
         return np.concatenate([first, d[:, self.margin.watched]], axis=1)
 
-    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
-                        ) -> tuple[np.ndarray, ...]:
+    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray,
+                        batched: bool = False) -> tuple[np.ndarray, ...]:
         """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
-        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
+        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap
+        (`batched`: by NumPy passes over every sub-interval's samples, else `FUSED`'s way)."""
         F = 1 + len(self.margin.watched)
+        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
+        kd = self.kernel_data[b]
+        if FUSED and kd is not None and len(col) and not batched:  # compiled (`collision_fused_pieces`): the same pieces
+            out, evaluations, rest = fused_pieces(kd, self.margin.distances, base, ax, col, u, v, n, self.slopes[b],
+                                                  self.margin.watched, SAFETY, MAX_REFINE, EDGE, self.root_tol,
+                                                  ROOT_STEPS)
+            self.evaluations += evaluations
+            if not rest.any():
+                return out
+            more = self._checked_pieces(b, base, ax, col[rest], u[rest], v[rest], batched=True)
+            return tuple(np.concatenate([x, y], axis=-1) for x, y in zip(out, more, strict=True))
         if not len(col):
             empty = np.zeros((F, 0))
             return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
-        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
         seg = np.repeat(np.arange(len(col)), n + 1)
         k = np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
         z = u[seg] + (v - u)[seg] * (k / n[seg])
@@ -424,5 +442,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "FUSED", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]
