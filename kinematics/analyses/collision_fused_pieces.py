@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -260,14 +261,30 @@ def _sub_interval(c, u, v, nn, bx, by, others, ax, opts, kd, cf, pk, sc, work, b
             continue
         if count >= room:
             return 0, evaluations, True
-        outs[0][off + count] = c
+        slot = off + count
+        outs[0][slot] = c
         n, failed = _gap_pieces(bx, by, others, ax, za, zb, D, ia, ib, watched, root_tol, steps, kd, cf, pk, sc, work,
-                                outs, off + count)
+                                outs, slot)
         evaluations += n
         if failed:
             return 0, evaluations, True
+        if count > 0 and _extends(outs, slot):
+            continue
         count += 1
     return count, evaluations, False
+
+
+@njit(cache=True, inline="always")
+def _extends(outs, slot):  # pragma: no cover - compiled
+    """Whether every function's piece in slot starts where the one in slot - 1 ends (no root
+    between them: a union merges them); then slot - 1 takes slot's ends."""
+    oa, oe, oce = outs[1], outs[2], outs[4]
+    for f in range(oa.shape[0]):
+        if oe[f, slot - 1] != oa[f, slot]:
+            return False
+    for f in range(oa.shape[0]):
+        oe[f, slot - 1], oce[f, slot - 1] = oe[f, slot], oce[f, slot]
+    return True
 
 
 @njit(cache=True, parallel=True)
@@ -319,13 +336,14 @@ def fused_pieces(kernel_data: tuple[np.ndarray, ...], dist: Any, base: np.ndarra
     failed = np.zeros(S, np.bool_)
     others = np.array([k for k in range(3) if k != ax], np.int64)
     s = np.ascontiguousarray(slopes, dtype=float)
-    on_cores(pieces_kernel, S, PARALLEL_SUBS, np.ascontiguousarray(col, dtype=np.int64),
-             np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(v, dtype=float),
-             np.ascontiguousarray(n, dtype=np.int64), np.ascontiguousarray(base[:, 0], dtype=float),
-             np.ascontiguousarray(base[:, 1], dtype=float), others, ax, s, float(s.max(initial=0.0)),
-             np.ascontiguousarray(watched, dtype=np.int64), float(safety), int(max_refine), float(edge),
-             float(root_tol), int(steps), tuple(kernel_data), dist.closed_form_data(), dist.pair_kernel_data(),
-             EXTRA_ROWS, off, room, oc, oa, oe, oca, oce, count, evaluations, failed)
+    with numba.parallel_chunksize(1):  # blocks taken one at a time: a busy core holds up no others'
+        on_cores(pieces_kernel, S, PARALLEL_SUBS, np.ascontiguousarray(col, dtype=np.int64),
+                 np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(v, dtype=float),
+                 np.ascontiguousarray(n, dtype=np.int64), np.ascontiguousarray(base[:, 0], dtype=float),
+                 np.ascontiguousarray(base[:, 1], dtype=float), others, ax, s, float(s.max(initial=0.0)),
+                 np.ascontiguousarray(watched, dtype=np.int64), float(safety), int(max_refine), float(edge),
+                 float(root_tol), int(steps), tuple(kernel_data), dist.closed_form_data(), dist.pair_kernel_data(),
+                 EXTRA_ROWS, off, room, oc, oa, oe, oca, oce, count, evaluations, failed)
     count[failed] = 0
     kept = int(count.sum())
     slots = np.repeat(off - (np.cumsum(count) - count), count) + np.arange(kept)
