@@ -41,7 +41,8 @@ the check run halves the spacing (`for_check`).
 Evaluations: the 3-[P2(US)]'s samples and pair roots are compiled single passes from column points
 to distances (`kinematics.analyses.collision_fused`, `COMPILED`), the same values to the last bit
 as the batched path (configurations, then `AnalyticDistances`, the roots by `illinois`) that the
-other families take.
+other families take; with `FUSED`, each close sub-interval's whole work above is one compiled
+pass (`kinematics.analyses.collision_fused_pieces`), the same pieces to the last bit.
 """
 
 from __future__ import annotations

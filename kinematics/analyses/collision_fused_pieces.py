@@ -61,6 +61,12 @@ def _all_pairs(bx, by, z, others, ax, kd, cf, sc, pt, q, out, row):  # pragma: n
     return need
 
 
+_all_pairs_apart = njit(cache=True, error_model="numpy")(_all_pairs.py_func)
+"""`_all_pairs` compiled on its own, for the rarer full evaluations (a root's free end, the
+smallest distance's steps): each inlined copy of the closed forms in the parallel kernel costs
+compile time, and a call outside it about twice the time of an inlined one."""
+
+
 @njit(cache=True, inline="always")
 def _row_min(d, row):  # pragma: no cover - compiled
     """NumPy's min (initial +inf) and argmin of d[row]: a NaN wins, at its first place."""
@@ -114,7 +120,7 @@ def _pair_root(bx, by, others, ax, a, c, ya, yc, k, root_tol, steps, kd, pk, sc,
     return a, c, ya, n, False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _smallest_root(bx, by, others, ax, a, c, ya, yc, pair, root_tol, steps, kd, cf, sc, pt, q, row
                    ):  # pragma: no cover - compiled
     """`collision_fused.illinois` on the smallest distance over every pair (`CollisionColumns.
@@ -130,7 +136,7 @@ def _smallest_root(bx, by, others, ax, a, c, ya, yc, pair, root_tol, steps, kd, 
         else:
             x = 0.5 * (a + c)
         n += 1
-        if _all_pairs(bx, by, x, others, ax, kd, cf, sc, pt, q, row, 0):
+        if _all_pairs_apart(bx, by, x, others, ax, kd, cf, sc, pt, q, row, 0):
             return 0.0, pair, n, True
         y, arg = _row_min(row, 0)
         if y < 0.0:
@@ -192,7 +198,7 @@ def _gap_pieces(bx, by, others, ax, za, zb, D, ia, ib, watched, root_tol, steps,
         root, code = 0.5 * (lo + hi), pair
         if f == 0:  # the smallest distance's root is the pair's when every pair is clear at the free end
             evaluations += 1
-            if _all_pairs(bx, by, lo if ylo >= 0.0 else hi, others, ax, kd, cf, sc, pt, q, row, 0):
+            if _all_pairs_apart(bx, by, lo if ylo >= 0.0 else hi, others, ax, kd, cf, sc, pt, q, row, 0):
                 return evaluations, True
             if not _row_min(row, 0)[0] >= 0.0:
                 root, code, n, failed = _smallest_root(bx, by, others, ax, za, zb, fa[0], fb[0], pair, root_tol, steps,
