@@ -58,11 +58,13 @@ from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 from kinematics.mechanisms.p2us.configurations import kernel_data
 
-SPACING = 4.0
+SPACING = 8.0
 """The collision margin's first samples along a column are SPACING x the column step apart (the gap
 tests refine where a root may hide; the check run halves it). p2us-results, mode ---, rtol 1e-3,
 first run: at 2 x 4.5M samples, 32.8 s CPU; at 4 x 3.2M, 29.0 s, the same volume to 1e-7 m^3 and
-every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x."""
+every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x. With the
+check run: at 8 x (MAX_REFINE 11), 26.5 s CPU against 34-36 s at 4 x (10), the volume within
+2e-9 m^3, every removal within 6e-6 m^3 (errors 2.9e-5, 3.5e-5); at 16 x, 2.7 x the columns."""
 
 SIGNATURE_PAIRS = True
 """Whether a collision end's binding pair enters the column's signature (else only its rank; off,
@@ -85,8 +87,9 @@ CHUNK_COLUMNS = 8192
 EDGE = 1e-10
 """[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
 
-MAX_REFINE = 10
-"""Most halvings of a gap between two samples that the slopes say may hold a root."""
+MAX_REFINE = 11
+"""Most halvings of a gap between two samples that the slopes say may hold a root (the narrowest
+dip they resolve, SPACING / 2^MAX_REFINE = 4 steps / 1024, as at 4 x and 10 halvings)."""
 
 MAX_SPLITS = 40
 """Most halvings of a z range while separating a column's kinematic intervals."""
