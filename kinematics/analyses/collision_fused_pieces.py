@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit, prange
 
 from kinematics.analyses.collision_column_kernels import gap_may_hold_root
-from kinematics.generic.capsule_kernels import joint_pose, pair_at, pair_value, place, scratch
+from kinematics.analyses.collision_fused import illinois_point, illinois_update, pair_root
+from kinematics.generic.capsule_kernels import joint_pose, pair_value, place, scratch
 from kinematics.generic.capsules import PLATE
 from kinematics.jit import on_cores
 from kinematics.mechanisms.p2us.configurations import configurations_kernel
@@ -82,44 +83,6 @@ def _row_min(d, row):  # pragma: no cover - compiled
     return m, arg
 
 
-@njit(cache=True, inline="always")
-def _pair_root(bx, by, others, ax, a, c, ya, yc, k, root_tol, steps, kd, pk, sc, pt, q):  # pragma: no cover - compiled
-    """`collision_fused.pair_roots_kernel` on one bracket: lo, hi, ylo, evaluations, failed."""
-    Rm, pj, centre, gaxis, o, good = sc
-    e, w, t, geometry, roots, code, limb = kd
-    parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half, pairs, kinds = pk
-    side, n = 0, 0
-    for step in range(steps):
-        if not c - a > root_tol:
-            break
-        if step < 8:
-            x = max(a - ya * (c - a) / (yc - ya), a + 0.25 * root_tol)
-            x = min(x, c - 0.25 * root_tol)
-        else:
-            x = 0.5 * (a + c)
-        pt[0, others[0]], pt[0, others[1]], pt[0, ax] = bx, by, x
-        configurations_kernel(pt, e, w, t, geometry, roots, code, limb, q)
-        n += 1
-        y = math.inf
-        if np.isfinite(q[0]).all():
-            pair_at(q, 0, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius,
-                    half, pairs, kinds, Rm, pj, centre, gaxis, o, good)
-            y = o[0, k]
-            if not (good[0, k] or (kinds[k] == PLATE and y > 0.0)):
-                return a, c, ya, n, True
-        below = (y >= 0.0) == (ya >= 0.0)  # the root is above x
-        if below and side == 1:  # Illinois: halve the value kept twice in a row
-            yc *= 0.5
-        if not below and side == -1:
-            ya *= 0.5
-        if below:
-            a, ya = x, y
-        else:
-            c, yc = x, y
-        side = 1 if below else -1
-    return a, c, ya, n, False
-
-
 @njit(cache=True, error_model="numpy")
 def _smallest_root(bx, by, others, ax, a, c, ya, yc, pair, root_tol, steps, kd, cf, sc, pt, q, row
                    ):  # pragma: no cover - compiled
@@ -130,27 +93,14 @@ def _smallest_root(bx, by, others, ax, a, c, ya, yc, pair, root_tol, steps, kd, 
     for step in range(steps):
         if not c - a > root_tol:
             break
-        if step < 8:
-            x = max(a - ya * (c - a) / (yc - ya), a + 0.25 * root_tol)
-            x = min(x, c - 0.25 * root_tol)
-        else:
-            x = 0.5 * (a + c)
+        x = illinois_point(a, c, ya, yc, step, root_tol)
         n += 1
         if _all_pairs_apart(bx, by, x, others, ax, kd, cf, sc, pt, q, row, 0):
             return 0.0, pair, n, True
         y, arg = _row_min(row, 0)
         if y < 0.0:
             pair = arg
-        below = (y >= 0.0) == (ya >= 0.0)
-        if below and side == 1:
-            yc *= 0.5
-        if not below and side == -1:
-            ya *= 0.5
-        if below:
-            a, ya = x, y
-        else:
-            c, yc = x, y
-        side = 1 if below else -1
+        a, c, ya, yc, side = illinois_update(a, c, ya, yc, side, x, y)
     return 0.5 * (a + c), pair, n, False
 
 
@@ -187,7 +137,7 @@ def _gap_pieces(bx, by, others, ax, za, zb, D, ia, ib, watched, root_tol, steps,
             if cache_pair[m] == pair:
                 hit = m
         if hit < 0:
-            lo, hi, ylo, n, failed = _pair_root(bx, by, others, ax, za, zb, va, vb, pair, root_tol, steps, kd, pk, sc,
+            lo, hi, ylo, n, failed = pair_root(bx, by, others, ax, za, zb, va, vb, pair, root_tol, steps, kd, pk, sc,
                                                 pt, q)
             evaluations += n
             if failed:
