@@ -64,7 +64,7 @@ tests refine where a root may hide; the check run halves it). p2us-results, mode
 first run: at 2 x 4.5M samples, 32.8 s CPU; at 4 x 3.2M, 29.0 s, the same volume to 1e-7 m^3 and
 every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x. With the
 check run: at 8 x (MAX_REFINE 11), 26.5 s CPU against 34-36 s at 4 x (10), the volume within
-2e-9 m^3, every removal within 6e-6 m^3 (errors 2.9e-5, 3.5e-5); at 16 x, 2.7 x the columns."""
+3e-8 m^3, every removal within 6e-6 m^3 (errors 2.9e-5, 3.5e-5); at 16 x, 2.7 x the columns."""
 
 SIGNATURE_PAIRS = True
 """Whether a collision end's binding pair enters the column's signature (else only its rank; off,
