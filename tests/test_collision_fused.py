@@ -121,3 +121,46 @@ def test_columns_are_the_batched_ones(p2us_results, rng, monkeypatch):
     assert (one[0][:, 1] - one[0][:, -1]).max() > 0.05  # collisions shorten columns
     for x, y in zip(one, two, strict=True):
         assert np.array_equal(x, y, equal_nan=True)
+
+
+# every core; one thread (few sub-intervals); with room for few midpoints, the batched path takes some
+@pytest.mark.parametrize(("mode", "n", "extra"), [("---", 400, None), ("---", 20, 0), ("---", 300, 1)])
+def test_fused_pieces_are_the_batched_ones(p2us_results, rng, monkeypatch, mode, n, extra):
+    """The collision-free exact columns of p2us-results (three watched pairs) on n random
+    columns: every output (lengths, errors, ends, signatures, extents) and the evaluation count
+    the same with each close sub-interval in one compiled pass (`FUSED`,
+    `collision_fused_pieces`) as with the NumPy passes over the compiled evaluations, also where
+    the batched path takes the sub-intervals that outgrow the compiled pass's room."""
+    import kinematics.analyses.collision_columns as cc
+    import kinematics.analyses.collision_fused_pieces as cfp
+
+    mech, robot, dist, lo, hi = p2us_results
+    scan = Prescan(CollisionMargin(mech, robot, dist, [mode], "all"), lo, hi, PRESCAN_CELLS)
+    watched = np.flatnonzero(scan.counts)[:3]
+    margin = CollisionMargin(mech, robot, dist, [mode], "all", watched, prescan=scan)
+    ax = int(np.argmin(hi - lo))
+    others = [k for k in range(3) if k != ax]
+    base = lo[others] + (hi[others] - lo[others]) * rng.random((n, 2))
+    taken: list[tuple[int, int]] = []
+    fused_pieces = cfp.fused_pieces
+
+    def counted(*args, **kwargs):
+        out, evaluations, rest = fused_pieces(*args, **kwargs)
+        taken.append((len(rest), int(rest.sum())))
+        return out, evaluations, rest
+
+    monkeypatch.setattr(cc, "fused_pieces", counted)
+    if extra is not None:
+        monkeypatch.setattr(cfp, "EXTRA_ROWS", extra)
+    fused = cc.ExactCollisionMargin(margin, scan, 0.01, 1e-10).exact_columns
+    one = fused(base, ax, lo[ax], hi[ax])
+    monkeypatch.setattr(cc, "FUSED", False)
+    batched = cc.ExactCollisionMargin(margin, scan, 0.01, 1e-10).exact_columns
+    two = batched(base, ax, lo[ax], hi[ax])
+    subs, rest = np.sum(taken, axis=0)
+    assert (subs >= cfp.PARALLEL_SUBS) == (n > 100), subs
+    assert (0 < rest < subs) if extra is not None else rest < subs // 100, (subs, rest)
+    assert (one[0][:, 1] - one[0][:, -1]).max() > 0.05  # collisions shorten columns
+    assert fused.evaluations == batched.evaluations
+    for x, y in zip(one, two, strict=True):
+        assert np.array_equal(x, y, equal_nan=True)

@@ -41,7 +41,8 @@ the check run halves the spacing (`for_check`).
 Evaluations: the 3-[P2(US)]'s samples and pair roots are compiled single passes from column points
 to distances (`kinematics.analyses.collision_fused`, `COMPILED`), the same values to the last bit
 as the batched path (configurations, then `AnalyticDistances`, the roots by `illinois`) that the
-other families take.
+other families take; with `FUSED`, each close sub-interval's whole work above is one compiled
+pass (`kinematics.analyses.collision_fused_pieces`), the same pieces to the last bit.
 """
 
 from __future__ import annotations
@@ -52,15 +53,18 @@ import numpy as np
 
 from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
 from kinematics.analyses.collision_fused import distances, illinois, pair_roots
+from kinematics.analyses.collision_fused_pieces import fused_pieces
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 from kinematics.mechanisms.p2us.configurations import kernel_data
 
-SPACING = 4.0
+SPACING = 8.0
 """The collision margin's first samples along a column are SPACING x the column step apart (the gap
 tests refine where a root may hide; the check run halves it). p2us-results, mode ---, rtol 1e-3,
 first run: at 2 x 4.5M samples, 32.8 s CPU; at 4 x 3.2M, 29.0 s, the same volume to 1e-7 m^3 and
-every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x."""
+every pair's removal within 1e-5 m^3 (errors 6e-5); at 1 x 1.5 x the CPU time of 2 x. With the
+check run: at 8 x (MAX_REFINE 11), 26.5 s CPU against 34-36 s at 4 x (10), the volume within
+3e-8 m^3, every removal within 6e-6 m^3 (errors 2.9e-5, 3.5e-5); at 16 x, 2.7 x the columns."""
 
 SIGNATURE_PAIRS = True
 """Whether a collision end's binding pair enters the column's signature (else only its rank; off,
@@ -83,8 +87,9 @@ CHUNK_COLUMNS = 8192
 EDGE = 1e-10
 """[m] samples at a kinematic end are taken this far inside (the configuration there exists)."""
 
-MAX_REFINE = 10
-"""Most halvings of a gap between two samples that the slopes say may hold a root."""
+MAX_REFINE = 11
+"""Most halvings of a gap between two samples that the slopes say may hold a root (the narrowest
+dip they resolve, SPACING / 2^MAX_REFINE = 4 steps / 1024, as at 4 x and 10 halvings)."""
 
 MAX_SPLITS = 40
 """Most halvings of a z range while separating a column's kinematic intervals."""
@@ -96,6 +101,12 @@ COMPILED = True
 """Whether the 3-[P2(US)]'s samples and pair roots are evaluated by compiled single passes
 (`collision_fused`; else batched: configurations, then distances, the roots by `illinois` on
 `_pair_values`; the same values)."""
+
+FUSED = True
+"""Whether the 3-[P2(US)]'s close sub-intervals are sampled, tested, halved and refined to roots
+in one compiled pass each (`collision_fused_pieces`; else by the NumPy passes below over every
+sub-interval's samples; the same pieces)."""
+
 
 class CollisionColumns:
     """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
@@ -252,15 +263,26 @@ class CollisionColumns:
         first = d.min(axis=1, initial=np.inf)[:, None]
         return np.concatenate([first, d[:, self.margin.watched]], axis=1)
 
-    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
-                        ) -> tuple[np.ndarray, ...]:
+    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray,
+                        batched: bool = False) -> tuple[np.ndarray, ...]:
         """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
-        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
+        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap
+        (`batched`: by NumPy passes over every sub-interval's samples, else `FUSED`'s way)."""
         F = 1 + len(self.margin.watched)
+        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
+        kd = self.kernel_data[b]
+        if FUSED and kd is not None and len(col) and not batched:  # compiled (`collision_fused_pieces`): the same pieces
+            out, evaluations, rest = fused_pieces(kd, self.margin.distances, base, ax, col, u, v, n, self.slopes[b],
+                                                  self.margin.watched, SAFETY, MAX_REFINE, EDGE, self.root_tol,
+                                                  ROOT_STEPS)
+            self.evaluations += evaluations
+            if not rest.any():
+                return out
+            more = self._checked_pieces(b, base, ax, col[rest], u[rest], v[rest], batched=True)
+            return tuple(np.concatenate([x, y], axis=-1) for x, y in zip(out, more, strict=True))
         if not len(col):
             empty = np.zeros((F, 0))
             return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
-        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
         seg = np.repeat(np.arange(len(col)), n + 1)
         k = np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
         z = u[seg] + (v - u)[seg] * (k / n[seg])
@@ -424,5 +446,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "FUSED", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]
