@@ -396,8 +396,10 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
             a carried one, `serial_collisions.Turn`): "auto" measures the profile with each fixed
             body's turn envelope (a lower bound) and without its pairs (an upper bound) in one run,
             each to rtol / 2, and reports their midpoint, its error the half-width plus the larger
-            error estimate; where that exceeds rtol x the volume it measures in 3-D instead.
-            "envelope" keeps the bracket (then not converged), "spatial" measures in 3-D.
+            error estimate; where the bracket's width estimated on the pre-scan's grid
+            (`bracket_estimate`), or the error after the run, exceeds rtol x the volume, it
+            measures in 3-D instead. "envelope" keeps the bracket (then not converged), "spatial"
+            measures in 3-D.
     """
     mech.require("margin", "a workspace measurement")
     if mech.task_dim not in (2, 3):
@@ -411,6 +413,15 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     margin: Any
     extra: dict[str, Any] = {}
     env = None
+
+    def in_3d(why: dict[str, Any]) -> CollisionWorkspace:
+        """The serial arm measured in 3-D, its report saying why (a turn envelope's bracket too wide)."""
+        again = measure_collision_workspace(
+            mech, robot, step=step, rtol=rtol, branches=branches, limits=limits, progress=progress, check=check,
+            collision_model=cm, box=box, max_points=max_points, watch=watch, turn="spatial")
+        again.collision["turn"] = {**why, "route": "spatial"}
+        return again
+
     if "reach_search" in mech.capabilities:  # the reach search's configurations (`analyses.serial_collisions`)
         margin, scan, found, watched, env, extra = _serial_route(mech, robot, cm, dist, lo, hi, watch, turn)
         if env is not None and turn == "auto":  # a bracket wider than the tolerance on a grid: in 3-D at once
@@ -418,12 +429,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
 
             width, upper = bracket_estimate(margin, PRESCAN_CELLS)
             if width > (1e-2 if rtol is None else rtol) * upper:
-                again = measure_collision_workspace(
-                    mech, robot, step=step, rtol=rtol, branches=branches, limits=limits, progress=progress,
-                    check=check, collision_model=cm, box=box, max_points=max_points, watch=watch, turn="spatial")
-                again.collision["turn"] = {"route": "spatial", "estimated_half_width": 0.5 * width, "why": (
-                    "the turn envelope's bracket, estimated on the pre-scan's grid, is wider than the tolerance")}
-                return again
+                return in_3d({"estimated_half_width": 0.5 * width, "why": (
+                    "the turn envelope's bracket, estimated on the pre-scan's grid, is wider than the tolerance")})
     else:
         scan = Prescan(CollisionMargin(mech, robot, dist, chosen, limits), lo, hi, PRESCAN_CELLS)
         found, watched = _binding(scan, watch)
@@ -436,7 +443,8 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     if not scan.near.any() and not found:  # no pair comes near contact: the kinematic measure (exact columns if any)
         res = run(margin.kinematic)
         kin, kin_err, removals = float(res.estimate[B]), float(res.error[B]), []
-        env = None
+        if env is not None:  # no pair near contact: the kinematic profile
+            env, extra["turn"] = None, {"route": "profile"}
     else:
         if exact:
             from kinematics.analyses.collision_columns import SPACING, ExactCollisionMargin, has_exact_columns
@@ -455,12 +463,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
                 {"link": link, "geometry": name, "bands": [{"from_m": b.lo, "to_m": b.hi, "radius_m": b.radius}
                                                            for b in bands]} for link, name, bands in env.enveloped]}
             if not res.target_converged[-1] and turn == "auto":  # the bracket is too wide: in 3-D
-                again = measure_collision_workspace(
-                    mech, robot, step=step, rtol=rtol, branches=branches, limits=limits, progress=progress,
-                    check=check, collision_model=cm, box=box, max_points=max_points, watch=watch, turn="spatial")
-                again.collision["turn"] = {**extra["turn"], "route": "spatial",
-                                           "why": "the envelope's bracket did not meet the tolerance"}
-                return again
+                return in_3d({**extra["turn"], "why": "the envelope's bracket did not meet the tolerance"})
         else:
             res = _take(res, [*range(B), B + 1 + W])
     if env is not None:

@@ -157,8 +157,9 @@ Turn = Literal["auto", "envelope", "spatial"]
 """How a collision-aware volume treats pairs a full-turn base's turn changes (a body fixed in the
 world against a carried one): "envelope" measures the profile twice in one run, with each fixed
 body replaced by its turn envelope (a lower bound) and without its pairs (an upper bound),
-"spatial" measures in 3-D, "auto" tries the envelope first and falls back to 3-D where its
-bracket does not meet the tolerance (`kinematics.analyses.collisions.measure_collision_workspace`)."""
+"spatial" measures in 3-D, "auto" measures the bracket where its width estimated on the
+pre-scan's grid meets the tolerance, and in 3-D otherwise or where the measured bracket still
+misses it (`kinematics.analyses.collisions.measure_collision_workspace`)."""
 
 
 def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances: AnalyticDistances,
@@ -184,19 +185,21 @@ def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances:
 def bracket(res: ColumnVolume, B: int, low: int, high: int, rtol: float) -> tuple[ColumnVolume, dict[str, Any]]:
     """A turn envelope's run (`Turn`) as the B branch targets of `res` and the union, the midpoint
     of the bracket of targets `low` (the lower bound) and `high` (the upper bound): its error the
-    half-width plus the larger of the two error estimates (the true measure lies in [low - its error, high + its error]),
-    converged where both bounds are and that error is <= rtol x the midpoint; the half-width is the
-    error no finer step reduces (`fixed_error`). Also the report's entries of the two bounds."""
+    half-width plus the larger of the two error estimates (the true measure lies in
+    [low - its error, high + its error]), converged where both bounds are and that error is
+    <= rtol x the midpoint; the half-width is the error no finer step reduces (`fixed_error`).
+    Also the report's entries of the two bounds."""
     keep = list(range(B))
     lo_v, hi_v = float(res.estimate[low]), float(res.estimate[high])
     half = 0.5 * max(hi_v - lo_v, 0.0)
     mid = 0.5 * (lo_v + hi_v)
     err = half + max(float(res.error[low]), float(res.error[high]))
     ok = bool(res.target_converged[low] and res.target_converged[high] and err <= rtol * abs(mid))
-    pick = [*keep, low]
     out = dataclasses.replace(
         res, estimate=np.append(res.estimate[keep], mid), error=np.append(res.error[keep], err),
-        check_difference=res.check_difference[pick], target_converged=np.append(res.target_converged[keep], ok),
+        check_difference=np.append(res.check_difference[keep], np.fmax(res.check_difference[low],
+                                                                        res.check_difference[high])),
+        target_converged=np.append(res.target_converged[keep], ok),
         check_agrees=np.append(res.check_agrees[keep], bool(res.check_agrees[low] and res.check_agrees[high])),
         fixed_error=np.append(np.zeros(len(keep)), half), converged=bool(res.converged and ok), rtol=rtol)
     bounds = {"route": "envelope", "lower": lo_v, "lower_error_estimate": float(res.error[low]),
@@ -277,7 +280,8 @@ class SerialCollisionMargin:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """At points (N, d): k (N,), the best configuration's smallest distance (N,) (+inf where
         not evaluated: k <= 0 or outside the pre-scan's close cells), each watched pair's best
-        distance (N, W) (then, with `exact`, the best of the smallest over those pairs), every pair's distances at the best configuration (N, P) and its chain
+        distance (N, W) (then, with `exact`, the best of the smallest over those pairs), every
+        pair's distances at the best configuration (N, P) and its chain
         values (N, n) (the search's solution where not evaluated)."""
         pts = np.asarray(points, dtype=float)
         if self.profile_margin is not None:  # unchanged by the base's turn: the profile's

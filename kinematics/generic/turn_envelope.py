@@ -24,8 +24,8 @@ is convex in p, so on a convex piece its largest value is at a vertex of the pie
   plus r.
 
 The SLICES slices are then merged, two neighbours at a time, the pair adding the least volume
-first, into at most MAX_BANDS bands (and neighbours of equal radius always) (fewer pairs to measure), each band's radius the largest of its
-slices'. A half-space whose normal is along u is its own solid of revolution (kept as it is);
+first, into at most MAX_BANDS bands (fewer pairs to measure; neighbours of equal radius always),
+each band's radius the largest of its slices'. A half-space whose normal is along u is its own solid of revolution (kept as it is);
 one tilted from u sweeps nearly all of space and has no useful envelope.
 """
 
