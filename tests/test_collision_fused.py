@@ -150,6 +150,7 @@ def test_fused_pieces_are_the_batched_ones(p2us_results, rng, monkeypatch, mode,
         return out, evaluations, rest
 
     monkeypatch.setattr(cc, "fused_pieces", counted)
+    monkeypatch.setattr(cc, "FUSED", True)
     if extra is not None:
         monkeypatch.setattr(cfp, "EXTRA_ROWS", extra)
     fused = cc.ExactCollisionMargin(margin, scan, 0.01, 1e-10).exact_columns

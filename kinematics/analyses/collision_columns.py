@@ -102,10 +102,13 @@ COMPILED = True
 (`collision_fused`; else batched: configurations, then distances, the roots by `illinois` on
 `_pair_values`; the same values)."""
 
-FUSED = True
+FUSED = False
 """Whether the 3-[P2(US)]'s close sub-intervals are sampled, tested, halved and refined to roots
 in one compiled pass each (`collision_fused_pieces`; else by the NumPy passes below over every
-sub-interval's samples; the same pieces)."""
+sub-interval's samples; the same pieces). Off by default: the pass saves ~17 % of a run's CPU
+(p2us-results, mode ---, rtol 1e-3: ~5 s) but its first compilation costs ~100 s of CPU more than
+the other kernels' (150 against 52 s from an empty Numba cache), paid back only after ~20 runs
+in one installation; set it for many runs (a design sweep with collisions)."""
 
 
 class CollisionColumns:
