@@ -41,8 +41,7 @@ the check run halves the spacing (`for_check`).
 Evaluations: the 3-[P2(US)]'s samples and pair roots are compiled single passes from column points
 to distances (`kinematics.analyses.collision_fused`, `COMPILED`), the same values to the last bit
 as the batched path (configurations, then `AnalyticDistances`, the roots by `illinois`) that the
-other families take; with `FUSED`, each close sub-interval's whole work above is one compiled
-pass (`kinematics.analyses.collision_fused_pieces`), the same pieces to the last bit.
+other families take.
 """
 
 from __future__ import annotations
@@ -53,7 +52,6 @@ import numpy as np
 
 from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
 from kinematics.analyses.collision_fused import distances, illinois, pair_roots
-from kinematics.analyses.collision_fused_pieces import fused_pieces
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
 from kinematics.mechanisms.p2us.configurations import kernel_data
@@ -101,15 +99,6 @@ COMPILED = True
 """Whether the 3-[P2(US)]'s samples and pair roots are evaluated by compiled single passes
 (`collision_fused`; else batched: configurations, then distances, the roots by `illinois` on
 `_pair_values`; the same values)."""
-
-FUSED = False
-"""Whether the 3-[P2(US)]'s close sub-intervals are sampled, tested, halved and refined to roots
-in one compiled pass each (`collision_fused_pieces`; else by the NumPy passes below over every
-sub-interval's samples; the same pieces). Off by default: the pass saves ~17 % of a run's CPU
-(p2us-results, mode ---, rtol 1e-3: ~5 s) but its first compilation costs ~100 s of CPU more than
-the other kernels' (150 against 52 s from an empty Numba cache), paid back only after ~20 runs
-in one installation; set it for many runs (a design sweep with collisions)."""
-
 
 class CollisionColumns:
     """Exact-columns function (`ExactColumnsFn`) of a `CollisionMargin`'s targets, collision
@@ -266,23 +255,12 @@ class CollisionColumns:
         first = d.min(axis=1, initial=np.inf)[:, None]
         return np.concatenate([first, d[:, self.margin.watched]], axis=1)
 
-    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray,
-                        batched: bool = False) -> tuple[np.ndarray, ...]:
+    def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
+                        ) -> tuple[np.ndarray, ...]:
         """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
-        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap
-        (`batched`: by NumPy passes over every sub-interval's samples, else `FUSED`'s way)."""
+        come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
         F = 1 + len(self.margin.watched)
         n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
-        kd = self.kernel_data[b]
-        if FUSED and kd is not None and len(col) and not batched:  # compiled (`collision_fused_pieces`): the same pieces
-            out, evaluations, rest = fused_pieces(kd, self.margin.distances, base, ax, col, u, v, n, self.slopes[b],
-                                                  self.margin.watched, SAFETY, MAX_REFINE, EDGE, self.root_tol,
-                                                  ROOT_STEPS)
-            self.evaluations += evaluations
-            if not rest.any():
-                return out
-            more = self._checked_pieces(b, base, ax, col[rest], u[rest], v[rest], batched=True)
-            return tuple(np.concatenate([x, y], axis=-1) for x, y in zip(out, more, strict=True))
         if not len(col):
             empty = np.zeros((F, 0))
             return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
@@ -449,5 +427,5 @@ def has_exact_columns(margin: CollisionMargin) -> bool:
     return getattr(margin.kinematic, "exact_columns", None) is not None and margin.mech.task_dim == 3
 
 
-__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "FUSED", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
+__all__ = ["CHUNK_COLUMNS", "COMPILED", "EDGE", "MAX_REFINE", "MAX_SPLITS", "PAIR_ROOTS", "ROOT_STEPS", "CollisionColumns", "ExactCollisionMargin",
            "has_exact_columns"]
