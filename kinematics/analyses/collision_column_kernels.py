@@ -28,53 +28,47 @@ def curvature_kernel(d, k, n, h, out):  # pragma: no cover - compiled
 @njit(cache=True)
 def ambiguous_gaps(d, curv, ia, ib, safety, w, s, s_min, watched, out):  # pragma: no cover - compiled
     """Per gap g (its ends' pair distances d[ia[g]], d[ib[g]] (P,), width w [m], the pairs'
-    curvature bound safety x the larger of curv's at its ends): `gap_may_hold_root`."""
+    curvature bound safety x the larger of curv's at its ends): whether it may hold a root of
+    the smallest distance or of a watched pair's that its ends do not show. A pair stays on one
+    side of zero over the gap when its curvature bound kk says so (it sags at most kk w^2 / 8
+    from its chord) or its slope s_p does (|d(a)| + |d(b)| > s_p w); the smallest distance,
+    negative at both ends, stays negative when some pair provably does, or by the largest slope."""
     G, P = len(ia), d.shape[1]
     kk = np.empty(P)
     for g in range(G):
+        da, db = d[ia[g]], d[ib[g]]
         for p in range(P):
             kk[p] = safety * max(curv[ia[g], p], curv[ib[g], p])
-        out[g] = gap_may_hold_root(d[ia[g]], d[ib[g]], kk, w[g], s, s_min, watched)
-
-
-@njit(cache=True)
-def gap_may_hold_root(da, db, kk, wg, s, s_min, watched):  # pragma: no cover - compiled
-    """Whether a gap of width wg [m] (its ends' pair distances da, db (P,), the pairs' curvature
-    bounds kk) may hold a root of the smallest distance or of a watched pair's that its ends do
-    not show. A pair stays on one side of zero over the gap when its curvature bound says so (it
-    sags at most kk wg^2 / 8 from its chord) or its slope s_p does (|d(a)| + |d(b)| > s_p wg);
-    the smallest distance, negative at both ends, stays negative when some pair provably does,
-    or by the largest slope s_min."""
-    P = da.shape[0]
-    sag = wg * wg / 8.0
-    fa, fb = np.inf, np.inf
-    for p in range(P):
-        fa = min(fa, da[p])
-        fb = min(fb, db[p])
-    amb = False
-    if fa > 0.0 and fb > 0.0:
+        wg = w[g]
+        sag = wg * wg / 8.0
+        fa, fb = np.inf, np.inf
         for p in range(P):
-            a, b = da[p], db[p]
-            if min(a, b) - kk[p] * sag > 0.0 or a + b > s[p] * wg:
-                continue
-            amb = True
-            break
-    elif fa < 0.0 and fb < 0.0 and -fa - fb <= s_min * wg:
-        amb = True
-        for p in range(P):
-            if max(da[p], db[p]) + kk[p] * sag < 0.0:
-                amb = False
+            fa = min(fa, da[p])
+            fb = min(fb, db[p])
+        amb = False
+        if fa > 0.0 and fb > 0.0:
+            for p in range(P):
+                a, b = da[p], db[p]
+                if min(a, b) - kk[p] * sag > 0.0 or a + b > s[p] * wg:
+                    continue
+                amb = True
                 break
-    for j in range(len(watched)):
-        if amb:
-            break
-        p = watched[j]
-        a, b = da[p], db[p]
-        if a * b <= 0.0:
-            continue
-        sure = (min(a, b) - kk[p] * sag > 0.0) if a > 0.0 else (max(a, b) + kk[p] * sag < 0.0)
-        amb = not sure and abs(a) + abs(b) <= s[p] * wg
-    return amb
+        elif fa < 0.0 and fb < 0.0 and -fa - fb <= s_min * wg:
+            amb = True
+            for p in range(P):
+                if max(da[p], db[p]) + kk[p] * sag < 0.0:
+                    amb = False
+                    break
+        for j in range(len(watched)):
+            if amb:
+                break
+            p = watched[j]
+            a, b = da[p], db[p]
+            if a * b <= 0.0:
+                continue
+            sure = (min(a, b) - kk[p] * sag > 0.0) if a > 0.0 else (max(a, b) + kk[p] * sag < 0.0)
+            amb = not sure and abs(a) + abs(b) <= s[p] * wg
+        out[g] = amb
 
 
 @njit(cache=True)
@@ -169,4 +163,4 @@ def kernels() -> tuple[Any, ...]:
     return (curvature_kernel, ambiguous_gaps, split_close, union_pieces)
 
 
-__all__ = ["ambiguous_gaps", "curvature_kernel", "curvatures", "gap_may_hold_root", "split_close", "union_pieces"]
+__all__ = ["ambiguous_gaps", "curvature_kernel", "curvatures", "split_close", "union_pieces"]

@@ -260,10 +260,10 @@ class CollisionColumns:
         """Collision-free pieces of the sub-intervals [u, v] of columns `col` where pairs can
         come near contact: col (G,), starts, ends, start codes, end codes (F, G), one per final gap."""
         F = 1 + len(self.margin.watched)
-        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
         if not len(col):
             empty = np.zeros((F, 0))
             return np.zeros(0, np.int64), empty, empty, empty.astype(np.int64), empty.astype(np.int64)
+        n = np.maximum(2, np.ceil((v - u) / self.spacing - 1e-9).astype(np.int64))
         seg = np.repeat(np.arange(len(col)), n + 1)
         k = np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
         z = u[seg] + (v - u)[seg] * (k / n[seg])

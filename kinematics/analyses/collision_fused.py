@@ -27,57 +27,6 @@ from kinematics.jit import on_cores
 from kinematics.mechanisms.p2us.configurations import configurations_kernel
 
 
-@njit(cache=True, inline="always")
-def illinois_point(a, c, ya, yc, step, root_tol):  # pragma: no cover - compiled
-    """The next point [m] in the bracket (a, c) of values ya, yc: false position clipped
-    root_tol / 4 inside it, bisection from the 8th step on."""
-    if step < 8:
-        x = max(a - ya * (c - a) / (yc - ya), a + 0.25 * root_tol)
-        return min(x, c - 0.25 * root_tol)
-    return 0.5 * (a + c)
-
-
-@njit(cache=True, inline="always")
-def illinois_update(a, c, ya, yc, side, x, y):  # pragma: no cover - compiled
-    """The bracket after the value y at x: a, c, ya, yc and the side kept (1: the upper end)."""
-    below = (y >= 0.0) == (ya >= 0.0)  # the root is above x
-    # Illinois: halve the value kept at the end that stays twice in a row
-    if below and side == 1:
-        yc *= 0.5
-    if not below and side == -1:
-        ya *= 0.5
-    if below:
-        return x, c, y, yc, 1
-    return a, x, ya, y, -1
-
-
-@njit(cache=True, inline="always")
-def pair_root(bx, by, others, ax, a, c, ya, yc, k, root_tol, steps, kd, pk, sc, pt, q):  # pragma: no cover - compiled
-    """`pair_roots_kernel` on one bracket (kd: `p2us.configurations.kernel_data`; pk:
-    `AnalyticDistances.pair_kernel_data`; sc: `scratch`'s arrays; pt (1, 3), q (1, nq) work
-    arrays): lo, hi, ylo, evaluations, failed."""
-    Rm, pj, centre, gaxis, o, good = sc
-    e, w, t, geometry, roots, code, limb = kd
-    parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half, pairs, kinds = pk
-    side, n = 0, 0
-    for step in range(steps):
-        if not c - a > root_tol:
-            break
-        x = illinois_point(a, c, ya, yc, step, root_tol)
-        pt[0, others[0]], pt[0, others[1]], pt[0, ax] = bx, by, x
-        configurations_kernel(pt, e, w, t, geometry, roots, code, limb, q)
-        n += 1
-        y = math.inf
-        if np.isfinite(q[0]).all():
-            pair_at(q, 0, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius,
-                    half, pairs, kinds, Rm, pj, centre, gaxis, o, good)
-            y = o[0, k]
-            if not (good[0, k] or (kinds[k] == PLATE and y > 0.0)):
-                return a, c, ya, n, True
-        a, c, ya, yc, side = illinois_update(a, c, ya, yc, side, x, y)
-    return a, c, ya, n, False
-
-
 @njit(cache=True, parallel=True)
 def pair_roots_kernel(bx, by, others, ax, za, zb, fa, fb, pair, root_tol, steps, e, w, t, geometry, roots, code,
                       limb, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius,
@@ -89,16 +38,47 @@ def pair_roots_kernel(bx, by, others, ax, za, zb, fa, fb, pair, root_tol, steps,
     final bracket lo[r], hi[r], the value ylo[r] at lo, the evaluations made; failed[r] where
     the pair needs coal at some step (the outputs are then not final)."""
     R = za.shape[0]
-    kd = (e, w, t, geometry, roots, code, limb)
-    pk = (parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis, radius, half, pairs, kinds)
     for blk in prange((R + 63) // 64):
-        sc = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
+        Rm, pj, centre, gaxis, o, good = scratch(parent.shape[0], radius.shape[0], pairs.shape[0])
         pt = np.empty((1, 3))
         q = np.empty((1, code.shape[0]))
         for r in range(blk * 64, min(R, blk * 64 + 64)):
-            lo[r], hi[r], ylo[r], evaluations[r], failed[r] = pair_root(bx[r], by[r], others, ax, za[r], zb[r], fa[r],
-                                                                        fb[r], pair[r], root_tol, steps, kd, pk, sc,
-                                                                        pt, q)
+            a, c, ya, yc = za[r], zb[r], fa[r], fb[r]
+            k = pair[r]
+            side = 0
+            n = 0
+            failed[r] = False
+            for step in range(steps):
+                if not c - a > root_tol:
+                    break
+                if step < 8:
+                    x = max(a - ya * (c - a) / (yc - ya), a + 0.25 * root_tol)
+                    x = min(x, c - 0.25 * root_tol)
+                else:
+                    x = 0.5 * (a + c)
+                pt[0, others[0]], pt[0, others[1]], pt[0, ax] = bx[r], by[r], x
+                configurations_kernel(pt, e, w, t, geometry, roots, code, limb, q)
+                n += 1
+                y = math.inf
+                if np.isfinite(q[0]).all():
+                    pair_at(q, 0, k, parent, kind, axis, iq, rot, tra, chain, chain_len, joint_of, local_p, local_axis,
+                            radius, half, pairs, kinds, Rm, pj, centre, gaxis, o, good)
+                    y = o[0, k]
+                    if not (good[0, k] or (kinds[k] == PLATE and y > 0.0)):
+                        failed[r] = True
+                        break
+                below = (y >= 0.0) == (ya >= 0.0)  # the root is above x
+                # Illinois: halve the value kept at the end that stays twice in a row
+                if below and side == 1:
+                    yc *= 0.5
+                if not below and side == -1:
+                    ya *= 0.5
+                if below:
+                    a, ya = x, y
+                else:
+                    c, yc = x, y
+                side = 1 if below else -1
+            lo[r], hi[r], ylo[r], evaluations[r] = a, c, ya, n
 
 
 @njit(cache=True, parallel=True)
@@ -202,5 +182,4 @@ def kernels() -> tuple[Any, ...]:
     return (distances_kernel, pair_roots_kernel)
 
 
-__all__ = ["distances", "distances_kernel", "illinois", "illinois_point", "illinois_update", "pair_root", "pair_roots",
-           "pair_roots_kernel"]
+__all__ = ["distances", "distances_kernel", "illinois", "pair_roots", "pair_roots_kernel"]
