@@ -49,6 +49,19 @@ def capsule_of_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float
     return c + 0.5 * (lo + hi) * a, a, fit * (1.0 + 1e-12) + INFLATE, 0.5 * (hi - lo)
 
 
+def polytope_points(geometry: Any) -> np.ndarray | None:
+    """(K, 3) points whose hull is the coal shape `geometry`, in its own frame: a box's corners, a
+    convex polytope's vertices; None for other shapes."""
+    import coal
+
+    if isinstance(geometry, coal.Box):
+        h = np.asarray(geometry.halfSide, dtype=float)
+        return np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
+    if isinstance(geometry, coal.ConvexBase):
+        return np.asarray(geometry.points(), dtype=float)
+    return None
+
+
 def bounding_capsule(geometry: Any) -> tuple[np.ndarray, np.ndarray, float, float] | None:
     """Centre (3,), unit axis (3,), radius and half length [m], in the shape's own frame, of a
     capsule holding the coal shape `geometry` (None: no bound, e.g. a half-space, which has its
@@ -59,13 +72,8 @@ def bounding_capsule(geometry: Any) -> tuple[np.ndarray, np.ndarray, float, floa
         return np.zeros(3), np.array([0.0, 0.0, 1.0]), float(geometry.radius), float(geometry.halfLength)
     if isinstance(geometry, coal.Sphere):
         return np.zeros(3), np.array([0.0, 0.0, 1.0]), float(geometry.radius), 0.0
-    if isinstance(geometry, coal.Box):
-        h = np.asarray(geometry.halfSide, dtype=float)
-        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
-        return capsule_of_points(corners)
-    if isinstance(geometry, coal.ConvexBase):
-        return capsule_of_points(np.asarray(geometry.points(), dtype=float))
-    return None
+    points = polytope_points(geometry)
+    return None if points is None else capsule_of_points(points)
 
 
 @dataclass(frozen=True)
@@ -136,4 +144,4 @@ def frame_along(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-__all__ = ["INFLATE", "BoundModel", "bound_model", "bounding_capsule", "capsule_of_points", "frame_along"]
+__all__ = ["INFLATE", "BoundModel", "bound_model", "bounding_capsule", "capsule_of_points", "frame_along", "polytope_points"]

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.generic.bounding import INFLATE, bounding_capsule, frame_along
+from kinematics.generic.bounding import INFLATE, bounding_capsule, frame_along, polytope_points
 
 SLICES = 64
 """Slices of a fixed body's extent along the axis at which its profile is bounded."""
@@ -150,24 +150,16 @@ def envelope_bands(geometry: Any, placement: Any, origin: np.ndarray, axis: np.n
     from scipy.spatial import ConvexHull
 
     R, t = np.asarray(placement.rotation), np.asarray(placement.translation)
-    if mesh is not None:
-        world = np.asarray(mesh.vertices(), dtype=float) @ R.T + t
-        tris = np.array([[tri[0], tri[1], tri[2]] for tri in (mesh.tri_indices(i) for i in range(mesh.num_tris))],
-                        dtype=np.int64).reshape(-1, 3)
-        edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [0, 2]]]), axis=1), axis=0)
-        z = axial(world, origin, axis)[0]
-        cuts = np.linspace(z.min(), z.max(), SLICES + 1)
-        return _merge(cuts, _polytope_profile(world, edges, origin, axis, cuts), bands)
-    if isinstance(geometry, coal.ConvexBase | coal.Box):
-        if isinstance(geometry, coal.Box):
-            h = np.asarray(geometry.halfSide, dtype=float)
-            local = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
+    local = polytope_points(geometry)
+    if mesh is not None or local is not None:
+        if mesh is not None:
+            world = np.asarray(mesh.vertices(), dtype=float) @ R.T + t
+            faces = np.array([[tri[0], tri[1], tri[2]] for tri in (mesh.tri_indices(i) for i in range(mesh.num_tris))],
+                             dtype=np.int64).reshape(-1, 3)
         else:
-            local = np.asarray(geometry.points(), dtype=float)
-        world = local @ R.T + t
-        hull = ConvexHull(world)
-        edges = np.unique(np.sort(np.concatenate([hull.simplices[:, [0, 1]], hull.simplices[:, [1, 2]],
-                                                  hull.simplices[:, [0, 2]]]), axis=1), axis=0)
+            world = local @ R.T + t
+            faces = ConvexHull(world).simplices
+        edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [0, 2]]]), axis=1), axis=0)
         z = axial(world, origin, axis)[0]
         cuts = np.linspace(z.min(), z.max(), SLICES + 1)
         return _merge(cuts, _polytope_profile(world, edges, origin, axis, cuts), bands)
