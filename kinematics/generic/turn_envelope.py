@@ -121,7 +121,8 @@ def _capsule_profile(p0: np.ndarray, p1: np.ndarray, radius: float, origin: np.n
 
 def _merge(cuts: np.ndarray, radii: np.ndarray, bands: int) -> list[Band]:
     """Neighbouring slices merged (least added volume pi r^2 h first) into at most `bands` bands."""
-    # a convex piece meets every slice of its own extent: no slice is empty
+    # a slice the body misses (-inf: between a mesh's separate parts) costs -inf to merge, so it
+    # joins a neighbour first and takes its radius (a looser but valid envelope)
     merged = [[float(cuts[i]), float(cuts[i + 1]), float(radii[i])] for i in range(len(radii))]
 
     def cost(a: list[float], b: list[float]) -> float:
