@@ -109,6 +109,12 @@ def carried_joints(robot: Any, reach: Reach) -> set[int]:
     return set(model.subtrees[first])
 
 
+def _setup_configuration(robot: Any, reach: Reach) -> np.ndarray:
+    """(nq,) the configuration with every joint at the search setup's values (the joints off the
+    chain stay there: bodies the base joint does not carry are fixed at it)."""
+    return configurations(robot, np.asarray(reach.setup.base, dtype=float)[None, :])[0]
+
+
 def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bool:
     """Whether every checked pair keeps its distances when the first chain joint turns: both of
     its bodies are carried by that joint (in its subtree of the kinematic tree) or neither is, or
@@ -129,10 +135,9 @@ def turn_invariant(robot: Any, distances: AnalyticDistances, reach: Reach) -> bo
         if reach.setup.mode != "revolved":
             return False
         if placed is None:  # the fixed bodies' world placements (off-chain joints at the setup's values)
-            values = np.array(reach.setup.base, dtype=float)
             placed = pin.GeometryData(geometry)
             pin.updateGeometryPlacements(robot.model, robot.model.createData(), geometry, placed,
-                                         configurations(robot, values[None, :])[0])
+                                         _setup_configuration(robot, reach))
         k = b if ca else a
         if not coaxial(objs[k].geometry, placed.oMg[k], reach.origin, reach.basis[2]):
             return False
@@ -175,8 +180,7 @@ def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances:
     native = mech.reach_search()
     if turn == "spatial" or reach is native or native.turn is not None or native.setup.mode != "revolved":
         return SerialCollisionMargin(mech, robot, distances, reach), None
-    q = configurations(robot, np.asarray(native.setup.base, dtype=float)[None, :])[0]
-    env = turn_envelope(model, q, native.origin, native.basis[2], carried_joints(robot, native))
+    env = turn_envelope(model, _setup_configuration(robot, native), native.origin, native.basis[2], carried_joints(robot, native))
     if env is None:
         return SerialCollisionMargin(mech, robot, distances, reach), None
     return SerialCollisionMargin(mech, robot, AnalyticDistances(env.model), native, exact=env.exact), env
