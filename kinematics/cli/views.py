@@ -88,7 +88,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
-    grid = _serial_collision_grid(args, robot, mech, checks, three_limb)
+    grid = _serial_collision_grid(args, robot, mech, checks)
     mesh = _load_mesh(args.mesh) if args.mesh else None
     if not args.export:
         # SIGTERM must end the meshcat server too (it outlives its parent otherwise)
@@ -163,11 +163,12 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         scene.close()
 
 
-def _serial_collision_grid(args: argparse.Namespace, robot: Any, mech: Any, checks: Any, three_limb: bool) -> Any:
+def _serial_collision_grid(args: argparse.Namespace, robot: Any, mech: Any, checks: Any) -> Any:
     """A serial arm's collision grid for `--workspace --collisions/--obstacles`
-    (`serial_collisions.collision_grid`; None for the other robots, whose views split their own
-    grids, and without checks), computed before the scene starts so bad input starts no server."""
-    if checks is None or three_limb or robot.loops is not None or "joint_singularities" in mech.capabilities:
+    (`serial_collisions.collision_grid`, for a mechanism with a reach search; None for the other
+    robots, whose views split their own grids, and without checks), computed before the scene
+    starts so bad input starts no server."""
+    if checks is None or "reach_search" not in mech.capabilities:
         return None
     from kinematics.analyses.serial_collisions import collision_grid
 
