@@ -7,10 +7,12 @@ revolved profile where the base turns fully) and `--collisions`
 the base link change with the base's turn; `--turns auto` brackets them on the profile by the
 base link's turn envelope, `--turns spatial` searches in 3-D; the same run measures the kinematic
 union), at the same step and rtol; wall and CPU seconds, the time ratio, the volume the
-collisions remove, the bracket and the pairs that bind most, one row per robot and turn.
+collisions remove, the bracket and the pairs that bind most, one row per robot, turn and number
+of coal worker processes (`--workers`, `kinematics.generic.coal_pool.WORKERS`: 1 evaluates coal
+inline; the CPU seconds are this process's, the workers' not counted).
 
-Run: python benchmarks/bench_serial_collisions.py [--robots ur5] [--turns auto spatial] [--rtol 0.1] [--step 0.1]
-     [--no-check] [--quick] [--json]
+Run: python benchmarks/bench_serial_collisions.py [--robots ur5] [--turns auto spatial] [--workers 1 2] [--rtol 0.1]
+     [--step 0.1] [--no-check] [--quick] [--json]
 The JSON holds JSON_KEYS: `rows`, one per robot with ROW_KEYS, and `machine`.
 """
 
@@ -23,17 +25,20 @@ from _timing import calibration, dump, machine_line, parse
 
 from kinematics.analyses.collisions import measure_collision_workspace
 from kinematics.analyses.workspace import measure_workspace
+from kinematics.generic import coal_pool
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot
 
 JSON_KEYS = ("rows", "machine")
-ROW_KEYS = ("robot", "turn", "route", "bracket", "rtol", "step", "check", "kinematic_volume", "kinematic_error", "kinematic_seconds",
+ROW_KEYS = ("robot", "turn", "workers", "route", "bracket", "rtol", "step", "check", "kinematic_volume", "kinematic_error", "kinematic_seconds",
             "kinematic_cpu_seconds", "same_run_kinematic_volume", "same_run_kinematic_error", "collision_volume",
             "collision_error", "collision_seconds", "collision_cpu_seconds", "time_ratio", "removed", "search",
             "binding_pairs", "converged", "points_evaluated")
 
 
-def measure(robot_name: str, turn: str, rtol: float, step: float, check: bool, max_points: int | None) -> dict:
+def measure(robot_name: str, turn: str, workers: int | None, rtol: float, step: float, check: bool,
+            max_points: int | None) -> dict:
+    coal_pool.WORKERS = workers
     robot = load_robot(robot_name)
     mech = mechanism_of(robot)
     t, c = time.perf_counter(), time.process_time()
@@ -44,7 +49,7 @@ def measure(robot_name: str, turn: str, rtol: float, step: float, check: bool, m
                                      turn=turn)  # type: ignore[arg-type]
     col_s, col_c = time.perf_counter() - t, time.process_time() - c
     bounds = cw.collision.get("turn", {})
-    return {"robot": robot_name, "turn": turn, "route": bounds.get("route"),
+    return {"robot": robot_name, "turn": turn, "workers": coal_pool.workers(), "route": bounds.get("route"),
             "bracket": {k: bounds[k] for k in ("lower", "lower_error_estimate", "upper", "upper_error_estimate",
                                                "half_width") if k in bounds} or None,
             "rtol": rtol, "step": step, "check": check,
@@ -62,6 +67,8 @@ def main() -> None:
     ap.add_argument("--robots", nargs="+", default=["ur5"])
     ap.add_argument("--turns", nargs="+", default=["auto"], choices=["auto", "envelope", "spatial"],
                     help="how pairs the base's turn changes are measured (`serial_collisions.Turn`)")
+    ap.add_argument("--workers", nargs="+", type=int, default=[None],
+                    help="coal worker processes per row (default: one per CPU; 1: inline)")
     ap.add_argument("--rtol", type=float, default=0.1)
     ap.add_argument("--step", type=float, default=0.1, help="column step [m]")
     ap.add_argument("--no-check", dest="check", action="store_false", help="no check run (half the step, "
@@ -70,8 +77,8 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = parse(ap, {"rtol": 0.3, "step": 0.3, "check": False, "max_points": 8_000})
     machine = calibration()
-    rows = [measure(r, turn, args.rtol, args.step, args.check, args.max_points) for r in args.robots
-            for turn in args.turns]
+    rows = [measure(r, turn, w, args.rtol, args.step, args.check, args.max_points) for r in args.robots
+            for turn in args.turns for w in args.workers]
     out = {"rows": rows, "machine": machine}
     if args.json:
         print(dump(out))
@@ -82,7 +89,7 @@ def main() -> None:
         b = r["bracket"]
         bracket = (f"; bracket {b['lower']:.6g} +/- {b['lower_error_estimate']:.2g} to {b['upper']:.6g} +/- "
                    f"{b['upper_error_estimate']:.2g}" if b else "")
-        print(f"{r['robot']}, turn {r['turn']} (route {r['route']}), rtol {r['rtol']:g}, step {r['step']:g} m, "
+        print(f"{r['robot']}, turn {r['turn']} (route {r['route']}), {r['workers']} coal process(es), rtol {r['rtol']:g}, step {r['step']:g} m, "
               f"check {r['check']}: kinematic "
               f"{r['kinematic_volume']:.5g} +/- {r['kinematic_error']:.2g} m^3 in {r['kinematic_seconds']:.2f} s "
               f"({r['kinematic_cpu_seconds']:.2f} s CPU); collision-free {r['collision_volume']:.5g} +/- "

@@ -21,6 +21,7 @@ from __future__ import annotations
 import itertools
 import multiprocessing
 import signal
+import warnings
 from concurrent.futures import ProcessPoolExecutor
 from typing import TYPE_CHECKING, Any
 
@@ -85,8 +86,12 @@ class CoalPool:
         _MODELS[key] = model
         try:
             executor = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=_quiet)
-            for done in [executor.submit(_ready) for _ in range(n)]:
-                done.result()
+            with warnings.catch_warnings():
+                # Python >= 3.12 warns on any fork of a threaded process; the workers run no
+                # thread pool of the parent's (module docstring)
+                warnings.filterwarnings("ignore", "This process .* is multi-threaded", DeprecationWarning)
+                for done in [executor.submit(_ready) for _ in range(n)]:
+                    done.result()
         finally:
             del _MODELS[key]  # forked: the workers hold their copies, the parent no extra reference
         return cls(executor, key)

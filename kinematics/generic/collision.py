@@ -272,10 +272,6 @@ class CollisionModel:
             self._workers = coal_pool.CoalPool.start(self) or False
         return (self._workers or None) if chunks > 1 else None
 
-    def __reduce__(self) -> tuple[Any, ...]:
-        # the definition, not the coal state or the worker processes
-        return (type(self), (self.robot, self.geometry, self.meshes, self.excluded, self.obstacles))
-
     def margin(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Smallest signed distance [m] over the pairs, and the index of the pair that has it
         (-1, with +inf, where no pair can collide). Negative: the configuration collides."""
