@@ -92,3 +92,34 @@ def test_one_worker_means_no_pool(ur5, rng, pooled, monkeypatch):
     CollisionModel.from_robot(ur5).distances(_configurations(ur5, 3 * ROWS, rng))
     assert coal_pool.workers() == 1
     assert _children() == before
+
+
+def test_failed_penetration_depths_are_retried(rng):
+    """Coal's EPA returns -DBL_MAX now and then for overlapping cylinders (the z1's links: 24 of
+    145,000 entries at these 5,000 random configurations before the retry): every distance is
+    now finite and above EPA_FAILED, and on the pairs of primitives (the meshes' signs come from
+    their own test) its sign is coal's collision test's (an independent GJK boolean) wherever the
+    shapes are more than 1e-9 m from contact (GJK/EPA tolerances 1e-10, retries at 1e-6: a value
+    within 1e-9 of zero may fall either side of the test). The test runs from a fresh coal state
+    per configuration: reusing one, coal's collision test missed 13 overlaps of link02_1 and
+    link04_0 (up to 5.5 cm deep, confirmed by sampling) after ~4,700 configurations."""
+    import pinocchio as pin
+
+    from kinematics.generic.collision import EPA_FAILED
+    from kinematics.model.robot import load_robot
+
+    z1 = load_robot("z1")
+    cm = CollisionModel.from_robot(z1)
+    q = _configurations(z1, 5000, np.random.default_rng(0))
+    d = cm.distances(q)
+    assert np.isfinite(d).all() and (d > EPA_FAILED).all()
+    data = z1.model.createData()
+    primitive = np.array([a not in cm.meshes and b not in cm.meshes for a, b in cm.pair_names])
+    rows = np.flatnonzero((d[:, primitive] < 0).any(axis=1))
+    assert len(rows) > 100  # the overlaps the test is about
+    for n in rows:
+        gdata = pin.GeometryData(cm.geometry)
+        pin.computeCollisions(z1.model, data, cm.geometry, gdata, q[n], False)
+        hit = np.array([r.isCollision() for r in gdata.collisionResults])
+        keep = primitive & (np.abs(d[n]) > 1e-9)
+        assert np.array_equal(hit[keep], d[n, keep] < 0)
