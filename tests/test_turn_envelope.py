@@ -25,7 +25,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinematics.analyses.collisions import collision_model_of, measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
+from kinematics.analyses.collisions import collision_model_of
 from kinematics.analyses.serial_collisions import turn_invariant
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.turn_envelope import SIDES, axial, envelope_bands

@@ -164,7 +164,7 @@ world against a carried one): "envelope" measures the profile twice in one run, 
 body replaced by its turn envelope (a lower bound) and without its pairs (an upper bound),
 "spatial" measures in 3-D, "auto" measures the bracket where its width estimated on the
 pre-scan's grid meets the tolerance, and in 3-D otherwise or where the measured bracket still
-misses it (`kinematics.analyses.collisions.measure_collision_workspace`)."""
+misses it (`kinematics.analyses.collision_volume.measure_collision_workspace`)."""
 
 
 def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances: AnalyticDistances,
