@@ -60,7 +60,8 @@ with the cell diagonal)."""
 @dataclass(frozen=True)
 class PairRemoval:
     """Volume [m^3] (area [m^2]) a binding pair removes from the kinematic union when it alone is
-    checked, with its error estimate (the two measures' estimates added)."""
+    checked, with its error estimate (the two measures' estimates added). The pair is one of the
+    checked model's (with a turn envelope, all its bands together: `TurnEnvelope.original`)."""
 
     links: tuple[str, str]
     geometries: tuple[str, str]
@@ -119,19 +120,22 @@ def _serial_route(mech: Mechanism, robot: Any, cm: CollisionModel, dist: Analyti
                                                                    TurnEnvelope | None, dict[str, Any]]:
     """A serial arm's margin (`serial_collisions.serial_margin`), its pre-scan (of the profile
     where it has one), the binding pairs, the watched ones, the turn envelope used and the report's
-    `search` and `turn` entries."""
+    `search` and `turn` entries. The pairs are `cm`'s: with a turn envelope, a pair of an enveloped
+    body is its band pairs together (`TurnEnvelope.original`), the smallest of their distances."""
     from kinematics.analyses.serial_collisions import serial_margin
 
     plain, env = serial_margin(mech, robot, cm, dist, turn)
     on, shape = plain.profile_margin, plain.profile  # a solid of revolution: its profile is scanned
-    scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS) if on is None or shape is None
-            else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS))
+    pair_of = None if env is None else env.original
+    scan = (Prescan(plain, lo, hi, SERIAL_PRESCAN_CELLS, pair_of) if on is None or shape is None
+            else Prescan(on, shape.lo, shape.hi, PRESCAN_CELLS, pair_of))
     found, watched = _binding(scan, watch)
+    columns = watched if env is None else [np.flatnonzero(env.original == k) for k in watched]
     r = plain.reach
     route = "envelope" if env is not None else "profile" if shape is not None else r.setup.mode
     extra = {"search": {"mode": r.setup.mode, "samples": r.samples, "restarts": r.restarts},
              "turn": {"route": route}}
-    return plain.with_prescan(watched, scan), scan, found, watched, env, extra
+    return plain.with_prescan(columns, scan), scan, found, watched, env, extra
 
 
 def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.005, rtol: float | None = 1e-3,
@@ -229,15 +233,13 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
             from kinematics.analyses.serial_collisions import bracket
 
             res, bounds = bracket(res, B, B + 2 + W, B + 1 + W, rtol)
-            extra["turn"] = {**bounds, "enveloped": [
+            extra["turn"] = {**bounds, "enveloped_pairs_checked": len(env.model.pairs), "enveloped": [
                 {"link": link, "geometry": name, "bands": [{"from_m": b.lo, "to_m": b.hi, "radius_m": b.radius}
                                                            for b in bands]} for link, name, bands in env.enveloped]}
             if not res.target_converged[-1] and turn == "auto":  # the bracket is too wide: in 3-D
                 return in_3d({**extra["turn"], "why": "the envelope's bracket did not meet the tolerance"})
         else:
             res = _take(res, [*range(B), B + 1 + W])
-    if env is not None:
-        cm = env.model
     ws = Workspace(mech.name, mech.task_dim == 2, (*chosen, UNION), limits, res,
                    time.perf_counter() - t0, mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes")
     pairs = tuple(PairRemoval(cm.pair_links[k], cm.pair_names[k], removed, error, count)
