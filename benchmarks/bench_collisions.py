@@ -1,7 +1,7 @@
 """Collision-aware workspace volume against the kinematic one, in one run: p2us-results and delta.
 
 For each robot: `workspace-volume` as the CLI measures it (`measure_workspace`, with its check
-run) and with `--collisions` (`analyses.collisions.measure_collision_workspace`: the pre-scan for
+run) and with `--collisions` (`analyses.collision_volume.measure_collision_workspace`: the pre-scan for
 binding pairs, then the collision-free exact columns of p2us and delta, elsewhere sampled columns,
 with the kinematic union and each binding pair's removal as extra targets, with the check run), at
 the same step and rtol; wall and CPU seconds, the time ratio (goal <= 5 x), the volume the
@@ -18,7 +18,7 @@ import time
 
 from _timing import calibration, dump, machine_line, parse
 
-from kinematics.analyses.collisions import measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot

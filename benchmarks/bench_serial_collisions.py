@@ -3,7 +3,7 @@ self-collisions through coal).
 
 Per robot: the kinematic `workspace-volume` (`measure_workspace`: the reach search on the
 revolved profile where the base turns fully) and `--collisions`
-(`analyses.collisions.measure_collision_workspace` -> `analyses.serial_collisions`: pairs with
+(`analyses.collision_volume.measure_collision_workspace` -> `analyses.serial_collisions`: pairs with
 the base link change with the base's turn; `--turns auto` brackets them on the profile by the
 base link's turn envelope, `--turns spatial` searches in 3-D; the same run measures the kinematic
 union), at the same step and rtol; wall and CPU seconds, the time ratio, the volume the
@@ -23,7 +23,7 @@ import time
 
 from _timing import calibration, dump, machine_line, parse
 
-from kinematics.analyses.collisions import measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.generic import coal_pool
 from kinematics.mechanisms import mechanism_of

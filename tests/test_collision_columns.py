@@ -8,7 +8,8 @@ import pytest
 
 from kinematics.analyses.collision_columns import ExactCollisionMargin
 from kinematics.analyses.collision_prescan import Prescan
-from kinematics.analyses.collisions import PRESCAN_CELLS, CollisionMargin, collision_model_of
+from kinematics.analyses.collision_volume import PRESCAN_CELLS
+from kinematics.analyses.collisions import CollisionMargin, collision_model_of
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot
@@ -64,7 +65,7 @@ def test_volume_matches_the_sampled_route_at_a_finer_step(p2us_results):
     equal within the sum of their error estimates, and the two binding pairs' removals likewise.
     (The sampled route at step 0.02 m, 7 samples per column here, misses pieces thinner than the
     step: 2.5 % low, beyond its estimate.)"""
-    from kinematics.analyses.collisions import measure_collision_workspace
+    from kinematics.analyses.collision_volume import measure_collision_workspace
 
     mech, robot, _, lo, hi, _, _, _ = p2us_results
     box = (np.array([lo[0], lo[1], -0.4]), np.array([hi[0], hi[1], -0.28]))

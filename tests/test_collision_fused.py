@@ -11,7 +11,8 @@ import pytest
 
 from kinematics.analyses import collision_fused as cf
 from kinematics.analyses.collision_prescan import Prescan
-from kinematics.analyses.collisions import PRESCAN_CELLS, CollisionMargin, collision_model_of, configurations
+from kinematics.analyses.collision_volume import PRESCAN_CELLS
+from kinematics.analyses.collisions import CollisionMargin, collision_model_of, configurations
 from kinematics.generic.capsules import PARALLEL_MIN, AnalyticDistances
 from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.p2us.configurations import kernel_data

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from kinematics.analyses.collisions import collision_model_of, measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
+from kinematics.analyses.collisions import collision_model_of
 from kinematics.errors import InvalidInputError, ModelFileError
 from kinematics.generic.capsules import COAL, HALFSPACE, AnalyticDistances
 from kinematics.generic.collision import CollisionModel

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.analyses.collisions import measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
 from kinematics.generic.collision import CollisionModel
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot

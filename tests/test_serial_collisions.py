@@ -17,7 +17,8 @@ import math
 import numpy as np
 import pytest
 
-from kinematics.analyses.collisions import collision_model_of, measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
+from kinematics.analyses.collisions import collision_model_of
 from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach, turn_invariant
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.obstacles import load_obstacles

@@ -25,7 +25,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinematics.analyses.collisions import collision_model_of, measure_collision_workspace
+from kinematics.analyses.collision_volume import measure_collision_workspace
+from kinematics.analyses.collisions import collision_model_of
 from kinematics.analyses.serial_collisions import turn_invariant
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.turn_envelope import SIDES, axial, envelope_bands
@@ -43,8 +44,9 @@ SHELL = 4 / 3 * math.pi * (0.7**3 - 0.1**3)
 """The 3R arm's kinematic volume [m^3]."""
 
 
-def _pedestal_urdf(half: float, top: float, bottom: float) -> str:
-    box = (f'<collision><origin xyz="0 0 {(top + bottom) / 2}"/><geometry><box size="{2 * half} {2 * half} '
+def _pedestal_urdf(half: float, top: float, bottom: float, tilt: float = 0.0) -> str:
+    """The 3R arm on a square pedestal (the base link's box), turned by `tilt` [rad] about x."""
+    box = (f'<collision><origin xyz="0 0 {(top + bottom) / 2}" rpy="{tilt} 0 0"/><geometry><box size="{2 * half} {2 * half} '
            f'{top - bottom}"/></geometry></collision>')
     return _arm3(False).replace('<link name="base"/>', f'<link name="base">{box}</link>')
 
@@ -240,6 +242,57 @@ def test_low_pedestal_bracket_by_hand(tmp_path, capsys, few_restarts):
     assert d["error_estimate"] == pytest.approx(half + max(t["lower_error_estimate"], t["upper_error_estimate"]))
     assert d["converged"]
     assert [p["links"] for p in d["collisions"]["binding_pairs"]] == [["base", "link2"]]  # link 1 never reaches it
+
+
+def test_a_banded_pedestal_pair_binds_once_with_all_its_bands(tmp_path, capsys, few_restarts):
+    """The low pedestal tilted by 0.4 rad about x: its envelope has several bands (a tilted box's
+    radius changes with height), each paired with link 1 and link 2, yet the report speaks of the
+    robot's own pairs: 2 checked (base - link1, base - link2; link1 - link2 are adjacent), the band
+    pairs counted apart, and base - link2 binds once under its own geometries. Its removal is
+    measured with all its bands: link 1 (0.4 m from the shoulder, capsule radius 0.02 m) stays
+    above z = -0.42 m, 0.07 m above the envelope's top (-0.49 m), so the union with base - link2
+    alone is the lower bound; and every pair being the base's, the upper bound (its pairs left out)
+    keeps none: it is the kinematic union. So removed = upper - lower, the two targets' root brackets (1e-3 rtol step
+    = 1.2e-6 m, at most 4 ends per column, weighed by 2 pi rho over the profile's 1.54 m^2)
+    differing by less than 1e-5 m^3. One band's removal alone (today's band pairs measured one by
+    one) falls 1.3e-3 m^3 short or more."""
+    path = tmp_path / "tilted.urdf"
+    path.write_text(_pedestal_urdf(*LOW, tilt=0.4))
+    code, d, err = run_json(capsys, "workspace-volume", str(path), "--collisions", "--step", "0.12", "--rtol", "1e-2",
+                            "--turn", "envelope")
+    assert code == 0, err
+    c = d["collisions"]
+    t = c["turn"]
+    (body,) = t["enveloped"]
+    bands = len(body["bands"])
+    assert bands > 1
+    assert c["pairs_checked"] == len(collision_model_of(load_robot(path)).pairs) == 2
+    assert t["enveloped_pairs_checked"] == 2 * bands
+    assert [(p["links"], p["geometries"]) for p in c["binding_pairs"]] == [(["base", "link2"], ["base_0", "link2_0"])]
+    assert c["binding_not_measured_alone"] == [] and c["pairs_that_can_bind"] <= 2  # per pair (8 band columns)
+    assert c["kinematic_volume"] == pytest.approx(t["upper"], abs=1e-12)
+    assert c["binding_pairs"][0]["removed"] == pytest.approx(t["upper"] - t["lower"], abs=1e-5)
+
+
+def test_prescan_counts_a_point_once_per_pair_of_band_columns():
+    """`Prescan(pair_of=...)`: distance columns x - 0.5 and y - 0.5 standing for one pair, a third
+    column (+1) for another, on a 4 x 4 grid over [0, 1]^2 all inside: the pair is negative where
+    x or y < 0.5 (2 of the 4 values each): 16 - 2 x 2 = 12 points, not 8 + 8; the other pair never.
+    Without `pair_of` the columns count apart."""
+    from types import SimpleNamespace
+
+    from kinematics.analyses.collision_prescan import Prescan
+
+    margin = SimpleNamespace(
+        branches=("all",), distances=SimpleNamespace(kinds=np.zeros(3)),
+        kinematic=lambda pts: np.ones((len(pts), 1)),
+        branch_distances=lambda pts, b, inside, signs=True: np.column_stack(
+            [pts[inside, 0] - 0.5, pts[inside, 1] - 0.5, np.ones(int(inside.sum()))]))
+    lo, hi = np.zeros(2), np.ones(2)
+    grouped = Prescan(margin, lo, hi, 4, pair_of=np.array([0, 0, 1]))  # type: ignore[arg-type]
+    np.testing.assert_array_equal(grouped.counts, [12, 0])
+    assert grouped.active.tolist() == [True, False]
+    np.testing.assert_array_equal(Prescan(margin, lo, hi, 4).counts, [8, 8, 0])  # type: ignore[arg-type]
 
 
 def _number(text: str, before: str) -> tuple[float, float]:

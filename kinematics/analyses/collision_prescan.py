@@ -43,16 +43,22 @@ SAFETY = 2.0
 class Prescan:
     """The pre-scan (module docstring) of a collision margin over the box [lo, hi].
 
+    `pair_of`: (P,) the pair each of the margin's distance columns stands for (a turn envelope's
+    band pairs stand for their body's pair, `TurnEnvelope.original`), None: each column its own
+    pair. `counts` and `active` are per pair (G of them: max(pair_of) + 1), a grid point counting
+    once where several of a pair's columns are negative.
+
     Attributes:
-        counts: (P,) grid points where each pair is negative inside some branch's kinematic workspace.
+        counts: (G,) grid points where each pair is negative inside some branch's kinematic workspace.
         inside: (B,) grid points inside each branch's kinematic workspace.
         close: (B, cells - 1, ...) per branch, the cells where collisions are looked for.
         near: (B, cells - 1, ...) the part of `close` where some pair comes near contact (grown).
-        active: (P,) the pairs close somewhere.
-        slopes: (B, P) each pair's observed slope per branch [m/m] (+inf: nothing observed).
+        active: (G,) the pairs close somewhere.
+        slopes: (B, P) each distance column's observed slope per branch [m/m] (+inf: nothing observed).
     """
 
-    def __init__(self, margin: CollisionMargin | SerialCollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int) -> None:
+    def __init__(self, margin: CollisionMargin | SerialCollisionMargin, lo: np.ndarray, hi: np.ndarray, cells: int,
+                 pair_of: np.ndarray | None = None) -> None:
         d = len(lo)
         self.lo, self.hi, self.cells = np.asarray(lo, float), np.asarray(hi, float), cells
         self.spacing = (self.hi - self.lo) / (cells - 1)
@@ -60,12 +66,16 @@ class Prescan:
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
         shape = (cells,) * d
         B, P = len(margin.branches), len(margin.distances.kinds)
+        group = np.arange(P) if pair_of is None else np.asarray(pair_of, dtype=np.int64)
+        # (P, G) column k in pair group[k]: a boolean matrix product ORs each pair's columns
+        members = np.eye(int(group.max()) + 1 if P else 0, dtype=bool)[group]
+        G = members.shape[1]
         kin = margin.kinematic(pts)
-        self.counts = np.zeros(P, dtype=np.int64)
+        self.counts = np.zeros(G, dtype=np.int64)
         self.inside = np.zeros(B, dtype=np.int64)
         self.close = np.zeros((B,) + (cells - 1,) * d, dtype=bool)
         self.near = np.zeros_like(self.close)
-        self.active = np.zeros(P, dtype=bool)
+        self.active = np.zeros(G, dtype=bool)
         self.slopes = np.full((B, P), np.inf)
         diagonal = float(np.linalg.norm(self.spacing))
         for b in range(B):
@@ -76,7 +86,7 @@ class Prescan:
             dist = np.full((len(pts), P), np.inf)
             if P:
                 dist[inside] = margin.branch_distances(pts, b, inside, signs=False)  # true distances: slopes
-            self.counts += (dist < 0).sum(axis=0)
+            self.counts += ((dist < 0) @ members).sum(axis=0)
             if not P:
                 continue
             grid = np.where(inside[:, None], dist, np.nan).reshape(*shape, P)
@@ -84,7 +94,7 @@ class Prescan:
             threshold = SAFETY * slope * diagonal  # (P,)
             boundary = _on_boundary(inside.reshape(shape))
             near = grid < np.where(boundary[..., None], 2.0 * threshold, threshold)
-            self.active |= near.reshape(-1, P).any(axis=0)
+            self.active |= near.reshape(-1, P).any(axis=0) @ members
             # a cell with no corner inside the workspace was not seen: a part of the workspace
             # thinner than the grid (p2us-results' sliver above the base) can pass through it
             self.near[b] = _grow(_cells_with(np.asarray(near.any(axis=-1))))

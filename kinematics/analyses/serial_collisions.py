@@ -164,7 +164,7 @@ world against a carried one): "envelope" measures the profile twice in one run, 
 body replaced by its turn envelope (a lower bound) and without its pairs (an upper bound),
 "spatial" measures in 3-D, "auto" measures the bracket where its width estimated on the
 pre-scan's grid meets the tolerance, and in 3-D otherwise or where the measured bracket still
-misses it (`kinematics.analyses.collisions.measure_collision_workspace`)."""
+misses it (`kinematics.analyses.collision_volume.measure_collision_workspace`)."""
 
 
 def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances: AnalyticDistances,
@@ -233,7 +233,8 @@ class SerialCollisionMargin:
     points (N, d) -> (N, 2 + W) columns: the kinematic margin k, the margin with each watched pair
     alone, then the union's m (`CollisionMargin`'s layout with no branch columns: an arm has none). On the profile (`on_profile`) its points are
     (rho, z); a revolved arm's 3-D margin carries that profile (`profile`) and answers 3-D points
-    through it."""
+    through it. A watched pair is a distance column (an int) or a group of them whose smallest is
+    the pair's distance (a turn envelope's band pairs standing for one pair, `TurnEnvelope.original`)."""
 
     def __init__(self, mech: Mechanism, robot: Any, distances: AnalyticDistances, reach: Reach,
                  watched: Any = (), prescan: Prescan | None = None, on_profile: bool = False,
@@ -241,7 +242,7 @@ class SerialCollisionMargin:
         self.mech, self.robot, self.distances, self.reach = mech, robot, distances, reach
         # the pre-scan's one column of k: an arm has no branches, its margin is the union's
         self.branches, self.limits = (UNION,), "all"
-        self.watched = np.asarray(watched, dtype=np.int64)
+        self.watched = tuple(np.atleast_1d(np.asarray(w, dtype=np.int64)) for w in watched)
         self.exact = None if exact is None else np.asarray(exact, dtype=np.int64)
         """With a turn envelope (`measure_collision_workspace`): the pairs of the upper bound, whose
         target (the union with these pairs alone) follows the watched pairs' columns."""
@@ -260,8 +261,8 @@ class SerialCollisionMargin:
                                      True, self.exact)
 
     def with_prescan(self, watched: Any, prescan: Prescan) -> SerialCollisionMargin:
-        """This margin with `watched` pairs, the distances evaluated in `prescan`'s close cells only
-        (a revolved arm's pre-scan is of its profile)."""
+        """This margin with `watched` pairs (columns or groups of them), the distances evaluated in
+        `prescan`'s close cells only (a revolved arm's pre-scan is of its profile)."""
         return SerialCollisionMargin(self.mech, self.robot, self.distances, self.reach, watched, prescan,
                                      self.on_profile, self.exact)
 
@@ -365,13 +366,14 @@ class SerialCollisionMargin:
             rows = sel[low[better] <= 0]
 
     def _grouped(self, D: np.ndarray) -> np.ndarray:
-        """(..., W) the watched pairs' distances of D (..., P), then, with `exact`, the smallest
-        over those pairs (+inf: none)."""
-        out = D[..., self.watched]
-        if self.exact is None:
-            return out
-        low = D[..., self.exact].min(axis=-1) if len(self.exact) else np.full(D.shape[:-1], np.inf)
-        return np.concatenate([out, low[..., None]], axis=-1)
+        """(..., W) each watched pair's distance of D (..., P) (the smallest over its group's
+        columns), then, with `exact`, the smallest over those pairs (+inf: none)."""
+        groups = [*self.watched, *(() if self.exact is None else (self.exact,))]
+        out = np.full((*D.shape[:-1], len(groups)), np.inf)
+        for n, cols in enumerate(groups):
+            if len(cols):
+                out[..., n] = D[..., cols].min(axis=-1)
+        return out
 
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
         """(M, P) pair distances at the best configuration found at the points `inside` (a mask)

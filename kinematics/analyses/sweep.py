@@ -16,7 +16,7 @@ Per design, on the union of the working modes' workspaces (every limit applied):
   conditioning index, in [0, 1].
 
 With collisions (`run(collisions=...)`), each design's URDF is generated with the given collision
-sizes and the union's collision-free volume is measured too (`analyses.collisions`: the
+sizes and the union's collision-free volume is measured too (`analyses.collision_volume`: the
 3-[P2(US)]'s collision-free exact columns, no check run): collision_free_volume_m3 and its error
 estimate.
 """
@@ -156,7 +156,8 @@ def collision_free(params: P2USParams, step: float, rtol: float | None, collisio
                    ) -> dict[str, float]:
     """The union's collision-free volume [m^3] of a design and its error estimate
     (`analyses.collisions.design_checks`: the design's URDF with `collisions`' sizes)."""
-    from kinematics.analyses.collisions import design_checks, measure_collision_workspace
+    from kinematics.analyses.collision_volume import measure_collision_workspace
+    from kinematics.analyses.collisions import design_checks
     from kinematics.mechanisms.p2us.mechanism import P2US
 
     robot, model = design_checks("p2us", params, collisions)

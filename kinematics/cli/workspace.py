@@ -175,8 +175,9 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],
                       rtol: float | None, out: Out) -> int:
     """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
-    union, the kinematic union and what each binding pair removes (`analyses.collisions`)."""
-    from kinematics.analyses.collisions import margin_builder, measure_collision_workspace
+    union, the kinematic union and what each binding pair removes (`analyses.collision_volume`)."""
+    from kinematics.analyses.collision_volume import measure_collision_workspace
+    from kinematics.analyses.collisions import margin_builder
 
     checks = collision_checks(args, robot)
     serial = "reach_search" in mech.capabilities
@@ -246,7 +247,7 @@ def _search_text(search: dict[str, Any]) -> str:
 
 
 def _turn_text(turn: dict[str, Any], unit: str) -> str:
-    """The turn envelope's bracket of a serial arm's fixed bodies (`analyses.collisions`)."""
+    """The turn envelope's bracket of a serial arm's fixed bodies (`analyses.collision_volume`)."""
     if "lower" not in turn:
         return (f"the turn envelope's bracket, estimated on the pre-scan's grid (half-width "
                 f"{fmt(turn['estimated_half_width'], 2)} {unit}), is wider than the tolerance: measured in 3-D")

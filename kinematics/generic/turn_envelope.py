@@ -218,11 +218,15 @@ class TurnEnvelope:
             the base turns.
         exact: indices of its pairs that are the original model's own (no enveloped body): the
             pairs the upper bound keeps.
+        original: (P,) for each pair of `model`, the index of the original model's pair it stands
+            for (an enveloped body's pair with a carried body has one pair per band, all standing
+            for that pair: its distance is their smallest).
         enveloped: (link, geometry name, bands) of each enveloped body.
     """
 
     model: Any
     exact: np.ndarray
+    original: np.ndarray
     enveloped: tuple[tuple[str, str, tuple[Band, ...]], ...]
 
 
@@ -271,22 +275,24 @@ def turn_envelope(model: Any, q: np.ndarray, origin: np.ndarray, axis: np.ndarra
             add(k, pin.GeometryObject(f"{g.name}~{n}", 0, g.parentFrame, place,
                                       coal.Cylinder(band.radius, band.hi - band.lo)))
             add(k, pin.GeometryObject(f"{g.name}~{n}p", 0, g.parentFrame, place, prism(band.radius, band.hi - band.lo)))
-    exact = []
-    for a, b in model.pairs:
+    exact, original = [], []
+    for p, (a, b) in enumerate(model.pairs):
         if a not in swap and b not in swap:
             exact.append(len(out.collisionPairs))
+            original.append(p)
             out.addCollisionPair(pin.CollisionPair(index[a][0], index[b][0]))
             continue
         band, other = (a, b) if a in swap else (b, a)
         # a band against a polytope (a mesh's hull, a box) as its prism, else as its cylinder
         polytope = int(isinstance(objs[other].geometry, coal.ConvexBase | coal.Box))
         for n in range(len(swap[band])):
+            original.append(p)
             out.addCollisionPair(pin.CollisionPair(index[band][2 * n + polytope], index[other][0]))
     kept = {g.name for g in out.geometryObjects}
     meshes = {name: mesh for name, mesh in model.meshes.items() if name in kept}
     enveloped = tuple((model.links[k], objs[k].name, tuple(b)) for k, b in swap.items())
     return TurnEnvelope(CollisionModel(robot, out, meshes, model.excluded, obstacles),
-                        np.array(exact, dtype=np.int64), enveloped)
+                        np.array(exact, dtype=np.int64), np.array(original, dtype=np.int64), enveloped)
 
 
 __all__ = ["COAXIAL_TOL", "MAX_BANDS", "SIDES", "SLICES", "Band", "TurnEnvelope", "axial", "coaxial", "envelope_bands",
