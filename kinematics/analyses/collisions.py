@@ -21,6 +21,7 @@ with `self_collisions=False` they are the only pairs.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -197,6 +198,46 @@ def margin_builder(mech: Mechanism, robot: Any, model: CollisionModel, limits: s
         reach = collision_reach(mech, robot, dist)
         return lambda branches: SerialCollisionMargin(mech, robot, dist, reach)  # type: ignore[return-value]
     return lambda branches: CollisionMargin(mech, robot, dist, branches, limits)
+
+
+def binding_pairs(model: CollisionModel, pair: np.ndarray, colliding: np.ndarray) -> list[tuple[tuple[str, str], int]]:
+    """The pairs of links that bind at the `colliding` points (mask (N,); `pair` (N,): each point's
+    binding pair, an index into `model.pairs`) with their point counts, the most frequent first (a
+    pair of links with several shapes, hence several pairs, counted once)."""
+    counts: dict[tuple[str, str], int] = {}
+    for k, n in zip(*np.unique(pair[colliding], return_counts=True), strict=True):
+        links = model.pair_links[int(k)]
+        counts[links] = counts.get(links, 0) + int(n)
+    return sorted(counts.items(), key=lambda item: -item[1])
+
+
+@dataclass(frozen=True)
+class GridCounts:
+    """The counts of a collision view's grid (`show --workspace --collisions/--obstacles`).
+
+    Attributes:
+        mode: "planar" (a grid of the task plane), "revolved" (a serial arm's (rho, z) profile: a
+            point stands for its circle about the base axis) or "spatial" (3-D).
+        step: grid step [m]; grid_points: the grid's points (searched, reached or not).
+        reached: points inside the kinematic workspace (a serial arm: reached by its search).
+        free: reached points collision-free in some branch (a serial arm: at a configuration found).
+        binding_pairs: ((link, link), points) where every branch collides, the most frequent
+            first (`binding_pairs`); the colliding points are their sum, reached - free.
+    """
+
+    mode: str
+    step: float
+    grid_points: int
+    reached: int
+    free: int
+    binding_pairs: tuple[tuple[tuple[str, str], int], ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: mode, step_m [m], grid_points, reached, free, colliding, binding_pairs
+        (links, points)."""
+        return {"mode": self.mode, "step_m": self.step, "grid_points": self.grid_points, "reached": self.reached,
+                "free": self.free, "colliding": sum(n for _, n in self.binding_pairs),
+                "binding_pairs": [{"links": list(k), "points": n} for k, n in self.binding_pairs]}
 
 
 def summary(model: CollisionModel, dist: AnalyticDistances | None = None) -> dict[str, Any]:

@@ -66,6 +66,7 @@ from kinematics.mechanisms.serial.reach import Reach, ReachMargin
 from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
 
 if TYPE_CHECKING:
+    from kinematics.analyses.collisions import GridCounts
     from kinematics.analyses.columns import ColumnVolume
     from kinematics.generic.collision import CollisionModel
     from kinematics.generic.turn_envelope import TurnEnvelope
@@ -423,22 +424,18 @@ class CollisionGrid:
     axis: tuple[np.ndarray, np.ndarray] | None
     margin: SerialCollisionMargin
 
-    def binding_pairs(self) -> list[tuple[tuple[str, str], int]]:
-        """The pairs of links that bind at the colliding points with their counts, the most
-        frequent first (a link with several shapes has several pairs, counted as one)."""
-        links = self.margin.distances.model.pair_links
-        counts: dict[tuple[str, str], int] = {}
-        for k, n in zip(*np.unique(self.pair[~self.free], return_counts=True), strict=True):
-            counts[links[int(k)]] = counts.get(links[int(k)], 0) + int(n)
-        return sorted(counts.items(), key=lambda item: -item[1])
+    def counts(self) -> GridCounts:
+        """The grid's counts: reached (free + colliding; a revolved grid's are profile points,
+        each standing for its circle about the base axis), free, and the binding pairs by links
+        with their point counts (`collisions.binding_pairs`)."""
+        from kinematics.analyses.collisions import GridCounts, binding_pairs
+
+        return GridCounts(self.mode, self.step, self.grid_points, len(self.points), int(self.free.sum()),
+                          tuple(binding_pairs(self.margin.distances.model, self.pair, ~self.free)))
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready counts: mode, step_m [m], grid_points (searched), reached (free + colliding;
-        a revolved grid's are profile points, each standing for its circle about the base axis),
-        free, colliding and binding_pairs (links, points), the most frequent first."""
-        return {"mode": self.mode, "step_m": self.step, "grid_points": self.grid_points,
-                "reached": len(self.points), "free": int(self.free.sum()), "colliding": int((~self.free).sum()),
-                "binding_pairs": [{"links": list(k), "points": n} for k, n in self.binding_pairs()]}
+        """JSON-ready counts (`GridCounts.as_dict`)."""
+        return self.counts().as_dict()
 
 
 def collision_grid(mech: Mechanism, robot: Any, model: CollisionModel, step: float | None = None,

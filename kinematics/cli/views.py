@@ -136,11 +136,13 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         print("".join(f"warning: {w}\n" for w in scene.warnings) + "".join(f"  not drawn: {s}\n" for s in scene.skipped),
               end="", file=sys.stderr)
         notes: dict[str, Any] = {"warnings": scene.warnings, "skipped_visuals": scene.skipped}
-        if grid is not None:
+        report = ""
+        if scene.collision_counts is not None and checks is not None:
             from kinematics.analyses.collisions import summary
 
-            notes["collisions"] = {**summary(grid.margin.distances.model, grid.margin.distances), **grid.as_dict()}
-        report = "" if grid is None else _grid_report(notes["collisions"]) + "\n"
+            notes["collisions"] = {**summary(checks, None if grid is None else grid.margin.distances),
+                                   **scene.collision_counts.as_dict()}
+            report = _grid_report(notes["collisions"], searched=grid is not None) + "\n"
         if args.export:
             scene.export(args.export)
             payload = {"robot": robot.name, "export": args.export, **notes}
@@ -177,9 +179,10 @@ def _serial_collision_grid(args: argparse.Namespace, robot: Any, mech: Any, chec
     return collision_grid(mech, robot, checks, args.step)
 
 
-def _grid_report(c: dict[str, Any]) -> str:
-    """The human lines of a serial arm's collision grid (`CollisionGrid.as_dict` with the model's
-    `summary`): the grid, the points reached, free and colliding, the binding pairs."""
+def _grid_report(c: dict[str, Any], searched: bool) -> str:
+    """The human lines of a collision view's grid (`GridCounts.as_dict` with the model's
+    `summary`): the grid, the points reached (`searched`: by a serial arm's search; else inside
+    the kinematic workspace), free and colliding, the binding pairs."""
     from kinematics.cli.report import fmt, key_values
 
     what = "profile points" if c["mode"] == "revolved" else "points"
@@ -190,8 +193,8 @@ def _grid_report(c: dict[str, Any]) -> str:
     return "\n".join([
         f"collision check on a {grid}, step {fmt(c['step_m'], 4)} m",
         key_values([
-            ("grid points searched", f"{c['grid_points']:,}"),
-            ("reached by the search", f"{c['reached']:,} {what}"),
+            ("grid points searched" if searched else "grid points", f"{c['grid_points']:,}"),
+            ("reached by the search" if searched else "in the kinematic workspace", f"{c['reached']:,} {what}"),
             ("collision-free", f"{c['free']:,} {what}{share}"),
             ("colliding", f"{c['colliding']:,} {what}"),
             ("binding pairs", pairs or "none"),

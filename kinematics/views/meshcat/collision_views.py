@@ -20,34 +20,37 @@ HALFSPACE_SIDE = 1.0
 
 
 def colliding_overlay(scene: Scene, mech: Any, robot: Any, model: Any, points: np.ndarray, limits: str,
-                      size: float, embed: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+                      size: float, embed: Callable[[np.ndarray], np.ndarray], step: float, grid_points: int
+                      ) -> np.ndarray:
     """Draw the points (inside the kinematic workspace) where every branch collides, one cloud
-    per binding pair (`analyses.collisions.collision_map`, `pair_clouds`); returns the mask of the
-    points that are collision-free in some branch."""
-    from kinematics.analyses.collisions import collision_map
+    per binding pair (`analyses.collisions.collision_map`, `pair_clouds`), and record the counts
+    of the grid of `step` [m] and `grid_points` points they were kept from in
+    `scene.collision_counts` (a `GridCounts`); returns the mask of the points that are
+    collision-free in some branch."""
+    from kinematics.analyses.collisions import GridCounts, collision_map
 
     margin, pair = collision_map(mech, robot, model, points, limits)
     colliding = (margin <= 0) & (pair >= 0)  # a zero kinematic margin is the workspace's own boundary
-    pair_clouds(scene, model, points, colliding, pair, size, embed)
+    pairs = pair_clouds(scene, model, points, colliding, pair, size, embed)
+    scene.collision_counts = GridCounts("planar" if mech.task_dim == 2 else "spatial", float(step), int(grid_points),
+                                        len(points), int((~colliding).sum()), tuple(pairs))
     return ~colliding
 
 
 def pair_clouds(scene: Scene, model: Any, points: np.ndarray, colliding: np.ndarray, pair: np.ndarray, size: float,
-                embed: Callable[[np.ndarray], np.ndarray], what: str = "points") -> None:
+                embed: Callable[[np.ndarray], np.ndarray], what: str = "points") -> list[tuple[tuple[str, str], int]]:
     """Draw the `colliding` points, one cloud per binding pair of links (`pair`: index into the
     model's pairs; a link with several shapes has several pairs), the most frequent first, each
-    labelled with its links and its count of `what`."""
-    links = sorted({model.pair_links[k] for k in np.unique(pair[colliding])})
-    of = np.full(len(model.pairs), -1)
-    for n, lp in enumerate(links):
-        of[[k for k in range(len(model.pairs)) if model.pair_links[k] == lp]] = n
-    group = np.where(colliding, of[np.maximum(pair, 0)], -1)
-    kinds, counts = np.unique(group[colliding], return_counts=True)
-    for n, k in enumerate(kinds[np.argsort(-counts, kind="stable")]):
-        sel = group == k
-        a, b = links[k]
+    labelled with its links and its count of `what`; returns those pairs with their counts
+    (`analyses.collisions.binding_pairs`)."""
+    from kinematics.analyses.collisions import binding_pairs
+
+    pairs = binding_pairs(model, pair, colliding)
+    for n, ((a, b), count) in enumerate(pairs):
+        sel = colliding & np.isin(pair, [k for k in range(len(model.pairs)) if model.pair_links[k] == (a, b)])
         scene.add_points(embed(points[sel]), name=f"overlays/colliding/{a}--{b}", colour=PAIR_COLOURS[n % len(PAIR_COLOURS)],
-                         size=size, opacity=0.8, label=f"colliding: {a} - {b} binds ({int(sel.sum())} {what})")
+                         size=size, opacity=0.8, label=f"colliding: {a} - {b} binds ({count} {what})")
+    return pairs
 
 
 def add_obstacles(scene: Scene, model: Any) -> int:

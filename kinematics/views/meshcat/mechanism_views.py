@@ -130,7 +130,8 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
     """The workspace (grid points inside some branch, coloured by min(iota_I, iota_II) of the
     best-conditioned branch) and the singular points by type, of any mechanism with a margin
     (and velocity; singular fields for the loci). With `collisions` (a `CollisionModel`) the
-    points where every branch collides are drawn apart, by binding pair, and the obstacles."""
+    points where every branch collides are drawn apart, by binding pair, and the obstacles; the
+    grid's counts in `scene.collision_counts` (`colliding_overlay`)."""
     from kinematics.sizes import MAX_VIEW_POINTS, cell_centres, check_points, grid_points
     from kinematics.views.plots import CONDITIONING_CMAP, LIMITS_TEXT
 
@@ -139,14 +140,13 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
         lo, hi = mech.bounding_box(limits)
         check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS,
                      hint=f"{step:g} m is too fine a step for a view")
-        pts = cell_centres(lo, hi, step)
-        margin = mech.margin(None, limits)(pts)[:, :-1]
-        pts = pts[(margin >= 0).any(axis=1)]
+        grid = cell_centres(lo, hi, step)
+        pts = grid[(mech.margin(None, limits)(grid)[:, :-1] >= 0).any(axis=1)]
         if collisions is not None:
             from kinematics.views.meshcat.collision_views import colliding_overlay
 
             pts = pts[colliding_overlay(scene, mech, robot, collisions, pts, limits, step * 0.35,
-                                        lambda p: _embed(mech, p, at))]
+                                        lambda p: _embed(mech, p, at), step, len(grid))]
         cond = np.full(len(pts), -1.0)
         if "velocity" in mech.capabilities and len(pts):
             for b in mech.branches:

@@ -24,7 +24,7 @@ import html as html_lib
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,6 +39,9 @@ from kinematics.views.meshcat.skeletons import (
     skeleton_transforms,
 )
 from kinematics.views.meshcat.visuals import corners, visual_model
+
+if TYPE_CHECKING:
+    from kinematics.analyses.collisions import GridCounts
 
 BACKGROUND = ((0.98, 0.98, 0.99), (0.78, 0.80, 0.84))
 """Sky gradient (top, bottom), RGB in 0..1: a light neutral grey, so that every part colour of the
@@ -88,6 +91,9 @@ class Scene:
         """Visuals not drawn (missing mesh files), one line each."""
         self.warnings: list[str] = []
         """What the reader must know about the picture (a singular pose, skipped meshes)."""
+        self.collision_counts: GridCounts | None = None
+        """The counts of the collision view's grid (`collision_views.colliding_overlay`), or None
+        where no collision overlay was drawn."""
         self.legend: list[tuple[str, str]] = []
         """(label, CSS background: a colour, or a colour map's gradient) for every coloured overlay;
         a colour map's label starts with its range "lo → hi"."""

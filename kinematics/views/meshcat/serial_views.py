@@ -99,7 +99,7 @@ def scara_view(robot: Any, q: np.ndarray | None = None, *, ellipse: bool = False
 def _collision_workspace(scene: Scene, robot: Any, collisions: Any, step: float, z: float) -> None:
     """The planar arm's workspace on a grid of `step` [m] in its plane (at height z [m]): the
     colliding points by binding pair (`collision_views.colliding_overlay`), the free ones, the
-    obstacles."""
+    obstacles; the grid's counts in `scene.collision_counts` (`colliding_overlay`)."""
     from kinematics.mechanisms import mechanism_of
     from kinematics.sizes import MAX_VIEW_POINTS, cell_centres, check_points, grid_points
     from kinematics.views.meshcat.collision_views import add_obstacles, colliding_overlay
@@ -107,13 +107,13 @@ def _collision_workspace(scene: Scene, robot: Any, collisions: Any, step: float,
     mech = mechanism_of(robot)
     lo, hi = mech.bounding_box("all")
     check_points("step", grid_points(lo, hi, step), limit=MAX_VIEW_POINTS, hint=f"{step:g} m is too fine a step for a view")
-    pts = cell_centres(lo, hi, step)
-    pts = pts[(mech.margin(None, "all")(pts)[:, :-1] >= 0).any(axis=1)]
+    grid = cell_centres(lo, hi, step)
+    pts = grid[(mech.margin(None, "all")(grid)[:, :-1] >= 0).any(axis=1)]
 
     def embed(p: np.ndarray) -> np.ndarray:
         return np.hstack([p, np.full((len(p), 1), z)])
 
-    free = colliding_overlay(scene, mech, robot, collisions, pts, "all", step * 0.35, embed)
+    free = colliding_overlay(scene, mech, robot, collisions, pts, "all", step * 0.35, embed, step, len(grid))
     scene.add_points(embed(pts[free]), name="overlays/workspace", colour=(0.2, 0.55, 0.85), size=step * 0.35,
                      opacity=0.5, label=f"collision-free workspace ({int(free.sum())} points)")
     if collisions.obstacles:
@@ -203,7 +203,8 @@ def _serial_singular_points(scene: Scene, w: Any) -> None:
 def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: float | None, grid: Any) -> None:
     """A serial arm's reached grid points (`serial_collisions.collision_grid`): the colliding ones
     by binding pair (`collision_views.pair_clouds`), the collision-free ones, the obstacles; a
-    revolved profile's points swept about the base axis (`_turns`)."""
+    revolved profile's points swept about the base axis (`_turns`); the grid's counts in
+    `scene.collision_counts`."""
     from kinematics.analyses.serial_collisions import collision_grid
     from kinematics.analyses.serial_workspace.result import revolve
     from kinematics.mechanisms import mechanism_of
@@ -220,6 +221,7 @@ def _serial_collision_points(scene: Scene, robot: Any, collisions: Any, step: fl
         what, grid = "profile points", f"a (rho, z) profile grid turned at {turns} azimuths"
     size = g.step * (0.35 if g.axis is None else 0.5)
     pair_clouds(scene, collisions, g.points, ~g.free, g.pair, size, embed, what)
+    scene.collision_counts = g.counts()
     scene.add_points(embed(g.points[g.free]), name="overlays/workspace", colour=(0.2, 0.55, 0.85), size=size,
                      opacity=0.5, label=f"collision-free workspace ({int(g.free.sum())} {what}; {grid}, step "
                                         f"{g.step:.4g} m, {g.grid_points:,} points searched)")
