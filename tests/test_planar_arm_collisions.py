@@ -40,7 +40,7 @@ def test_stretched_arm_flags_are_the_walls_by_hand(arm, tmp_path, capsys):  # no
     assert abs(np.ptp(theta1[got]) / 2 - half) <= math.radians(1.0)
 
 
-def test_workspace_view_draws_where_both_elbows_hit_the_wall(arm, tmp_path):  # noqa: F811
+def test_workspace_view_draws_where_both_elbows_hit_the_wall(arm, tmp_path, capsys):  # noqa: F811
     # a tool point P = rho (cos, sin)(phi) has its elbows at L1 (cos, sin)(phi -+ gamma),
     # cos(gamma) = (L1^2 + rho^2 - L2^2) / (2 L1 rho); the arm (capsules from the origin) is free in
     # a branch iff P and that elbow both have x < WALL - R, so every branch collides iff P.x >= c
@@ -69,6 +69,17 @@ def test_workspace_view_draws_where_both_elbows_hit_the_wall(arm, tmp_path):  # 
                                       for x in labels) if m]
     assert sum(drawn) == int(hits.sum()) and free == [int((~hits).sum())]
     assert "obstacle wall" in labels
+    # `show`'s collisions block: the same counts, by hand
+    code, d, err = run_json(capsys, "show", str(tmp_path / "arm2r.urdf"), "--workspace", "--obstacles",
+                            str(tmp_path / "wall.yaml"), "--step", str(step), "--export", str(tmp_path / "s.html"))
+    assert code == 0, err
+    c = d["collisions"]
+    assert (c["mode"], c["step_m"], c["grid_points"]) == ("planar", step, len(inside))
+    assert (c["reached"], c["free"], c["colliding"]) == (len(pts), int((~hits).sum()), int(hits.sum()))
+    assert sum(p["points"] for p in c["binding_pairs"]) == c["colliding"]
+    assert all("wall" in p["links"] for p in c["binding_pairs"]) and c["obstacles"] == ["wall"]
+    links = [tuple(p["links"]) for p in c["binding_pairs"]]  # a link's three shapes (a capsule) counted once
+    assert len(set(links)) == len(links)
 
 
 def _elbows_clear_of_the_wall(mech, step):
