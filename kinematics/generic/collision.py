@@ -297,8 +297,8 @@ class CollisionModel:
                                len(RETRY_TOLERANCES), math.inf, RETRY_TOLERANCES[-1])
 
     def _pool(self, chunks: int) -> CoalPool | None:
-        """The worker processes for a call of `chunks` chunks (`coal_pool.pool_for`): started once
-        this model has spent `coal_pool.START_AFTER` in coal inline; None: evaluate inline."""
+        """The worker processes for a call of `chunks` chunks (`coal_pool.CoalPool.start`): started
+        once this model has spent `coal_pool.START_AFTER` in coal inline; None: evaluate inline."""
         from kinematics.generic import coal_pool
 
         if self._workers is None and chunks > 1 and self._inline_seconds >= coal_pool.START_AFTER:
