@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import gc
 import multiprocessing
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -123,3 +126,43 @@ def test_failed_penetration_depths_are_retried(rng):
         hit = np.array([r.isCollision() for r in gdata.collisionResults])
         keep = primitive & (np.abs(d[n]) > 1e-9)
         assert np.array_equal(hit[keep], d[n, keep] < 0)
+
+
+def _alive(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie, exited but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@fork
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads process states from /proc")
+def test_workers_exit_when_their_parent_is_killed():
+    """A parent killed outright (SIGKILL; SIGTERM without a handler, as `timeout` sends) cannot shut
+    its pool down: its workers notice within WATCH_PERIOD and exit instead of waiting for work
+    forever (before the watch, both were still there 10 s later)."""
+    script = (
+        "import numpy as np, multiprocessing, time\n"
+        "from kinematics.generic import coal_pool\n"
+        "from kinematics.generic.collision import ROWS, CollisionModel\n"
+        "from kinematics.model.robot import load_robot\n"
+        "coal_pool.START_AFTER, coal_pool.WORKERS = 0.0, 2\n"
+        "robot = load_robot('ur5')\n"
+        "q = np.random.default_rng(0).uniform(-3, 3, (2 * ROWS, robot.model.nq))\n"
+        "cm = CollisionModel.from_robot(robot)\n"
+        "cm.distances(q)\n"
+        "print(*[p.pid for p in multiprocessing.active_children()], flush=True)\n"
+        "time.sleep(600)\n")
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        pids = [int(p) for p in parent.stdout.readline().split()]
+        assert len(pids) == 2 and all(_alive(p) for p in pids)
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 20 * coal_pool.WATCH_PERIOD + 10.0  # generous: a loaded CI machine
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_alive(p) for p in pids)

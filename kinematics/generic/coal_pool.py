@@ -20,7 +20,10 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing
+import os
 import signal
+import threading
+import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from typing import TYPE_CHECKING, Any
@@ -34,6 +37,9 @@ WORKERS: int | None = None
 """Processes per pool (None: the CPUs this process may use, `chunks.default_workers`); 1 or 0:
 no pool, every batch inline."""
 
+WATCH_PERIOD = 0.5
+"""[s] How often a worker checks that its parent is alive (it exits within this of the parent's death)."""
+
 START_AFTER = 1.0
 """[s] A model evaluates its batches inline until it has spent this long in coal; its next batch
 of two chunks or more starts its pool."""
@@ -45,10 +51,18 @@ parent lets go of it once the workers are forked)."""
 _KEYS = itertools.count()
 
 
-def _quiet() -> None:
+def _start(parent: int) -> None:
     """A worker's start: Ctrl-C left to the parent (a worker interrupted mid-chunk would print its
-    own traceback)."""
+    own traceback), and a watch on the parent: killed (SIGKILL, or SIGTERM without a handler, as
+    `timeout` sends), it cannot shut its pool down, and the workers would wait for work forever."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch, args=(parent,), daemon=True).start()
+
+
+def _watch(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(WATCH_PERIOD)
+    os._exit(0)
 
 
 def _rows(key: int, q: np.ndarray, pick: np.ndarray | None, near: bool) -> np.ndarray:
@@ -85,7 +99,8 @@ class CoalPool:
         key = next(_KEYS)
         _MODELS[key] = model
         try:
-            executor = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=_quiet)
+            executor = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"), initializer=_start,
+                                           initargs=(os.getpid(),))
             with warnings.catch_warnings():
                 # Python >= 3.12 warns on any fork of a threaded process; the workers run no
                 # thread pool of the parent's (module docstring)
@@ -102,4 +117,4 @@ class CoalPool:
         return [job.result() for job in jobs]
 
 
-__all__ = ["START_AFTER", "WORKERS", "CoalPool", "workers"]
+__all__ = ["START_AFTER", "WATCH_PERIOD", "WORKERS", "CoalPool", "workers"]
