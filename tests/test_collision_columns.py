@@ -57,6 +57,30 @@ def test_columns_match_the_margin_sampled_densely(p2us_results, rng, monkeypatch
     assert np.array_equal(chunked[0], length) and np.array_equal(chunked[1], err)
 
 
+def test_a_pair_dipping_into_contact_inside_a_root_gap_is_seen(p2us_results):
+    """p2us-results, mode ---, no watched pair, first samples 8 cm apart (the CLI's: SPACING x
+    1 cm): along the column at (0.11457, -0.06103) m, limb_2 - rod_3_1 collides over z -0.5300 to
+    -0.4582 m, 2 mm free, then limb_1 - rod_3_1 from -0.4561 m. A gap from -0.5305 m (limb_2 -
+    rod_3_1 clear by 0.2 mm) to -0.4533 m (limb_1 - rod_3_1 colliding) changes sign, its root is
+    sought on limb_1 - rod_3_1 and lands at -0.4561 m, where every pair is clear: the collision of
+    limb_2 - rod_3_1 inside the gap was missed (the union 7.2 cm too long, on 404 of 40,000
+    columns of a grid) until a pair clear at both ends of such a gap had to be proven clear over
+    it. The union's length against the joined margin at 40,001 points (each end off by at most a
+    spacing; 6 ends), at that column and its mirror image in x."""
+    mech, robot, dist, lo, hi, scan, _, _ = p2us_results
+    margin = ExactCollisionMargin(CollisionMargin(mech, robot, dist, ["---"], "all", [], prescan=scan), scan,
+                                  0.08, 1e-10)
+    base = np.array([[0.11457286432160807, -0.06102961484627262], [-0.11457286432160807, -0.06102961484627262]])
+    length = margin.exact_columns(base, 2, lo[2], hi[2])[0][:, -1]
+    plain = CollisionMargin(mech, robot, dist, ["---"], "all")
+    zs = np.linspace(lo[2], hi[2], 40001)
+    dz = zs[1] - zs[0]
+    for (u, v), got in zip(base, length, strict=True):
+        ref = (plain(np.column_stack([np.full(len(zs), u), np.full(len(zs), v), zs]))[:, -1] >= 0).sum() * dz
+        assert abs(got - ref) <= 6 * dz
+        assert 0.25 < ref < 0.27  # the column's collision-free length (0.2602 m): the case is the one above
+
+
 @pytest.mark.slow
 def test_volume_matches_the_sampled_route_at_a_finer_step(p2us_results):
     """The collision-free volume of p2us-results (mode ---) in the slab -0.4 <= z <= -0.28 m of

@@ -32,7 +32,9 @@ def ambiguous_gaps(d, curv, ia, ib, safety, w, s, s_min, watched, out):  # pragm
     the smallest distance or of a watched pair's that its ends do not show. A pair stays on one
     side of zero over the gap when its curvature bound kk says so (it sags at most kk w^2 / 8
     from its chord) or its slope s_p does (|d(a)| + |d(b)| > s_p w); the smallest distance,
-    negative at both ends, stays negative when some pair provably does, or by the largest slope."""
+    negative at both ends, stays negative when some pair provably does, or by the largest slope;
+    where it changes sign (its root is sought on one pair), every pair clear at both ends must
+    provably stay clear."""
     G, P = len(ia), d.shape[1]
     kk = np.empty(P)
     for g in range(G):
@@ -58,6 +60,15 @@ def ambiguous_gaps(d, curv, ia, ib, safety, w, s, s_min, watched, out):  # pragm
             for p in range(P):
                 if max(da[p], db[p]) + kk[p] * sag < 0.0:
                     amb = False
+                    break
+        elif (fa >= 0.0) != (fb >= 0.0):
+            # a sign change: its root is sought on the pair that collides at one end; a pair clear
+            # at both ends must stay clear over the gap, or it may dip into contact and out again
+            # inside it, a collision that root does not see
+            for p in range(P):
+                a, b = da[p], db[p]
+                if a > 0.0 and b > 0.0 and not (min(a, b) - kk[p] * sag > 0.0 or a + b > s[p] * wg):
+                    amb = True
                     break
         for j in range(len(watched)):
             if amb:

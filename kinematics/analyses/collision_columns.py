@@ -16,7 +16,9 @@ interval is free):
   min(d_p(a), d_p(b)) > k_p w^2 / 8 (k_p SAFETY times the largest |second difference| / spacing^2
   of the samples at the gap's ends: the sag below its chord); the smallest distance m = min_p d_p,
   negative at both ends, stays negative when some pair provably does or |m(a)| + |m(b)| >
-  max_p s_p w. Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
+  max_p s_p w; where m changes sign, every pair clear at both ends must provably stay clear (the
+  root is sought on one pair, and another may dip into contact and out again inside the gap).
+  Gaps that can are halved (keeping their curvature bound), at most MAX_REFINE times;
 * every sign change is bracketed to `root_tol` [m] (Illinois false position, bisection from the
   8th step on) on one pair's distance, its two shapes alone placed
   (`AnalyticDistances.pair_distances`): a watched pair's, or, for the smallest distance, the pair
