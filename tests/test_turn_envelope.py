@@ -350,3 +350,34 @@ def test_turn_flag_only_for_a_serial_arm_with_collisions(capsys):
                  ["workspace-volume", "p2us", "--collisions", "--turn", "envelope"]):
         code, out, err = run(capsys, *argv)
         assert code == 2 and out == "" and err.count("\n") == 1 and "--turn" in err, (argv, err)
+
+
+def test_envelope_asked_where_it_cannot_apply_warns(tmp_path):
+    """`turn="envelope"` where no envelope can be built, the arm then measured in 3-D: one
+    `KinematicsWarning` saying why (a half-space wall beside the 3R arm: its normal is not along
+    the base axis; the 3R arm with its base limited to +-2 rad: no full turn, searched in 3-D); none with "auto",
+    which chooses the route itself."""
+    import warnings
+
+    from kinematics.analyses.serial_collisions import serial_margin
+    from kinematics.errors import KinematicsWarning
+    from kinematics.generic.obstacles import load_obstacles
+
+    (tmp_path / "arm3.urdf").write_text(_arm3(False))
+    (tmp_path / "wall.yaml").write_text("obstacles:\n  - {name: wall, halfspace: [-1, 0, 0, -0.35]}\n")
+    (tmp_path / "part.urdf").write_text(_arm3(True).replace(
+        f'<axis xyz="0 0 1"/><limit lower="{-math.pi}" upper="{math.pi}"',
+        '<axis xyz="0 0 1"/><limit lower="-2" upper="2"', 1))
+    cases = [("arm3.urdf", load_obstacles(tmp_path / "wall.yaml"), "no turn envelope"),
+             ("part.urdf", None, "no full base turn")]
+    for name, obstacles, why in cases:
+        robot = load_robot(tmp_path / name)
+        mech = mechanism_of(robot)
+        model = collision_model_of(robot, obstacles, True)
+        dist = AnalyticDistances(model)
+        with pytest.warns(KinematicsWarning, match=why):
+            margin, env = serial_margin(mech, robot, model, dist, "envelope")
+        assert env is None and margin.reach.setup.mode == "spatial"
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", KinematicsWarning)
+            assert serial_margin(mech, robot, model, dist, "auto")[1] is None

@@ -52,13 +52,14 @@ the 3-D grid.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from kinematics.analyses.collision_prescan import Prescan
-from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.errors import InvalidInputError, KinematicsWarning, UnsupportedRobotError
 from kinematics.generic.batched import configurations
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.mechanisms.base import UNION, Mechanism
@@ -179,10 +180,19 @@ def serial_margin(mech: Mechanism, robot: Any, model: CollisionModel, distances:
 
     reach = collision_reach(mech, robot, distances)
     native = mech.reach_search()
-    if turn == "spatial" or reach is native or native.turn is not None or native.setup.mode != "revolved":
+    if turn == "spatial" or (reach is native and native.setup.mode == "revolved"):  # (every pair turn-invariant)
         return SerialCollisionMargin(mech, robot, distances, reach), None
-    env = turn_envelope(model, _setup_configuration(robot, native), native.origin, native.basis[2], carried_joints(robot, native))
+    why = (f"its reach search is {native.setup.mode} (no full base turn)" if native.setup.mode != "revolved" else
+           "its base turns through part of a turn" if native.turn is not None else None)
+    env = None if why else turn_envelope(model, _setup_configuration(robot, native), native.origin, native.basis[2],
+                                         carried_joints(robot, native))
     if env is None:
+        if turn == "envelope":  # asked for, and not possible: say so (the report's route says where it went)
+            warnings.warn(KinematicsWarning(
+                f"turn='envelope' does not apply to {mech.name}: "
+                f"{why or 'a fixed body has no turn envelope (a half-space not normal to the base axis)'}; "
+                f"measured {'in 3-D' if reach.setup.mode == 'spatial' else 'in its ' + reach.setup.mode + ' search'}"),
+                stacklevel=2)
         return SerialCollisionMargin(mech, robot, distances, reach), None
     return SerialCollisionMargin(mech, robot, AnalyticDistances(env.model), native, exact=env.exact), env
 
