@@ -11,9 +11,9 @@ START_AFTER seconds in coal inline: a short analysis (a test, a view) never pays
 one (the volume of a mesh robot: minutes of coal) runs on every core. Forking copies the model
 without pickling or re-importing anything (a spawned worker would import the user's `__main__`,
 running an unguarded script again); the workers only call coal, never a Numba kernel, whose
-thread pools a fork does not carry over. Where there is no fork (Windows, macOS's default), in a
-process that is itself a multiprocessing worker (a Dask worker of a sweep: its parent already
-spreads the work), or with WORKERS = 1, everything runs inline. A pool lives as long as its model.
+thread pools a fork does not carry over. Where there is no fork (Windows), in a process that is
+itself a multiprocessing worker (a Dask worker of a sweep: its parent already spreads the work),
+or with WORKERS = 1, everything runs inline. A pool lives as long as its model.
 """
 
 from __future__ import annotations

@@ -284,9 +284,7 @@ class CollisionModel:
 
         out = np.full(len(pairs), -np.inf)
         for tol in RETRY_TOLERANCES:
-            gdata = pin.GeometryData(self.geometry)
-            for request in gdata.distanceRequests:
-                request.gjk_tolerance = request.epa_tolerance = tol
+            gdata = _tight(pin.GeometryData(self.geometry), tol=tol)
             pin.updateGeometryPlacements(self.robot.model, self._data, self.geometry, gdata, q)
             for n in np.flatnonzero(out <= EPA_FAILED):
                 out[n] = pin.computeDistance(self.geometry, gdata, int(pairs[n])).min_distance
@@ -389,11 +387,11 @@ def _add_obstacles(geometry: Any, obstacles: Obstacles, taken: set[str]) -> dict
     return out
 
 
-def _tight(data: Any, margin: float = 0.0) -> Any:
-    """`data` with every pair's GJK/EPA tolerance set to `GJK_TOL`, its collision tests'
+def _tight(data: Any, margin: float = 0.0, tol: float = GJK_TOL) -> Any:
+    """`data` with every pair's GJK/EPA tolerance set to `tol` [m], its collision tests'
     security margin to `margin` [m] (a pair within it counts as colliding)."""
     for request in data.distanceRequests:
-        request.gjk_tolerance = request.epa_tolerance = GJK_TOL
+        request.gjk_tolerance = request.epa_tolerance = tol
     for request in data.collisionRequests:
         request.security_margin = margin
     return data
