@@ -315,6 +315,22 @@ def test_singular_points_below_a_floor_are_flagged(tmp_path, capsys):
     assert c["any_inside_collision_free"]
 
 
+def test_singularities_with_collisions_and_no_interior_point(capsys):
+    """singularities --collisions where no type II/III point lies inside the workspace (delta, mode
+    ---, 4 cm grid: its few type II/III points sit on the grid's reach boundary): an answer with
+    zero points flagged, not a crash on the empty list (it raised a ValueError reshaping it)."""
+    from .test_cli import run, run_json
+
+    code, d, err = run_json(capsys, "singularities", "delta", "--collisions", "--step", "0.04", "--modes=---")
+    assert code == 0 and err == ""
+    assert d["singularities"]["type_II"]["locus_points"] > 0  # singular points exist, none inside
+    assert d["singular_points"] == []
+    c = d["collisions"]
+    assert (c["interior_points"], c["colliding_points"], c["any_inside_collision_free"]) == (0, 0, False)
+    code, out, _ = run(capsys, "singularities", "delta", "--collisions", "--step", "0.04", "--modes=---")
+    assert code == 0 and "colliding: 0 of 0" in out
+
+
 def test_cli_points_are_the_collision_free_ones(arm, tmp_path, capsys):
     """`workspace-volume --obstacles --points`: the listed grid points are those where the arm
     clears the wall in some elbow (by hand: the tool and that elbow at x < WALL - R), up to the

@@ -255,7 +255,7 @@ def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.
     `mech.branches[branch[k]]` collides (some pair's signed distance < 0); False where it does
     not, and where the point is outside that branch's kinematic workspace (no configuration)."""
     dist = AnalyticDistances(model)
-    pts = np.asarray(points, dtype=float).reshape(len(branch), -1)
+    pts = np.asarray(points, dtype=float).reshape(len(branch), mech.task_dim)
     out = np.zeros(len(pts), dtype=bool)
     if not model.pairs:
         return out
