@@ -52,7 +52,13 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.analyses.collision_column_kernels import ambiguous_gaps, curvatures, split_close, union_pieces
+from kinematics.analyses.collision_column_kernels import (
+    ambiguous_gaps,
+    curvatures,
+    smallest,
+    split_close,
+    union_pieces,
+)
 from kinematics.analyses.collision_fused import distances, illinois, pair_roots
 from kinematics.analyses.collision_prescan import SAFETY, Prescan
 from kinematics.analyses.collisions import CollisionMargin, configurations
@@ -254,8 +260,7 @@ class CollisionColumns:
 
     def _functions(self, d: np.ndarray) -> np.ndarray:
         """(N, F): the smallest distance over the pairs, then each watched pair's."""
-        first = d.min(axis=1, initial=np.inf)[:, None]
-        return np.concatenate([first, d[:, self.margin.watched]], axis=1)
+        return smallest(d, np.asarray(self.margin.watched, dtype=np.int64))[0]
 
     def _checked_pieces(self, b: int, base: np.ndarray, ax: int, col: np.ndarray, u: np.ndarray, v: np.ndarray
                         ) -> tuple[np.ndarray, ...]:
@@ -283,7 +288,7 @@ class CollisionColumns:
             amb = np.zeros(len(gc), np.bool_)
             if level < MAX_REFINE:
                 ambiguous_gaps(d, curv, ia, ib, SAFETY, zb - za, s, s_min, watched, amb)
-            fn, arg = self._functions(d), d.argmin(axis=1)
+            fn, arg = smallest(d, watched)
             keep = ~amb
             ka, kb = ia[keep], ib[keep]
             # each end's smallest pair, and its distance at the other end (a root of the smallest
@@ -393,14 +398,14 @@ class CollisionColumns:
         fi = np.zeros(len(za), np.int64) if fi is None else fi
         pair = np.where(fi > 0, np.concatenate([[0], self.margin.watched]).astype(np.int64)[fi], pair)
 
-        def smallest(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+        def value(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
             d = self._evaluate(b, base, ax, col[rows], x)
             y = self._functions(d)[np.arange(len(rows)), fi[rows]]
             neg = (y < 0) & (fi[rows] == 0)
             pair[rows[neg]] = d[neg].argmin(axis=1)
             return y
 
-        lo, hi, _, _ = illinois(smallest, za, zb, fa, fb, self.root_tol, ROOT_STEPS)
+        lo, hi, _, _ = illinois(value, za, zb, fa, fb, self.root_tol, ROOT_STEPS)
         return 0.5 * (lo + hi), pair
 
 
