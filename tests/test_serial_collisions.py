@@ -20,6 +20,7 @@ import pytest
 from kinematics.analyses.collision_volume import measure_collision_workspace
 from kinematics.analyses.collisions import collision_model_of
 from kinematics.analyses.serial_collisions import SerialCollisionMargin, collision_reach, turn_invariant
+from kinematics.errors import KinematicsWarning
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.obstacles import load_obstacles
 from kinematics.mechanisms import mechanism_of
@@ -236,8 +237,9 @@ def test_spatial_collision_search_stops_on_its_budget(arm3, monkeypatch):
 
     monkeypatch.setattr(sc, "SEARCHES", 20_000)
     robot = load_robot(arm3 / "arm3.urdf")
-    cw = measure_collision_workspace(mechanism_of(robot), robot, step=0.04, rtol=1e-3,
-                                     obstacles=load_obstacles(arm3 / "wall.yaml"), self_collisions=False)
+    with pytest.warns(KinematicsWarning, match="will likely stop on its search budget"):  # said at the start
+        cw = measure_collision_workspace(mechanism_of(robot), robot, step=0.04, rtol=1e-3,
+                                         obstacles=load_obstacles(arm3 / "wall.yaml"), self_collisions=False)
     r = cw.workspace.result
     assert not r.converged and r.out_of_budget is not None and bool(r.out_of_budget[-1])
     assert r.points_evaluated <= 3 * 20_000  # the budget, a round begun and the pre-scan's grid

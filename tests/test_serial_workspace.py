@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kinematics.analyses.serial_workspace import radii, serial_workspace
-from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.errors import InvalidInputError, KinematicsWarning, UnsupportedRobotError
 from kinematics.generic.batched import batched_fk, configurations
 from kinematics.generic.serial import forward_kinematics
 from kinematics.mechanisms.scara.closed_form import ScaraParams, ik
@@ -290,8 +290,9 @@ def test_3d_search_budget_stops_honestly(monkeypatch):
     rtol, on a search budget far below what it needs: it stops in the first run, not converged,
     the budget named as the reason, within about twice its budget, and its error estimate still
     covers the exact volume V = (4 D / 3)(r(0.5)^3 - r(2.0)^3) of the shell test. At 2 cm the
-    usual start (8 cm intervals: 132 x 132 columns of 86 samples, ~1.5e6 searches) alone is 7x
-    the budget: the start must be coarsened (engine.START_SHARE), and no check run follow."""
+    usual start (8 cm intervals: 132 x 132 columns of 87 samples, ~1.5e6 searches) alone is 7x
+    the budget: the start must be coarsened (engine.START_SHARE), and no check run follow; a
+    warning says so at the start."""
     from kinematics.analyses.workspace import measure_workspace
     from kinematics.mechanisms.serial import reach as reach_module
     from kinematics.mechanisms.serial.mechanism import SerialArm
@@ -302,7 +303,10 @@ def test_3d_search_budget_stops_honestly(monkeypatch):
     exact = 4 * 1.2 / 3 * (r(0.5) ** 3 - r(2.0) ** 3)
     budget = 200_000
     monkeypatch.setattr(reach_module, "SEARCHES", budget)
-    ws = measure_workspace(SerialArm(load_robot(MODELS / "arm3r_wedge.urdf")), step=0.02, rtol=1e-3, check=True)
+    # the start's searches: 3 x 4 Gauss columns per 16 cm interval, 11 intervals over the 1.7 m box
+    # each way, 87 samples per column (ceil(1.7 / 0.02) + 1, 1.7 / 0.02 rounding up): 132^2 x 87
+    with pytest.warns(KinematicsWarning, match=r"needs 1,515,888 searches to start.*likely stop on its search budget"):
+        ws = measure_workspace(SerialArm(load_robot(MODELS / "arm3r_wedge.urdf")), step=0.02, rtol=1e-3, check=True)
     res = ws.result
     assert not res.converged and res.out_of_budget is not None and res.out_of_budget[-1]
     why = ws.unconverged()["union"]

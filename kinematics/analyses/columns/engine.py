@@ -4,13 +4,14 @@ check runs at halved steps (see the package docstring)."""
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
 
-from kinematics.errors import InvalidInputError
+from kinematics.errors import InvalidInputError, KinematicsWarning
 from kinematics.sizes import MAX_POINTS
 
 from .quadrature import adaptive_1d, piecewise_1d
@@ -343,6 +344,13 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
 
     cell = 8 * step if searches is None or d != 3 or pieces else start_cell(
         step, hi - lo, ax, order, int(START_SHARE * searches))
+    if cell > 8 * step:  # said at the start: such a run ends on its budget minutes later, its error wide
+        warnings.warn(KinematicsWarning(
+            f"a {step:g} m step over this {' x '.join(f'{x:.3g}' for x in hi - lo)} m box needs "
+            f"{start_cost(step, hi - lo, ax, order, 8 * step):,} searches to start, over {START_SHARE:.0%} of the "
+            f"budget of {searches:,}: starting from {cell:.3g} m intervals instead of {8 * step:g} m, the "
+            "measurement will likely stop on its search budget, not converged (a larger step or rtol needs fewer)"),
+            stacklevel=2)
 
     def n_pieces(k: int) -> int:
         return pieces or max(1, math.ceil((hi[k] - lo[k]) / cell))
