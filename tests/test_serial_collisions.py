@@ -213,6 +213,49 @@ def test_margin_takes_the_best_configuration(tmp_path, rng):
     assert np.array_equal(m[sure] > 0, clear[sure] > 0)
 
 
+def test_restarts_evaluate_each_distinct_configuration_once(tmp_path, rng, monkeypatch):
+    """The 2R arm beside the wall (non-redundant: two elbows reach each point). `distinct_distances`
+    evaluates three configurations repeated 8 times each (1e-10 rad apart, within one 1e-8 rad
+    rounding cell) in one call of 3 rows, each row the distances of its own configuration; where the
+    first solution collides, the restarts' 24 descents end at the two elbows, so the margin's
+    distance calls take over 5x fewer configurations than with every descent evaluated, and the
+    margin is the same to 1e-8 m (merged configurations within 1e-8 rad, reach 0.7 m)."""
+    import kinematics.analyses.serial_collisions as sc
+
+    (tmp_path / "arm.urdf").write_text(ARM)
+    (tmp_path / "wall.yaml").write_text(HALF)
+    robot = load_robot(tmp_path / "arm.urdf")
+    mech = SerialArm(robot)
+    dist = AnalyticDistances(collision_model_of(robot, load_obstacles(tmp_path / "wall.yaml"), False))
+    margin = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+    rows: list[int] = []
+    evaluate = dist.distances
+
+    def counted(q: np.ndarray, signs: bool = False) -> np.ndarray:
+        rows.append(len(q))
+        return evaluate(q, signs=signs)
+
+    monkeypatch.setattr(dist, "distances", counted)
+    configs = np.array([[0.3, 1.2], [-0.7, 0.4], [1.1, -2.0]])
+    Q = np.repeat(configs, 8, axis=0) + rng.uniform(-1e-10, 1e-10, (24, 2))
+    D = margin.distinct_distances(Q)
+    assert rows == [3]
+    own = evaluate(margin.full_configurations(Q), signs=True)
+    assert np.max(np.abs(D - own)) <= 1e-8  # each row its own configuration's, to its 1e-10 rad offset
+
+    rho = np.sqrt(rng.uniform(0.11**2, 0.69**2, 400))
+    phi = rng.uniform(-math.pi, math.pi, 400)
+    pts = np.stack([rho * np.cos(phi), rho * np.sin(phi)], axis=1)
+    rows.clear()
+    k, best, _, _, _ = margin.evaluate(pts)
+    merged = sum(rows[1:])  # the restarts' calls (the first: one solution per point)
+    monkeypatch.setattr(sc, "SAME_CONFIGURATION", 1e-300)  # only bit-identical rows merge
+    rows.clear()
+    k2, best2, _, _, _ = margin.evaluate(pts)
+    assert merged > 0 and sum(rows[1:]) > 5 * merged
+    assert np.array_equal(k, k2) and np.max(np.abs(best - best2)) <= 1e-8
+
+
 def test_spatial_arm_beside_a_wall_is_measured_in_3d(arm3):
     """The 3R arm beside the wall: the wall pairs change with the yaw, so the search runs in 3-D;
     the volume is the profile integral by hand (to 3e-6 m^3) within its error estimate."""

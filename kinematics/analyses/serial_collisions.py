@@ -103,6 +103,14 @@ ESCAPE_ANGLE = 0.3
 ESCAPE_CLEARANCE = 0.005
 """[m] The binding pair's distance a step aims at (its linear model's)."""
 
+SAME_CONFIGURATION = 1e-8
+"""[rad or m] Restarts' solutions whose chain values round to the same multiple of this are one
+configuration, their distances evaluated once (`SerialCollisionMargin.distinct_distances`). A
+non-redundant arm's restarts descend to its few inverse-kinematics solutions: finger_edu at
+colliding points, 24 descents end at 1.5 distinct configurations at 1e-8 rad (22 at 1e-12, 3.3 at
+1e-9: the descents' own spread), so 16x fewer coal calls there; a redundant arm's (ur5, panda)
+are all distinct. A pair's distance moves at most ~(arm's reach) x 1e-8 m between two such."""
+
 
 def carried_joints(robot: Any, reach: Reach) -> set[int]:
     """The joints the first chain joint (the base joint) carries: its subtree of the kinematic tree."""
@@ -326,7 +334,7 @@ class SerialCollisionMargin:
             if not len(rows):
                 continue
             Ds = np.full((len(more), Qs.shape[1], P), -np.inf)
-            Ds[rows, cols] = self.distances.distances(self.full_configurations(Qs[rows, cols]), signs=signs)
+            Ds[rows, cols] = self.distinct_distances(Qs[rows, cols], signs)
             low = Ds.min(axis=2)
             c = np.argmax(low, axis=1)
             better = low[np.arange(len(more)), c] > best[more]
@@ -338,6 +346,14 @@ class SerialCollisionMargin:
         if self.reach.orientation is None and int(self.reach.searched.sum()) > len(self.reach.setup.rows):  # redundant
             self._escape(world, idx[best[idx] <= 0], qbest, best, watch, at, signs)
         return k, best, watch, at, qbest
+
+    def distinct_distances(self, Q: np.ndarray, signs: bool = True) -> np.ndarray:
+        """(K, P) every pair's signed distance [m] at chain values Q (K, n), each configuration
+        evaluated once: rows that round to the same multiple of SAME_CONFIGURATION take the first
+        one's distances."""
+        _, first, inverse = np.unique(np.round(Q / SAME_CONFIGURATION), axis=0, return_index=True,
+                                      return_inverse=True)
+        return self.distances.distances(self.full_configurations(Q[first]), signs=signs)[np.ravel(inverse)]
 
     def _escape(self, world: np.ndarray, rows: np.ndarray, Q: np.ndarray, best: np.ndarray, watch: np.ndarray,
                 at: np.ndarray, signs: bool) -> None:
