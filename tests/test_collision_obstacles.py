@@ -233,6 +233,39 @@ def test_bad_obstacle_files_are_refused(tmp_path, name, text, match):
         load_obstacles(tmp_path / name)
 
 
+@pytest.mark.parametrize(("name", "data", "match"), [
+    ("a.yaml", b"\xff\xfe\x00 not text", "not UTF-8 text"),
+    ("b.urdf", b"\xff\xfe\x00 not text", "not UTF-8 text"),
+    ("c.yaml", b"obstacles:\n  - {name: a, box: [1, 2\n", "not YAML"),
+    ("d.yaml", b"obstacles:\n  - {name: part, mesh: bad.stl}\n", "obstacle part: mesh: cannot load"),
+    ("e.urdf", (b'<robot name="s"><link name="w"/><link name="m"><collision><geometry><mesh filename="bad.stl"/>'
+                b'</geometry></collision></link><joint name="j" type="fixed"><parent link="w"/><child link="m"/>'
+                b'</joint></robot>'), "not loaded: Could not load resource"),
+])
+def test_unreadable_obstacle_files_are_refused_in_one_line(tmp_path, name, data, match):
+    # the CLI prints the message as its one stderr line: a decoding error and a mesh file coal
+    # cannot read (in a URDF) escaped as tracebacks, and the YAML parser's and coal's mesh loader's
+    # messages spanned several lines
+    (tmp_path / "bad.stl").write_text("solid x\n")
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(ModelFileError, match=match) as info:
+        load_obstacles(tmp_path / name)
+    assert "\n" not in str(info.value), str(info.value)
+
+
+def test_a_robot_mesh_coal_cannot_read_is_one_line_of_bad_input(tmp_path, capsys):
+    # the mesh file is found (so not refused as missing) but is no mesh: Pinocchio's loader raised
+    # coal's multi-line ValueError, which escaped the CLI as a traceback
+    from .test_cli import run
+
+    (tmp_path / "bad.stl").write_text("solid x\n")
+    (tmp_path / "arm.urdf").write_text(ARM.replace(_capsule(L1), '<collision><geometry><mesh filename="bad.stl"/>'
+                                                                 '</geometry></collision>'))
+    code, out, err = run(capsys, "workspace-volume", str(tmp_path / "arm.urdf"), "--collisions", "--step", "0.1")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "collision geometry not loaded: Could not load resource" in err
+
+
 def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
     """`workspace-volume --obstacles` (alone: robot-obstacle pairs only) reports the free area by
     hand (to its error estimate at rtol 1e-3) and the obstacles; a bad file is one line, exit 2."""
