@@ -102,18 +102,19 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
-    # (a generic closed loop compiles its solver here: its branches come from an atlas search)
-    branches = mech.check_branches(args.modes or None)
-    rtol = None if args.rtol == 0 else args.rtol
     colliding = getattr(args, "collisions", False) or getattr(args, "obstacles", None)
-    if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
-        raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
-    if colliding:
+    if colliding:  # refused before the branches (a generic closed loop compiles its solver to find them)
         from kinematics.analyses.collisions import collision_refusal
 
         refused = collision_refusal(mech)
         if refused is not None:
             raise InvalidInputError(*refused)
+    # (a generic closed loop compiles its solver here: its branches come from an atlas search)
+    branches = mech.check_branches(args.modes or None)
+    rtol = None if args.rtol == 0 else args.rtol
+    if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
+        raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
+    if colliding:
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
