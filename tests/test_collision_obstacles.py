@@ -266,6 +266,28 @@ def test_a_robot_mesh_coal_cannot_read_is_one_line_of_bad_input(tmp_path, capsys
     assert "collision geometry not loaded: Could not load resource" in err
 
 
+@pytest.mark.parametrize("where", ["obstacle", "robot"])
+def test_a_flat_mesh_is_refused_not_a_crash(tmp_path, where):
+    # a box mesh squashed to 1e-8 of its size along z (or to 0: the same) crashed the process in
+    # coal's convex hull (a segmentation fault, exit -11); in a subprocess, as it did
+    import subprocess
+    import sys
+
+    import trimesh
+
+    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(tmp_path / "box.stl")
+    flat = '<mesh filename="box.stl" scale="1 1 1e-8"/>'
+    (tmp_path / "arm.urdf").write_text(ARM if where == "obstacle" else ARM.replace(
+        _capsule(L1), f'<collision><geometry>{flat}</geometry></collision>'))
+    (tmp_path / "o.yaml").write_text("obstacles:\n  - {name: plate, mesh: box.stl, scale: [1, 1, 1.0e-8], "
+                                     "xyz: [0.3, 0, 0]}\n")
+    extra = ["--obstacles", str(tmp_path / "o.yaml")] if where == "obstacle" else ["--collisions"]
+    proc = subprocess.run([sys.executable, "-m", "kinematics", "workspace-volume", str(tmp_path / "arm.urdf"),
+                           *extra, "--step", "0.1"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stdout == "" and proc.stderr.count("\n") == 1, (proc.returncode, proc.stderr)
+    assert "flat: its 8 vertices" in proc.stderr
+
+
 def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
     """`workspace-volume --obstacles` (alone: robot-obstacle pairs only) reports the free area by
     hand (to its error estimate at rtol 1e-3) and the obstacles; a bad file is one line, exit 2."""
