@@ -226,6 +226,8 @@ def test_obstacle_pairs_join_self_pairs_and_are_never_touching(tmp_path):
     ("g.urdf", ('<robot name="s"><link name="w"><collision><geometry><capsule radius="1" length="1"/></geometry>'
                '</collision></link></robot>'), "not read"),
     ("h.txt", "", "must be a .urdf or a .yaml"),
+    ("i.yaml", "obstacles:\n  - {name: x, sphere: 1, rpy: [0, 0]}\n", "obstacle x: rpy: expected 3"),  # was "size:"
+    ("j.yaml", "obstacles:\n  - {name: x, sphere: 1, xyz: [0, .nan, 0]}\n", "obstacle x: xyz: expected 3"),
 ])
 def test_bad_obstacle_files_are_refused(tmp_path, name, text, match):
     (tmp_path / name).write_text(text)

@@ -138,8 +138,8 @@ def _from_yaml(path: Path) -> Obstacles:
             raise ModelFileError(path, f"obstacle {name}: give exactly one shape of {', '.join(SHAPES)}")
         try:
             shape = _shape(keys[0], item[keys[0]], item.get("scale"), path.parent)
-            placement = pin.SE3(pin.rpy.rpyToMatrix(*_floats(item.get("rpy", [0, 0, 0]), 3)),
-                                np.array(_floats(item.get("xyz", [0, 0, 0]), 3)))
+            placement = pin.SE3(pin.rpy.rpyToMatrix(*_floats(item.get("rpy", [0, 0, 0]), 3, "rpy")),
+                                np.array(_floats(item.get("xyz", [0, 0, 0]), 3, "xyz")))
         except (InvalidInputError, ValueError, TypeError) as exc:
             raise ModelFileError(path, f"obstacle {name}: {exc}") from None
         if name in links:
@@ -158,10 +158,10 @@ def _text(path: Path) -> str:
         raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
 
 
-def _floats(value: Any, n: int) -> list[float]:
+def _floats(value: Any, n: int, what: str = "size") -> list[float]:
     values = [float(v) for v in (value if isinstance(value, list | tuple) else [value])]
     if len(values) != n or not all(np.isfinite(values)):
-        raise InvalidInputError("size", f"expected {n} finite numbers, got {value!r}")
+        raise InvalidInputError(what, f"expected {n} finite numbers, got {value!r}")
     return values
 
 
@@ -175,13 +175,13 @@ def _shape(kind: str, value: Any, scale: Any, here: Path) -> Any:
         found = mesh_file(str(value), here, [str(here)])
         if found is None:
             raise InvalidInputError("mesh", f"{value} not found")
-        s = np.array(_floats(scale if scale is not None else [1, 1, 1], 3))
+        s = np.array(_floats(scale if scale is not None else [1, 1, 1], 3, "scale"))
         try:
             return coal.MeshLoader().load(found, s)
         except ValueError as exc:  # coal's message spans lines (source file, function, reason)
             raise InvalidInputError("mesh", f"cannot load {value}: {load_failure(exc)}") from None
     if kind == "halfspace":
-        n = np.array(_floats(value, 4))
+        n = np.array(_floats(value, 4, "halfspace"))
         norm = float(np.linalg.norm(n[:3]))
         if norm == 0.0:
             raise InvalidInputError("halfspace", "the normal is zero")
