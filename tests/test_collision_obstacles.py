@@ -312,6 +312,18 @@ def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
     assert code == 2 and "under 'obstacles:'" in err and len(err.strip().splitlines()) == 1
 
 
+def test_a_usable_region_emptied_by_an_obstacle_does_not_blame_kappa(tmp_path, capsys):
+    # the error read "kappa_max: no grid point is usable ...", with kappa at its default, when a
+    # sphere around the whole delta made every point collide
+    from .test_cli import run
+
+    (tmp_path / "blob.yaml").write_text("obstacles:\n  - {name: blob, sphere: 10.0}\n")
+    code, out, err = run(capsys, "usable-workspace", "delta", "--shape", "cube", "--obstacles",
+                         str(tmp_path / "blob.yaml"), "--step", "0.1")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "collision-free where checked" in err and "kappa_max:" not in err
+
+
 def test_usable_cube_above_a_floor_is_the_hand_fields(tmp_path, capsys):
     """usable-workspace with obstacles: p2us-results (mode ---) above a floor z >= -0.62 m. The
     lowest body is the platform's sphere (radius d + platform overhang = 0.028 + 0.02 m, the
