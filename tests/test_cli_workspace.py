@@ -233,3 +233,15 @@ def test_workspace_volume_names_the_branches_that_did_not_converge(capsys, monke
     assert "not converged on 1 of 2 targets (+++: the run at half the step disagreed" in err
     code, out, err = run(capsys, "workspace-volume", "delta", "--modes=+++", "--limits", "actuators", "--step", "0.1")
     assert code == 0 and "NOT converged" in out and "not converged on 1 of 2 targets (+++:" in out
+
+
+def test_an_empty_workspace_reports_no_inf_or_nan(capsys):
+    """example-robot-data's double pendulum: its tool frame is the second joint's, so it reaches a
+    circle, area 0. The report printed "inf relative" and a box of "[nan, nan] .. [nan, nan]"."""
+    from .test_cli import run
+
+    code, out, err = run(capsys, "workspace-volume", "double_pendulum", "--range", "joint1=-pi:pi",
+                         "--range", "joint2=-pi:pi", "--step", "0.05", "--rtol", "0.05")
+    assert code == 0, err
+    assert "area [m^2]                         : 0 +/- 0" in out
+    assert "nan" not in out.lower() and "inf" not in out.lower(), out

@@ -226,11 +226,68 @@ def test_obstacle_pairs_join_self_pairs_and_are_never_touching(tmp_path):
     ("g.urdf", ('<robot name="s"><link name="w"><collision><geometry><capsule radius="1" length="1"/></geometry>'
                '</collision></link></robot>'), "not read"),
     ("h.txt", "", "must be a .urdf or a .yaml"),
+    ("i.yaml", "obstacles:\n  - {name: x, sphere: 1, rpy: [0, 0]}\n", "obstacle x: rpy: expected 3"),  # was "size:"
+    ("j.yaml", "obstacles:\n  - {name: x, sphere: 1, xyz: [0, .nan, 0]}\n", "obstacle x: xyz: expected 3"),
 ])
 def test_bad_obstacle_files_are_refused(tmp_path, name, text, match):
     (tmp_path / name).write_text(text)
     with pytest.raises(ModelFileError, match=match):
         load_obstacles(tmp_path / name)
+
+
+@pytest.mark.parametrize(("name", "data", "match"), [
+    ("a.yaml", b"\xff\xfe\x00 not text", "not UTF-8 text"),
+    ("b.urdf", b"\xff\xfe\x00 not text", "not UTF-8 text"),
+    ("c.yaml", b"obstacles:\n  - {name: a, box: [1, 2\n", "not YAML"),
+    ("d.yaml", b"obstacles:\n  - {name: part, mesh: bad.stl}\n", "obstacle part: mesh: cannot load"),
+    ("e.urdf", (b'<robot name="s"><link name="w"/><link name="m"><collision><geometry><mesh filename="bad.stl"/>'
+                b'</geometry></collision></link><joint name="j" type="fixed"><parent link="w"/><child link="m"/>'
+                b'</joint></robot>'), "not loaded: Could not load resource"),
+])
+def test_unreadable_obstacle_files_are_refused_in_one_line(tmp_path, name, data, match):
+    # the CLI prints the message as its one stderr line: a decoding error and a mesh file coal
+    # cannot read (in a URDF) escaped as tracebacks, and the YAML parser's and coal's mesh loader's
+    # messages spanned several lines
+    (tmp_path / "bad.stl").write_text("solid x\n")
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(ModelFileError, match=match) as info:
+        load_obstacles(tmp_path / name)
+    assert "\n" not in str(info.value), str(info.value)
+
+
+def test_a_robot_mesh_coal_cannot_read_is_one_line_of_bad_input(tmp_path, capsys):
+    # the mesh file is found (so not refused as missing) but is no mesh: Pinocchio's loader raised
+    # coal's multi-line ValueError, which escaped the CLI as a traceback
+    from .test_cli import run
+
+    (tmp_path / "bad.stl").write_text("solid x\n")
+    (tmp_path / "arm.urdf").write_text(ARM.replace(_capsule(L1), '<collision><geometry><mesh filename="bad.stl"/>'
+                                                                 '</geometry></collision>'))
+    code, out, err = run(capsys, "workspace-volume", str(tmp_path / "arm.urdf"), "--collisions", "--step", "0.1")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "collision geometry not loaded: Could not load resource" in err
+
+
+@pytest.mark.parametrize("where", ["obstacle", "robot"])
+def test_a_flat_mesh_is_refused_not_a_crash(tmp_path, where):
+    # a box mesh squashed to 1e-8 of its size along z (or to 0: the same) crashed the process in
+    # coal's convex hull (a segmentation fault, exit -11); in a subprocess, as it did
+    import subprocess
+    import sys
+
+    import trimesh
+
+    trimesh.creation.box(extents=(0.2, 0.2, 0.2)).export(tmp_path / "box.stl")
+    flat = '<mesh filename="box.stl" scale="1 1 1e-8"/>'
+    (tmp_path / "arm.urdf").write_text(ARM if where == "obstacle" else ARM.replace(
+        _capsule(L1), f'<collision><geometry>{flat}</geometry></collision>'))
+    (tmp_path / "o.yaml").write_text("obstacles:\n  - {name: plate, mesh: box.stl, scale: [1, 1, 1.0e-8], "
+                                     "xyz: [0.3, 0, 0]}\n")
+    extra = ["--obstacles", str(tmp_path / "o.yaml")] if where == "obstacle" else ["--collisions"]
+    proc = subprocess.run([sys.executable, "-m", "kinematics", "workspace-volume", str(tmp_path / "arm.urdf"),
+                           *extra, "--step", "0.1"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and proc.stdout == "" and proc.stderr.count("\n") == 1, (proc.returncode, proc.stderr)
+    assert "flat: its 8 vertices" in proc.stderr
 
 
 def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
@@ -253,6 +310,18 @@ def test_cli_obstacles_alone_and_with_collisions(arm, tmp_path, capsys):
     (tmp_path / "bad.yaml").write_text("obstacles: 3\n")
     code, out, err = run(capsys, "workspace-volume", urdf, "--obstacles", str(tmp_path / "bad.yaml"))
     assert code == 2 and "under 'obstacles:'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_usable_region_emptied_by_an_obstacle_does_not_blame_kappa(tmp_path, capsys):
+    # the error read "kappa_max: no grid point is usable ...", with kappa at its default, when a
+    # sphere around the whole delta made every point collide
+    from .test_cli import run
+
+    (tmp_path / "blob.yaml").write_text("obstacles:\n  - {name: blob, sphere: 10.0}\n")
+    code, out, err = run(capsys, "usable-workspace", "delta", "--shape", "cube", "--obstacles",
+                         str(tmp_path / "blob.yaml"), "--step", "0.1")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "collision-free where checked" in err and "kappa_max:" not in err
 
 
 def test_usable_cube_above_a_floor_is_the_hand_fields(tmp_path, capsys):

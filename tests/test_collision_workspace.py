@@ -145,3 +145,26 @@ def test_delta_pairs_never_near_contact_give_the_kinematic_volume(rng):
     cm = collision_model_of(robot)
     q = np.array([robot.configuration([mech.joint_values(p, "---")[n] for n in robot.joint_names]) for p in pts])
     assert cm.distances(q).min() > 0
+
+
+def test_a_generic_closed_loop_is_refused_before_its_branches_are_searched(capsys, monkeypatch):
+    """A closed loop other than p2us/delta has no joint values at task points (its solver gives
+    the actuators'), so no collision check: `workspace-volume --collisions` refused it only after
+    compiling its solver and searching its branches (85 s on Gepetto's five-bar, first run), from
+    deep in the margin; now `collision_refusal` says so first (the branch search would fail here)."""
+    from kinematics.analyses.collisions import collision_refusal
+    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+    from .test_cli import run
+    from .test_cli_contract import FOURBAR
+
+    mech = mechanism_of(load_robot(FOURBAR))
+    assert isinstance(mech, GenericClosedLoop) and collision_refusal(mech) is not None
+
+    def searched(*_: object, **__: object) -> None:
+        raise AssertionError("branches searched before the refusal")
+
+    monkeypatch.setattr(GenericClosedLoop, "check_branches", searched)
+    code, out, err = run(capsys, "workspace-volume", FOURBAR, "--collisions")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "no configurations at task points" in err

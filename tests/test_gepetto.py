@@ -147,6 +147,13 @@ def test_refusals(tmp_path, capsys, text, error, match):
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
+def test_a_robot_yaml_that_is_not_text_is_refused(tmp_path):
+    path = fivebar_with(tmp_path, "")
+    (tmp_path / "robot.yaml").write_bytes(b"\xff\xfe not text")  # a UnicodeDecodeError traceback
+    with pytest.raises(GepettoFormatError, match="not UTF-8 text"):
+        load_robot(path)
+
+
 def test_a_substitution_of_an_unknown_joint_is_left_out_with_a_warning(tmp_path, capsys):
     # as Gepetto's loader: the other substitution applies, the unknown name is skipped, loudly
     path = fivebar_with(tmp_path, GOOD + "joint_name: [free_2, free3]\njoint_type: [SPHERICAL, SPHERICAL]\n")

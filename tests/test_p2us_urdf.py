@@ -81,6 +81,19 @@ def test_sidecar_errors(tmp_path):
         load_robot(_copy_with_sidecar(tmp_path, good.replace("actuated:", "actuators:")))
     with pytest.raises(ModelFileError, match="unknown type"):
         load_robot(_copy_with_sidecar(tmp_path, good.replace("type: point", "type: hinge", 1)))
+    # these three were tracebacks (TypeError, UnicodeDecodeError; the sizes a ValueError when a
+    # sweep or a synthesis with --collisions read them)
+    with pytest.raises(ModelFileError, match="disabled: expected a list of"):
+        load_robot(_copy_with_sidecar(tmp_path, good.replace("disabled: []", "disabled: 7")))
+    urdf = _copy_with_sidecar(tmp_path, "")
+    (tmp_path / "robot.loops.yaml").write_bytes(b"\xff\xfe")
+    with pytest.raises(ModelFileError, match="not UTF-8 text"):
+        load_robot(urdf)
+    from kinematics.analyses.collisions import design_options
+
+    robot = load_robot(_copy_with_sidecar(tmp_path, good.replace("rod_radius: 0.006", "rod_radius: thick")))
+    with pytest.raises(ModelFileError, match="sizes: expected numbers"):
+        design_options(robot, True, None)
 
 
 def test_invalid_designs_rejected():

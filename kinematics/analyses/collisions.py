@@ -50,11 +50,12 @@ def collision_model_of(robot: Any, obstacles: Obstacles | None = None, self_coll
 
 def collision_refusal(mech: Mechanism) -> tuple[str, str] | None:
     """(option, reason) where a collision-aware volume of `mech` cannot be had, else None: the
-    margin needs configurations at task points (`ik`, or a serial arm's reach search)."""
+    margin needs configurations at task points (`ik`, or a serial arm's reach search; a closed
+    loop's joint values besides, `configurations`)."""
     serial = "reach_search" in mech.capabilities
-    if "ik" not in mech.capabilities and not serial:
+    if ("ik" not in mech.capabilities and not serial) or (mech.closed_loop and "joint_values" not in mech.capabilities):
         return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
-                                             "delta, the planar arm, closed loops and serial arms are collision-aware"))
+                                             "delta, the planar arm and serial arms are collision-aware"))
     return None
 
 

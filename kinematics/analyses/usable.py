@@ -49,7 +49,7 @@ MarginOf = Callable[[Sequence[str]], Field]
 """Branches -> their margin (points -> a column per branch, then any others)."""
 Shape = Literal["cube", "cylinder", "sphere"]
 SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
-EMPTY = "no grid point is usable: the usable region is empty at this step"
+EMPTY = "no grid point is usable (reached, collision-free where checked, non-singular, kappa <= kappa_max) at this step"
 """The problem text of the InvalidInputError `largest_shape` raises when nothing is usable."""
 KAPPA_MAX = 10.0
 """Default bound on the condition number sigma_max / sigma_min."""
@@ -299,7 +299,7 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     n = tuple(len(np.arange(a, b + step / 2, step)) for a, b in zip(lo_, hi_, strict=True))
     lv = _level(field, shape, lo_, step, n, None)
     if not lv.region.any():
-        raise InvalidInputError("kappa_max", EMPTY)
+        raise InvalidInputError("usable region", EMPTY)  # any of its conditions may empty it, not only kappa
 
     def fits(c: np.ndarray, size: Sequence[float]) -> bool:
         return contains(field, shape, c, size, spacing) >= 0

@@ -102,18 +102,19 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
             import sys
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
-    # (a generic closed loop compiles its solver here: its branches come from an atlas search)
-    branches = mech.check_branches(args.modes or None)
-    rtol = None if args.rtol == 0 else args.rtol
     colliding = getattr(args, "collisions", False) or getattr(args, "obstacles", None)
-    if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
-        raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
-    if colliding:
+    if colliding:  # refused before the branches (a generic closed loop compiles its solver to find them)
         from kinematics.analyses.collisions import collision_refusal
 
         refused = collision_refusal(mech)
         if refused is not None:
             raise InvalidInputError(*refused)
+    # (a generic closed loop compiles its solver here: its branches come from an atlas search)
+    branches = mech.check_branches(args.modes or None)
+    rtol = None if args.rtol == 0 else args.rtol
+    if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
+        raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
+    if colliding:
         return _collision_volume(args, robot, mech, branches, rtol, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
@@ -312,9 +313,12 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
     lines += ["", table([mech.branch_kind, f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
               mech.branch_legend, ""]
     lo, hi = payload["bbox"]
-    rel = ws.error / ws.total if ws.total > 0 else math.inf
+    # nothing inside: no relative error and no box (JSON: bbox null), rather than "inf" and "nan"
+    rel = f"{fmt(ws.error / ws.total, 2)} relative; " if ws.total > 0 else ""
+    box = (f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"
+           if all(x is not None and math.isfinite(x) for x in [*lo, *hi]) else "none (no sample inside)")
     lines.append(key_values([
-        (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {fmt(rel, 2)} relative; "
+        (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {rel}"
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
         ("method", ("cell refinement" if payload.get("method") != "columns" else
                     f"sampled columns (roots to {fmt(getattr(r, 'root_tol', 0.0), 2)} m) + adaptive Gauss quadrature; "
@@ -323,7 +327,7 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
                     f"exact columns ({exact}) + Gauss rules between located breaks; a feature narrower "
                     f"than the node spacing {fmt(r.step)} m across columns can be missed")),
         *([("not converged", _not_converged(ws))] if not r.converged else []),
-        ("bounding box of inside samples [m]", f"{[round(x, 4) for x in lo]} .. {[round(x, 4) for x in hi]}"),
+        ("bounding box of inside samples [m]", box),
         ("points evaluated", f"{r.points_evaluated:,}"),
         *([("singular points inside", len(payload["singular_points"])),
            ("singular loci", "; ".join(f"{k} " + ", ".join(f"{a.replace('_', ' ')} {b}" for a, b in v.items())

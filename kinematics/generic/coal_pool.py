@@ -25,6 +25,7 @@ import signal
 import threading
 import time
 import warnings
+import weakref
 from concurrent.futures import ProcessPoolExecutor
 from typing import TYPE_CHECKING, Any
 
@@ -88,11 +89,18 @@ class CoalPool:
 
     def __init__(self, executor: ProcessPoolExecutor, key: int) -> None:
         self._executor, self._key = executor, key
+        # shut down when the pool is collected, before going on: left to the executor's manager
+        # thread, a shutdown still under way as the interpreter exits (a model dropped at the end
+        # of a command) races concurrent.futures' exit hook, which writes to the wake-up pipe the
+        # thread is closing (CPython 3.11: "Exception ignored ... OSError: [Errno 9] Bad file
+        # descriptor" after `singularities ur5 --collisions`)
+        weakref.finalize(self, executor.shutdown, wait=True)
 
     @classmethod
     def start(cls, model: CollisionModel) -> CoalPool | None:
         """A pool of `workers()` processes for `model`, or None where there can be none. The
-        model holds the pool; when it is collected, so is the executor, whose workers then exit."""
+        model holds the pool; when it is collected, the executor is shut down and its workers
+        joined."""
         n = workers()
         if n < 2:
             return None

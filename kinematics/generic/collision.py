@@ -405,10 +405,31 @@ def _convexify(geometry: Any) -> dict[str, Any]:
     meshes = {}
     for g in geometry.geometryObjects:
         if isinstance(g.geometry, coal.BVHModelBase):
+            _check_solid(g.name, np.asarray(g.geometry.vertices(), dtype=float))
             meshes[g.name] = g.geometry
             g.geometry.buildConvexHull(True, "Qt")
             g.geometry = g.geometry.convex
     return meshes
+
+
+FLAT = 1e-6
+"""A mesh whose vertices span less than this fraction of their extent across their flattest
+direction is flat: coal's convex hull (qhull) crashes the process (a segmentation fault) on
+one thinner than about 5e-8 of its extent (a mesh scaled by 0 along an axis, a plate modelled
+as one face), so such a mesh is refused."""
+
+
+def _check_solid(name: str, vertices: np.ndarray) -> None:
+    """Raise `InvalidInputError` if the mesh `name`'s vertices (N, 3) [m] are flat (`FLAT`): their
+    span along their least-spread principal axis against that along their most-spread one."""
+    spans = np.zeros(3)
+    if len(vertices) >= 4:
+        centred = vertices - vertices.mean(axis=0)
+        spans = np.ptp(centred @ np.linalg.svd(centred, full_matrices=False)[2].T, axis=0)
+    if not spans[2] > FLAT * spans[0]:
+        raise InvalidInputError(f"collision mesh {name}", (
+            f"flat: its {len(vertices)} vertices are {spans[2]:.3g} m thick across {spans[0]:.3g} m (a scale of 0, "
+            "or a single face?); coal's convex hull needs a solid: give it a thickness or a primitive shape"))
 
 
 def _mesh_model(robot: Any, hulls: Any, pairs: Sequence[tuple[int, int]], meshes: dict[str, Any]) -> Any:

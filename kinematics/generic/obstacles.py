@@ -72,10 +72,10 @@ def _from_urdf(path: Path) -> Obstacles:
     import pinocchio as pin
 
     from kinematics.model.geometry import SHAPES as URDF_SHAPES
-    from kinematics.model.geometry import mesh_file
+    from kinematics.model.geometry import load_failure, mesh_file
 
     try:
-        root = ET.fromstring(path.read_text(encoding="utf-8"))
+        root = ET.fromstring(_text(path))
     except ET.ParseError as exc:
         raise ModelFileError(path, f"not XML: {exc}") from None
     moving = [j.get("name", "?") for j in root.iter("joint") if j.get("type") != "fixed"]
@@ -99,7 +99,10 @@ def _from_urdf(path: Path) -> Obstacles:
         raise ModelFileError(path, "; ".join(problems))
     text = ET.tostring(root, encoding="unicode")
     model = pin.buildModelFromXML(text)
-    loaded = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION)
+    try:
+        loaded = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION)
+    except ValueError as exc:  # a mesh file that is found but cannot be read
+        raise ModelFileError(path, f"not loaded: {load_failure(exc)}") from None
     if loaded.ngeoms == 0:
         raise ModelFileError(path, "no <collision> element: no obstacle")
     out = pin.GeometryModel()
@@ -116,9 +119,11 @@ def _from_yaml(path: Path) -> Obstacles:
     import yaml
 
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise ModelFileError(path, f"not YAML: {exc}") from None
+        data = yaml.safe_load(_text(path))
+    except yaml.YAMLError as exc:  # the parser's own message spans lines (it quotes the text)
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise ModelFileError(path, f"not YAML: {getattr(exc, 'problem', None) or type(exc).__name__}{where}") from None
     items = data.get("obstacles") if isinstance(data, dict) else None
     if not isinstance(items, list) or not items:
         raise ModelFileError(path, "expected a non-empty list under 'obstacles:'")
@@ -133,8 +138,8 @@ def _from_yaml(path: Path) -> Obstacles:
             raise ModelFileError(path, f"obstacle {name}: give exactly one shape of {', '.join(SHAPES)}")
         try:
             shape = _shape(keys[0], item[keys[0]], item.get("scale"), path.parent)
-            placement = pin.SE3(pin.rpy.rpyToMatrix(*_floats(item.get("rpy", [0, 0, 0]), 3)),
-                                np.array(_floats(item.get("xyz", [0, 0, 0]), 3)))
+            placement = pin.SE3(pin.rpy.rpyToMatrix(*_floats(item.get("rpy", [0, 0, 0]), 3, "rpy")),
+                                np.array(_floats(item.get("xyz", [0, 0, 0]), 3, "xyz")))
         except (InvalidInputError, ValueError, TypeError) as exc:
             raise ModelFileError(path, f"obstacle {name}: {exc}") from None
         if name in links:
@@ -144,10 +149,19 @@ def _from_yaml(path: Path) -> Obstacles:
     return Obstacles(out, links, str(path))
 
 
-def _floats(value: Any, n: int) -> list[float]:
+def _text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ModelFileError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
+
+
+def _floats(value: Any, n: int, what: str = "size") -> list[float]:
     values = [float(v) for v in (value if isinstance(value, list | tuple) else [value])]
     if len(values) != n or not all(np.isfinite(values)):
-        raise InvalidInputError("size", f"expected {n} finite numbers, got {value!r}")
+        raise InvalidInputError(what, f"expected {n} finite numbers, got {value!r}")
     return values
 
 
@@ -156,15 +170,18 @@ def _shape(kind: str, value: Any, scale: Any, here: Path) -> Any:
     import coal
 
     if kind == "mesh":
-        from kinematics.model.geometry import mesh_file
+        from kinematics.model.geometry import load_failure, mesh_file
 
         found = mesh_file(str(value), here, [str(here)])
         if found is None:
             raise InvalidInputError("mesh", f"{value} not found")
-        s = np.array(_floats(scale if scale is not None else [1, 1, 1], 3))
-        return coal.MeshLoader().load(found, s)
+        s = np.array(_floats(scale if scale is not None else [1, 1, 1], 3, "scale"))
+        try:
+            return coal.MeshLoader().load(found, s)
+        except ValueError as exc:  # coal's message spans lines (source file, function, reason)
+            raise InvalidInputError("mesh", f"cannot load {value}: {load_failure(exc)}") from None
     if kind == "halfspace":
-        n = np.array(_floats(value, 4))
+        n = np.array(_floats(value, 4, "halfspace"))
         norm = float(np.linalg.norm(n[:3]))
         if norm == 0.0:
             raise InvalidInputError("halfspace", "the normal is zero")

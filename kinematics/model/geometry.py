@@ -72,7 +72,19 @@ def geometry_model(robot: Any, kind: Kind = "visual", urdf_text: str | None = No
         raise GeometryError(path, skipped)
     geom_type = pin.GeometryType.VISUAL if kind == "visual" else pin.GeometryType.COLLISION
     text = ET.tostring(root, encoding="unicode")
-    return pin.buildGeomFromUrdfString(robot.model, text, geom_type, package_dirs=dirs or None), skipped
+    try:
+        return pin.buildGeomFromUrdfString(robot.model, text, geom_type, package_dirs=dirs or None), skipped
+    except ValueError as exc:  # a mesh file that is found but cannot be read
+        raise ModelFileError(path, f"{kind} geometry not loaded: {load_failure(exc)}") from None
+
+
+def load_failure(exc: Exception) -> str:
+    """The reason in coal's (or Pinocchio's) message for a mesh it could not load, on one line:
+    theirs spans lines (source file, function, line, reason, a hint that the mesh directory may
+    be wrong, also given when the file was found but is not a mesh)."""
+    reason = [line.removeprefix("message: ") for line in str(exc).splitlines()
+              if line.strip() and not line.startswith(("From file:", "in function:", "at line:", "Hint:"))]
+    return " ".join(reason) or type(exc).__name__
 
 
 def _problem(element: ET.Element, here: Path, dirs: list[str]) -> str | None:

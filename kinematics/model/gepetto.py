@@ -126,6 +126,8 @@ def read_gepetto(path: str | os.PathLike[str]) -> GepettoSpec | None:
         raw = yaml.safe_load(p.read_text())
     except yaml.YAMLError as exc:
         raise GepettoFormatError(p, f"malformed YAML ({str(exc).splitlines()[0]})") from None
+    except UnicodeDecodeError as exc:
+        raise GepettoFormatError(p, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
         raise GepettoFormatError(p, f"cannot read ({exc.strerror})") from None
     if not isinstance(raw, dict) or not set(raw) & set(KEYS + LEGACY_KEYS):

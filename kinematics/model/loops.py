@@ -94,6 +94,8 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
         raw = yaml.safe_load(Path(path).read_text())
     except yaml.YAMLError as exc:
         raise ModelFileError(path, f"malformed YAML ({str(exc).splitlines()[0]})") from None
+    except UnicodeDecodeError as exc:
+        raise ModelFileError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
         raise ModelFileError(path, f"cannot read ({exc.strerror})") from None
     if not isinstance(raw, dict):
@@ -163,7 +165,10 @@ def _disabled_pairs(path: Path, block: Any, model: pin.Model) -> tuple[tuple[str
         raise ModelFileError(path, f"collisions: expected a mapping (disabled, sizes), got {block!r}")
     links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     out = []
-    for pair in block.get("disabled") or []:
+    disabled = block.get("disabled") or []
+    if not isinstance(disabled, list):
+        raise ModelFileError(path, f"collisions: disabled: expected a list of [link, link] pairs, got {disabled!r}")
+    for pair in disabled:
         if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, str) for x in pair)):
             raise ModelFileError(path, f"collisions: disabled: expected [link, link] pairs, got {pair!r}")
         for name in pair:

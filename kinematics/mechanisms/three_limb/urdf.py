@@ -108,6 +108,9 @@ def read_collision_sizes(sidecar: str | os.PathLike[str], default: CollisionSize
     if not isinstance(sizes, dict):
         return default
     known = {f.name for f in dataclasses.fields(CollisionSizes)}
+    bad = {k: v for k, v in sizes.items() if k in known and (isinstance(v, bool) or not isinstance(v, int | float))}
+    if bad:
+        raise ModelFileError(sidecar, f"collisions: sizes: expected numbers [m], got {bad}")
     return default.replace(**{k: float(v) for k, v in sizes.items() if k in known})
 
 
