@@ -168,3 +168,23 @@ def test_a_generic_closed_loop_is_refused_before_its_branches_are_searched(capsy
     code, out, err = run(capsys, "workspace-volume", FOURBAR, "--collisions")
     assert code == 2 and out == "" and err.count("\n") == 1, err
     assert "no configurations at task points" in err
+
+
+@pytest.mark.parametrize("argv", [["singularities"], ["show", "--workspace", "--export", "{tmp}/x.html"]])
+def test_a_generic_closed_loop_is_refused_by_every_collision_command(argv, capsys, monkeypatch, tmp_path):
+    """`singularities` and `show --workspace` with --collisions refuse a generic closed loop as
+    `workspace-volume` does, in one line before its solver is asked for anything (they refused
+    only after compiling it, from deep in the collision check)."""
+    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+    from .test_cli import run
+    from .test_cli_contract import FOURBAR
+
+    def needed(*_: object, **__: object) -> None:
+        raise AssertionError("the solver was asked for before the refusal")
+
+    monkeypatch.setattr(GenericClosedLoop, "require", needed)
+    monkeypatch.setattr(GenericClosedLoop, "check_branches", needed)
+    code, out, err = run(capsys, argv[0], FOURBAR, *[a.format(tmp=tmp_path) for a in argv[1:]], "--collisions")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "no configurations at task points" in err and not (tmp_path / "x.html").exists()

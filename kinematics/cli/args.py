@@ -217,9 +217,14 @@ def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
     """The `CollisionModel` of --collisions and --obstacles, or None when neither is given."""
     if not (getattr(args, "collisions", False) or getattr(args, "obstacles", None)):
         return None
-    from kinematics.analyses.collisions import collision_model_of
+    from kinematics.analyses.collisions import collision_model_of, collision_refusal
+    from kinematics.errors import InvalidInputError
     from kinematics.generic.obstacles import load_obstacles
+    from kinematics.mechanisms import mechanism_of
 
+    refused = collision_refusal(mechanism_of(robot))  # before any solver is compiled or grid scanned
+    if refused is not None:
+        raise InvalidInputError(*refused)
     obstacles = load_obstacles(args.obstacles) if args.obstacles else None
     return collision_model_of(robot, obstacles, self_collisions=args.collisions)
 
