@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from kinematics.analyses.collision_volume import measure_collision_workspace
+from kinematics.analyses.collisions import collision_model_of
+from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.collision import CollisionModel
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot
@@ -147,44 +149,23 @@ def test_delta_pairs_never_near_contact_give_the_kinematic_volume(rng):
     assert cm.distances(q).min() > 0
 
 
-def test_a_generic_closed_loop_is_refused_before_its_branches_are_searched(capsys, monkeypatch):
-    """A closed loop other than p2us/delta has no joint values at task points (its solver gives
-    the actuators'), so no collision check: `workspace-volume --collisions` refused it only after
-    compiling its solver and searching its branches (85 s on Gepetto's five-bar, first run), from
-    deep in the margin; now `collision_refusal` says so first (the branch search would fail here)."""
-    from kinematics.analyses.collisions import collision_refusal
+def test_a_generic_closed_loop_is_collision_aware_as_the_closed_forms():
+    """p2us-results through the generic closed-loop solver (no closed forms): its collision-aware
+    union is free exactly where the closed forms' is, at 3000 random points of the box (both paths
+    place the same URDF's shapes, one from the batched solver's joint values, one from the IK
+    closed forms), away from contact (|margin| > 1e-6 m, far above both solvers' ~1e-10 m). (The
+    two label their working modes differently, so only the union is compared.)"""
+    from kinematics.analyses.collisions import CollisionMargin
     from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
 
-    from .test_cli import run
-    from .test_cli_contract import FOURBAR
-
-    mech = mechanism_of(load_robot(FOURBAR))
-    assert isinstance(mech, GenericClosedLoop) and collision_refusal(mech) is not None
-
-    def searched(*_: object, **__: object) -> None:
-        raise AssertionError("branches searched before the refusal")
-
-    monkeypatch.setattr(GenericClosedLoop, "check_branches", searched)
-    code, out, err = run(capsys, "workspace-volume", FOURBAR, "--collisions")
-    assert code == 2 and out == "" and err.count("\n") == 1, err
-    assert "no configurations at task points" in err
-
-
-@pytest.mark.parametrize("argv", [["singularities"], ["show", "--workspace", "--export", "{tmp}/x.html"]])
-def test_a_generic_closed_loop_is_refused_by_every_collision_command(argv, capsys, monkeypatch, tmp_path):
-    """`singularities` and `show --workspace` with --collisions refuse a generic closed loop as
-    `workspace-volume` does, in one line before its solver is asked for anything (they refused
-    only after compiling it, from deep in the collision check)."""
-    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
-
-    from .test_cli import run
-    from .test_cli_contract import FOURBAR
-
-    def needed(*_: object, **__: object) -> None:
-        raise AssertionError("the solver was asked for before the refusal")
-
-    monkeypatch.setattr(GenericClosedLoop, "require", needed)
-    monkeypatch.setattr(GenericClosedLoop, "check_branches", needed)
-    code, out, err = run(capsys, argv[0], FOURBAR, *[a.format(tmp=tmp_path) for a in argv[1:]], "--collisions")
-    assert code == 2 and out == "" and err.count("\n") == 1, err
-    assert "no configurations at task points" in err and not (tmp_path / "x.html").exists()
+    robot = load_robot("p2us-results")
+    closed, generic = mechanism_of(robot), GenericClosedLoop(robot)
+    cm = collision_model_of(robot)
+    dist = AnalyticDistances(cm)
+    lo, hi = closed.bounding_box("all")
+    p = lo + (hi - lo) * np.random.default_rng(5).random((3000, 3))
+    mc = CollisionMargin(closed, robot, dist, closed.branches, "all")(p)[:, -1]
+    mg = CollisionMargin(generic, robot, dist, generic.branches, "all")(p)[:, -1]
+    sure = np.abs(mc) > 1e-6
+    assert (mc[sure] > 0).sum() > 100 and (mc[sure] <= 0).sum() > 100  # both kinds exercised
+    assert np.array_equal(mc[sure] > 0, mg[sure] > 0)

@@ -36,8 +36,8 @@ def test_a_missing_capability_names_what_is_missing_and_what_exists():
     assert set(err.value.available) == {"fk", "margin", "velocity", "reach_search"}
     assert "ik" in str(err.value) and "fk, margin, reach_search, velocity" in str(err.value)
     loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
-    with pytest.raises(MissingCapabilityError, match="joint_values"):
-        loop.joint_values(np.zeros(1), loop.branches[0])
+    with pytest.raises(MissingCapabilityError, match="pose_ik"):
+        loop.pose_ik(np.zeros(1))
 
 
 def test_bad_branches_and_limits_name_the_valid_choices():

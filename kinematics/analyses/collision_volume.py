@@ -33,8 +33,7 @@ import numpy as np
 from kinematics.analyses.collision_prescan import Prescan
 from kinematics.analyses.collisions import CollisionMargin, collision_model_of, summary
 from kinematics.analyses.columns import ColumnVolume, column_volume
-from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, root_tolerance
-from kinematics.errors import MissingCapabilityError
+from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, require_volume_task, root_tolerance
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.collision import CollisionModel
 from kinematics.generic.obstacles import Obstacles
@@ -175,9 +174,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
             measures in 3-D instead. "envelope" keeps the bracket (then not converged), "spatial"
             measures in 3-D.
     """
-    mech.require("margin", "a workspace measurement")
-    if mech.task_dim not in (2, 3):
-        raise MissingCapabilityError(mech.name, "margin", "a workspace area or volume", mech.capabilities)
+    require_volume_task(mech)
     chosen = mech.check_branches(branches)
     mech.check_limits(limits)
     cm = collision_model if collision_model is not None else collision_model_of(robot, obstacles, self_collisions)

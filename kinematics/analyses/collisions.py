@@ -55,7 +55,7 @@ def collision_refusal(mech: Mechanism) -> tuple[str, str] | None:
     serial = "reach_search" in mech.capabilities
     if ("ik" not in mech.capabilities and not serial) or (mech.closed_loop and "joint_values" not in mech.capabilities):
         return ("--collisions/--obstacles", (f"{mech.family}: no configurations at task points to check; p2us, "
-                                             "delta, the planar arm and serial arms are collision-aware"))
+                                             "delta, the planar arm, closed loops and serial arms are collision-aware"))
     return None
 
 
@@ -117,7 +117,9 @@ def _generator(family: str) -> Any:
 def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str) -> np.ndarray:
     """The tree's configurations (N, nq) with the task point at `points` (N, d) [m] in `branch`:
     vectorised for the three-limb families, from the branch's IK for an open chain (its actuators
-    are all its joints), else `mech.joint_values` point by point."""
+    are all its joints) and from the batched solver for a generic closed loop (NaN rows where it
+    finds none: a second solve near a reach boundary can miss what the margin's found), else
+    `mech.joint_values` point by point."""
     if mech.family in ("p2us", "delta"):
         from kinematics.mechanisms.delta import urdf as delta_urdf
         from kinematics.mechanisms.p2us import urdf as p2us_urdf
@@ -126,12 +128,19 @@ def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str)
         return module.configurations_at(mech.params, robot.model, points, branch)
     import pinocchio as pin
 
+    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
     model = robot.model
     out = np.tile(pin.neutral(model), (len(points), 1))
+    q = None
     if not mech.closed_loop and "ik" in mech.capabilities:
         q = mech.ik(points).q[:, mech.branches.index(branch)]
-        if q.shape[1] != robot.nv or not np.isfinite(q).all():  # as `robot.configuration` would
-            for row in q:
+    elif isinstance(mech, GenericClosedLoop):  # the batched solver's joint values, loops closed
+        q = mech.joint_value_rows(points, branch)
+    if q is not None:
+        found = np.isfinite(q).all(axis=1) if isinstance(mech, GenericClosedLoop) else slice(None)
+        if q.shape[1] != robot.nv or not np.isfinite(q[found]).all():  # as `robot.configuration` would
+            for row in q[found]:
                 robot.joint_values(row)
         for k, d in enumerate(robot.dofs):  # `robot.configuration`, a column at a time
             if d.kind == "continuous":
@@ -165,7 +174,14 @@ class CollisionMargin:
         """(M, P) pair distances at the points `inside` (a mask) in branch b (`signs`: only their
         signs need be right, `AnalyticDistances.distances`)."""
         q = configurations(self.mech, self.robot, points[inside], self.branches[b])
-        return self.distances.distances(q, signs=signs)
+        found = np.isfinite(q).all(axis=1)
+        if found.all():
+            return self.distances.distances(q, signs=signs)
+        # no configuration (a generic loop's solver missing a point at its reach boundary): the
+        # kinematic margin decides there, as where the exact columns' rounding leaves none
+        out = np.full((len(q), len(self.distances.kinds)), np.inf)
+        out[found] = self.distances.distances(q[found], signs=signs)
+        return out
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float)
@@ -265,7 +281,9 @@ def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.
         name = mech.branches[int(w)]
         sel = sel[mech.margin([name], limits)(pts[sel])[:, 0] > 0]
         if len(sel):
-            out[sel] = dist.distances(configurations(mech, robot, pts[sel], name), signs=True).min(axis=1) < 0
+            q = configurations(mech, robot, pts[sel], name)
+            found = np.isfinite(q).all(axis=1)  # (a generic loop's solver can miss a point: not flagged)
+            out[sel[found]] = dist.distances(q[found], signs=True).min(axis=1) < 0
     return out
 
 

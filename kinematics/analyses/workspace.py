@@ -175,6 +175,17 @@ def root_tolerance(rtol: float, step: float) -> float:
     return max(ROOT_TOL, 1e-3 * rtol * step)
 
 
+def require_volume_task(mech: Mechanism) -> None:
+    """Raise unless `mech` has a margin over a 2- or 3-dimensional task space (a workspace area
+    or volume needs both)."""
+    mech.require("margin", "a workspace measurement")
+    if mech.task_dim not in (2, 3):
+        from kinematics.errors import UnsupportedRobotError
+
+        raise UnsupportedRobotError(mech.name, f"a workspace area or volume needs a 2- or 3-dimensional task space; "
+                                               f"this one is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
+
+
 def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | None = 1e-4,
                       branches: Sequence[str] | None = None, limits: str = "all", progress: bool = False,
                       max_points: int | None = None, engine: str = "columns", check: bool = False) -> Workspace:
@@ -184,12 +195,7 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     tolerance `rtol` on its error estimate; "cells": the cell-refinement estimator with grid step
     `step`. check: rerun at half the step and compare (columns only).
     """
-    mech.require("margin", "a workspace measurement")
-    if mech.task_dim not in (2, 3):
-        from kinematics.errors import UnsupportedRobotError
-
-        raise UnsupportedRobotError(mech.name, f"a workspace area or volume needs a 2- or 3-dimensional task space; "
-                                               f"this one is {mech.task_dim}-dimensional ({', '.join(mech.task_axes)})")
+    require_volume_task(mech)
     chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
     lo, hi = mech.bounding_box(limits)

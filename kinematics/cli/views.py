@@ -51,7 +51,7 @@ def register(command: Command) -> None:
     p.add_argument("--mesh", metavar="FILE", help="also draw a triangle mesh (.stl, .ply, .glb), e.g. a workspace "
                                                   "boundary from `workspace-mesh`")
     collision_args(p, "; with --workspace: the points where every branch collides drawn by binding pair, and "
-                      "the obstacles (p2us, delta, the planar arm, serial arms: the best configuration their "
+                      "the obstacles (p2us, delta, the planar arm, closed loops, serial arms: the best configuration their "
                       "search finds, on a --step grid; their counts printed, --json key collisions: mode, step_m, "
                       "grid_points, reached, free, colliding, binding_pairs)")
     p.add_argument("--export", metavar="FILE.html", help="write a self-contained HTML scene and exit")

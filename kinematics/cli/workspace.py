@@ -41,9 +41,8 @@ def register(command: Command) -> None:
                    help="relative tolerance on the volume's error estimate; the quadrature refines until it "
                         "is met (default 1e-3; 0: 1e-2)")
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
-    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, serial arms: the "
-                      "best configuration their search finds, also with --orientation / --tool-axis; not a generic "
-                      "closed loop, whose solver gives no joint values at task points)")
+    collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
+                      "serial arms: the best configuration their search finds, also with --orientation / --tool-axis)")
     orientation_args(p, "the volume of tool positions reachable")
     p.add_argument("--turn", choices=["auto", "envelope", "spatial"], default="auto",
                    help="serial arms with --collisions / --obstacles and a full-turn base: how pairs of a body fixed "

@@ -215,6 +215,25 @@ class GenericClosedLoop(Mechanism):
         q = sol.x[..., self.batch.actuated]
         return BranchIK(np.where(sol.found[..., None], q, np.nan), sol.found.copy(), within)
 
+    def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
+        """Every URDF joint's value [rad or m] (loops closed) with the end effector at `point` [m]
+        in `branch` (`joint_value_rows`). Raises InvalidInputError where the branch has no
+        solution there."""
+        from kinematics.errors import InvalidInputError
+
+        row = self.joint_value_rows(np.asarray(point, dtype=float)[None], branch)[0]
+        if not np.isfinite(row).all():
+            raise InvalidInputError("point", f"{np.asarray(point).tolist()} is not reached in working mode {branch}")
+        return dict(zip(self.robot.joint_names, row.tolist(), strict=True))
+
+    def joint_value_rows(self, points: np.ndarray, branch: str) -> np.ndarray:
+        """(N, n) every joint's value [rad or m], URDF joint order (loops closed), with the end
+        effector at points (N, d) [m] in `branch`: the batched solver's solution (the margin's);
+        NaN rows where the branch has none (limits not applied)."""
+        b = self.branches.index(self.check_branches([branch])[0])
+        sol = self.batch.ik(np.atleast_2d(np.asarray(points, dtype=float)))
+        return np.where(sol.found[:, b, None], sol.x[:, b], np.nan)
+
     def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
         """At each point, the branch whose actuator values are nearest `q` (N, a)."""
         p = np.atleast_2d(np.asarray(points, dtype=float))
