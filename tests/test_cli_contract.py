@@ -363,6 +363,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["dexterity", "ur5", "--mode", "up"], "unknown mode 'up'"),
     # synthesize
     (["synthesize", "p2us"], "give at least one"),
+    (["synthesize", "delta"], "e.g. R=0.16:0.24; variables: R, r"),  # the delta's own (R = 0.2 m), not the p2us' b
     (["synthesize", "scara", "--param", "b=0.3:0.4"], "3-[P2(US)]"),
     (["synthesize", "p2us", "--param", "zz=1:2"], "unknown parameter"),
     (["synthesize", "delta", "--param", "b=0.3:0.4"], "unknown parameter"),

@@ -281,7 +281,10 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
     base: Any = getattr(mech, "params", None)
     settings = settings or Settings(seed=seed)
     if not bounds:
-        raise InvalidInputError("--param", f"give at least one, e.g. b=0.3:0.5; variables: {', '.join(VARIABLES[family])}")
+        first = VARIABLES[family][0]  # the example: the family's own variable, +-20 % about this design's value
+        x = getattr(base, first, None)
+        example = f"{first}={0.8 * x:.3g}:{1.2 * x:.3g}" if isinstance(x, float) and x > 0 else f"{first}=LOWER:UPPER"
+        raise InvalidInputError("--param", f"give at least one, e.g. {example}; variables: {', '.join(VARIABLES[family])}")
     names = tuple(b.name for b in bounds)
     if len(set(names)) != len(names):
         raise InvalidInputError("--param", f"a variable is given twice: {list(names)}")
