@@ -426,3 +426,20 @@ def test_cli_points_are_the_collision_free_ones(arm, tmp_path, capsys):
     want = {tuple(np.round(p, 9)) for p in grid[free & ~near]}
     assert want <= got and got <= {tuple(np.round(p, 9)) for p in grid[free]}
     assert 100 < len(got) < len(grid)
+
+
+def test_a_link_pair_binding_through_two_shapes_is_told_apart(tmp_path, capsys):
+    """link2 with a sphere of radius 2R at its middle beside its capsule: both of its shapes bind
+    against the wall, each removing its own area; the report's table names their shapes (it
+    printed "link2 - wall" twice), a pair binding through one shape stays as it was."""
+    from .test_cli import run
+
+    arm = ARM.replace('<link name="link2">', f'<link name="link2"><collision><origin xyz="{L2 / 2} 0 0"/>'
+                                             f'<geometry><sphere radius="{2 * R}"/></geometry></collision>')
+    (tmp_path / "arm.urdf").write_text(arm)
+    _obstacles(tmp_path, HALF)
+    code, out, _ = run(capsys, "workspace-volume", str(tmp_path / "arm.urdf"), "--obstacles",
+                       str(tmp_path / "wall.yaml"), "--step", "0.02", "--rtol", "1e-2")
+    assert code == 0
+    rows = [line.split("  ")[0] for line in out.splitlines() if line.startswith("link")]
+    assert sorted(rows) == ["link1 - wall", "link2 - wall (link2_0 - wall)", "link2 - wall (link2_1 - wall)"]

@@ -212,7 +212,10 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
 
     def human() -> str:
         unit, key = ("m^2", "area") if ws.planar else ("m^3", "volume")
-        rows = [(f"{a} - {b}", f"{fmt(p.removed, 4)} +/- {fmt(p.error, 2)}", str(p.prescan_points))
+        # a link pair listed twice (two of a link's shapes bind) is told apart by its shapes
+        twice = {p.links for p in cw.pairs if sum(q.links == p.links for q in cw.pairs) > 1}
+        rows = [(f"{a} - {b}" + (" ({} - {})".format(*p.geometries) if p.links in twice else ""),
+                 f"{fmt(p.removed, 4)} +/- {fmt(p.error, 2)}", str(p.prescan_points))
                 for p in cw.pairs for a, b in [p.links]]
         return "\n".join([
             f"{robot.name}: collision-free {key} ({', '.join([*branches, f'limits {args.limits}'])})",
