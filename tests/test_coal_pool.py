@@ -73,25 +73,9 @@ def test_pool_gives_the_inline_values(ur5, rng, pooled):
 
 
 @fork
-def test_pool_ends_with_its_model(ur5, rng, pooled):
-    """The workers exit once their model is collected (no process left per analysis run)."""
-    before = _children()
-    cm = CollisionModel.from_robot(ur5)
-    cm.distances(_configurations(ur5, 2 * ROWS, rng))
-    started = _children() - before
-    assert len(started) == 2
-    del cm
-    gc.collect()
-    deadline = time.monotonic() + 30.0  # the workers finish their queue and exit; 30 s is generous
-    while started & _children() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not started & _children()
-
-
-@fork
 def test_a_pool_is_shut_down_when_its_model_is_collected(ur5, rng, pooled):
-    """The executor is shut down, its workers joined and its manager thread's wake-up pipe closed
-    by the time the model is collected. Left to the manager thread (asynchronous), a shutdown
+    """The workers exit with their model: the executor is shut down, its workers joined and its
+    manager thread's wake-up pipe closed by the time the model is collected. Left to the manager thread (asynchronous), a shutdown
     still under way at the interpreter's exit raced concurrent.futures' exit hook writing to that
     pipe: `singularities ur5 --collisions --max-points 20000` ended with "Exception ignored ...
     OSError: [Errno 9] Bad file descriptor" on stderr in 3 runs of 6 (CPython 3.11); none in 3 since."""

@@ -190,15 +190,21 @@ def test_planar_arm_as_a_serial_arm_beside_a_wall(tmp_path):
     assert cw.collision["search"]["mode"] == "planar"
 
 
-def test_margin_takes_the_best_configuration(tmp_path, rng):
-    """At random points of the 2R arm's annulus the margin's sign is that of the better elbow's
-    clearance by hand (elbow and tool x below WALL - R for a free elbow), away from zero."""
+@pytest.fixture
+def arm_margin(tmp_path):
+    """The 2R arm beside the wall (x >= 0.35 m): its collision-aware margin (the wall pairs only)."""
     (tmp_path / "arm.urdf").write_text(ARM)
     (tmp_path / "wall.yaml").write_text(HALF)
     robot = load_robot(tmp_path / "arm.urdf")
     mech = SerialArm(robot)
     dist = AnalyticDistances(collision_model_of(robot, load_obstacles(tmp_path / "wall.yaml"), False))
-    margin = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+    return SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+
+
+def test_margin_takes_the_best_configuration(arm_margin, rng):
+    """At random points of the 2R arm's annulus the margin's sign is that of the better elbow's
+    clearance by hand (elbow and tool x below WALL - R for a free elbow), away from zero."""
+    margin = arm_margin
     rho = np.sqrt(rng.uniform(0.11**2, 0.69**2, 400))
     phi = rng.uniform(-math.pi, math.pi, 400)
     pts = np.stack([rho * np.cos(phi), rho * np.sin(phi)], axis=1)
@@ -213,7 +219,7 @@ def test_margin_takes_the_best_configuration(tmp_path, rng):
     assert np.array_equal(m[sure] > 0, clear[sure] > 0)
 
 
-def test_restarts_evaluate_each_distinct_configuration_once(tmp_path, rng, monkeypatch):
+def test_restarts_evaluate_each_distinct_configuration_once(arm_margin, rng, monkeypatch):
     """The 2R arm beside the wall (non-redundant: two elbows reach each point). `distinct_distances`
     evaluates three configurations repeated 8 times each (1e-10 rad apart, within one 1e-8 rad
     rounding cell) in one call of 3 rows, each row the distances of its own configuration; where the
@@ -222,12 +228,8 @@ def test_restarts_evaluate_each_distinct_configuration_once(tmp_path, rng, monke
     margin is the same to 1e-8 m (merged configurations within 1e-8 rad, reach 0.7 m)."""
     import kinematics.analyses.serial_collisions as sc
 
-    (tmp_path / "arm.urdf").write_text(ARM)
-    (tmp_path / "wall.yaml").write_text(HALF)
-    robot = load_robot(tmp_path / "arm.urdf")
-    mech = SerialArm(robot)
-    dist = AnalyticDistances(collision_model_of(robot, load_obstacles(tmp_path / "wall.yaml"), False))
-    margin = SerialCollisionMargin(mech, robot, dist, collision_reach(mech, robot, dist))
+    margin = arm_margin
+    dist = margin.distances
     rows: list[int] = []
     evaluate = dist.distances
 
