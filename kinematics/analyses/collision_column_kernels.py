@@ -182,8 +182,8 @@ def smallest_kernel(d, watched, fn, arg):  # pragma: no cover - compiled
 
 def smallest(d: np.ndarray, watched: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N, 1 + W) each row's smallest distance, then each watched pair's, and (N,) the pair of the
-    smallest (`smallest_kernel`; numpy's min and argmin along rows were ~10 % of a p2us-results
-    run, strided passes over an (N, P) array)."""
+    smallest (`smallest_kernel`; numpy's min and argmin along rows, strided passes over an (N, P)
+    array, took ~1.3 s of a 13.9 s p2us-results profile; this pass is ~6x faster on such arrays)."""
     d = np.ascontiguousarray(d, dtype=float)
     fn, arg = np.empty((len(d), 1 + len(watched))), np.empty(len(d), np.int64)
     on_cores(smallest_kernel, len(d), PARALLEL_MIN, d, np.ascontiguousarray(watched, dtype=np.int64), fn, arg)
