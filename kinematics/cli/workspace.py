@@ -103,19 +103,15 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
             print("compiling kernels (first run only)", file=sys.stderr, flush=True)
     colliding = getattr(args, "collisions", False) or getattr(args, "obstacles", None)
-    if colliding:  # refused before the branches (a generic closed loop compiles its solver to find them)
-        from kinematics.analyses.collisions import collision_refusal
-
-        refused = collision_refusal(mech)
-        if refused is not None:
-            raise InvalidInputError(*refused)
+    # the collision model (or the refusal) before the branches: a generic closed loop compiles its solver to find them
+    checks = collision_checks(args, robot)
     # (a generic closed loop compiles its solver here: its branches come from an atlas search)
     branches = mech.check_branches(args.modes or None)
     rtol = None if args.rtol == 0 else args.rtol
     if getattr(args, "turn", "auto") != "auto" and not (colliding and "reach_search" in mech.capabilities):
         raise InvalidInputError("--turn", "is for a serial arm's volume with --collisions or --obstacles")
     if colliding:
-        return _collision_volume(args, robot, mech, branches, rtol, out)
+        return _collision_volume(args, robot, mech, branches, rtol, checks, out)
     t0 = time.perf_counter()
     sing_summary: dict[str, Any] = {}
     singular_points: list[dict[str, Any]] = []
@@ -174,13 +170,12 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
 
 def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, branches: tuple[str, ...],
-                      rtol: float | None, out: Out) -> int:
+                      rtol: float | None, checks: Any, out: Out) -> int:
     """`workspace-volume --collisions` / `--obstacles`: the collision-free volume per branch and
     union, the kinematic union and what each binding pair removes (`analyses.collision_volume`)."""
     from kinematics.analyses.collision_volume import measure_collision_workspace
     from kinematics.analyses.collisions import margin_builder
 
-    checks = collision_checks(args, robot)
     serial = "reach_search" in mech.capabilities
     if args.plot and serial:  # the figure searches every grid point at the step: checked before the volume's run
         from kinematics.sizes import MAX_COLLISION_VIEW_POINTS
