@@ -150,6 +150,31 @@ def test_the_jacobians_are_the_derivatives_of_fk_and_ik(name):
     assert checked >= 50, "the sample must see enough regular points"
 
 
+@pytest.mark.parametrize("name", ["p2us", "delta", "scara"])
+def test_branch_velocities_are_each_branchs_velocity_at_its_ik(name):
+    """`branch_velocities` (one IK of every branch, the velocity evaluated only where a branch
+    exists) against `velocity` at each branch's own IK solution over every point, asked in the
+    reverse of the mechanism's branch order: the same arithmetic on the same rows, so equal to
+    1e-12 relative (rounding only); NaN and not inside where the branch does not exist."""
+    mech = mechanism_of(load_robot(name))
+    limits = mech.limit_sets[-1]
+    p = _sample(mech, 300, seed=8)
+    asked = list(reversed(mech.branches))
+    res = mech.ik(p, limits)
+    got = mech.branch_velocities(p, asked, limits)
+    assert len(got) == len(asked)
+    for branch, (v, ok) in zip(asked, got, strict=True):
+        k = mech.branches.index(branch)
+        want_ok = res.within_limits[:, k] & np.isfinite(res.q[:, k]).all(axis=-1)
+        assert np.array_equal(ok, want_ok)
+        assert np.isnan(v.J[~ok]).all() and np.isnan(v.iota_I[~ok]).all()
+        if ok.any():
+            ref = mech.velocity(p[ok], res.q[ok, k])
+            assert np.allclose(v.J[ok], ref.J, rtol=1e-12, atol=0, equal_nan=True)
+            assert np.allclose(v.iota_II[ok], ref.iota_II, rtol=1e-12, atol=0, equal_nan=True)
+    assert sum(ok.sum() for _, ok in got) > 0, "the sample must reach some branch"
+
+
 def test_finite_differences_of_ik_give_the_inverse_jacobian():
     """J^-1 = dq/dp from the closed forms of IK, by central differences (h = 1e-6 m: truncation
     ~h^2 |q'''| ~ 1e-12, rounding ~eps |q| / h ~ 1e-10)."""

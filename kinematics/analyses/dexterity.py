@@ -225,8 +225,7 @@ def _values(mech: Mechanism, points: np.ndarray, branches: Sequence[str], limits
     else:
         J = np.full((n, B, mech.task_dim, 1), np.nan)
         ok = np.zeros((n, B), bool)
-        for k, b in enumerate(branches):
-            v, ok[:, k] = mech.branch_velocity(points, b, limits)
+        for k, (v, ok[:, k]) in enumerate(mech.branch_velocities(points, branches, limits)):
             if k == 0:
                 J = np.full((n, B, *v.J.shape[1:]), np.nan)
             J[:, k] = v.J

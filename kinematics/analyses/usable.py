@@ -393,10 +393,11 @@ def inverse_condition(J: np.ndarray) -> np.ndarray:
     0 where J is not finite (a type II pose: the forward map blows up) or zero."""
     J = np.asarray(J, dtype=float)
     finite = np.isfinite(J).all(axis=(-2, -1))
-    sv = np.linalg.svd(np.where(finite[..., None, None], J, 0.0), compute_uv=False)
+    out = np.zeros(J.shape[:-2])
+    # only the finite rows: outside a branch (NaN rows, most of a union's) the SVD is wasted
+    sv = np.linalg.svd(J[finite], compute_uv=False)
     top = sv[..., 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(finite & (top > 0), sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)
+    out[finite] = np.where(top > 0, sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)
     return out
 
 
@@ -440,8 +441,7 @@ def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, lim
         points = np.asarray(points, dtype=float)
         m = margin(points)
         out = np.full(len(points), -np.inf)
-        for k, b in enumerate(branches):
-            v, inside = mech.branch_velocity(points, b, limits)
+        for k, (v, inside) in enumerate(mech.branch_velocities(points, branches, limits)):
             out = np.maximum(out, np.minimum(m[:, k], condition_slack_of(v, inside, kappa_max)))
         return out
 

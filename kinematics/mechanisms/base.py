@@ -366,19 +366,31 @@ class Mechanism(ABC):
     def branch_velocity(self, points: np.ndarray, branch: str, limits: str = "all") -> tuple[Velocity, np.ndarray]:
         """`velocity` in one branch at task points (N, d): (Velocity, (N,) inside the branch
         within `limits`). Outside, the Jacobians are NaN."""
+        return self.branch_velocities(points, [branch], limits)[0]
+
+    def branch_velocities(self, points: np.ndarray, branches: Sequence[str], limits: str = "all"
+                          ) -> list[tuple[Velocity, np.ndarray]]:
+        """`branch_velocity` of each distinct branch, in order, from one inverse kinematics of
+        every branch (`ik` solves them all at once: `branch_velocity` per branch solves them B times)."""
         self.require("ik", "Jacobians at task points")
         self.require("velocity", "Jacobians at task points")
-        b = self.check_branches([branch])[0]
+        chosen = self.check_branches(list(branches))
         res = self.ik(points, limits)
-        k = self.branches.index(b)
-        q = res.q[:, k]
-        ok = res.within_limits[:, k] & np.isfinite(q).all(axis=-1)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            v = self.velocity(points, np.where(ok[:, None], q, 0.0))
-        nan = ~ok
-        J = np.where(nan[:, None, None], np.nan, v.J)
-        Ji = np.where(nan[:, None, None], np.nan, v.J_inverse)
-        return Velocity(J, Ji, np.where(nan, np.nan, v.iota_I), np.where(nan, np.nan, v.iota_II)), ok
+        points = np.asarray(points, dtype=float)
+        out = []
+        for b in chosen:
+            k = self.branches.index(b)
+            q = res.q[:, k]
+            ok = res.within_limits[:, k] & np.isfinite(q).all(axis=-1)
+            n, d, a = len(points), self.task_dim, res.q.shape[-1]
+            J, Ji = np.full((n, d, a), np.nan), np.full((n, a, d), np.nan)
+            iota_I, iota_II = np.full(n, np.nan), np.full(n, np.nan)
+            if ok.any():  # only where the branch exists: outside it the Jacobians are NaN anyway
+                with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                    v = self.velocity(points[ok], q[ok])
+                J[ok], Ji[ok], iota_I[ok], iota_II[ok] = v.J, v.J_inverse, v.iota_I, v.iota_II
+            out.append((Velocity(J, Ji, iota_I, iota_II), ok))
+        return out
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}: {self.description}>"

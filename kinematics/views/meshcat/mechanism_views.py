@@ -149,8 +149,7 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
                                         lambda p: _embed(mech, p, at), step, len(grid))]
         cond = np.full(len(pts), -1.0)
         if "velocity" in mech.capabilities and len(pts):
-            for b in mech.branches:
-                v, ok = mech.branch_velocity(pts, b, limits)
+            for v, ok in mech.branch_velocities(pts, mech.branches, limits):
                 cond = np.where(ok, np.fmax(cond, np.minimum(v.iota_I, v.iota_II)), cond)
         # small, half-transparent points: the robot stays visible inside its workspace
         scene.add_points(_embed(mech, pts, at), cond, "overlays/workspace", size=step * 0.35,
