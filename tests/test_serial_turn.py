@@ -102,6 +102,24 @@ def test_fewer_freedoms_than_the_task_is_measure_zero(tmp_path):
     assert SerialArm(load_robot(MODELS / "arm3r_revolved.urdf")).measure_zero() is None
 
 
+def test_a_measure_zero_reach_is_the_same_exact_zero_with_collisions(capsys):
+    """With --collisions the double pendulum's reach (an arc: zero area) is the kinematic measure's
+    exact 0, converged, with its reason: nothing to search, nothing to remove (it was a sampled
+    "0, NOT converged"); the human reports name the reason instead of a sampling method."""
+    from kinematics.analyses.collision_volume import measure_collision_workspace
+    from tests.test_cli import run
+
+    robot = load_robot("double_pendulum", ranges={"joint1": (-3.0, 3.0), "joint2": (-3.0, 3.0)})
+    cw = measure_collision_workspace(SerialArm(robot), robot, step=0.05, rtol=0.05)
+    assert cw.workspace.total == 0.0 and cw.workspace.error == 0.0 and cw.workspace.result.converged
+    assert cw.kinematic == 0.0 and cw.removed == 0.0 and not cw.pairs
+    assert "1 freedom in a 2-D task space" in cw.as_dict()["measure_zero"]
+    ranges = ["--range", "joint1=-3:3", "--range", "joint2=-3:3", "--step", "0.05", "--rtol", "0.05"]
+    for extra, line in ((["--collisions"], "zero measure"), ([], "none needed: the frame 'link2' has 1 freedom")):
+        code, text, err = run(capsys, "workspace-volume", "double_pendulum", *ranges, *extra)
+        assert code == 0 and line in text and "NOT converged" not in text and not err, (text, err)
+
+
 def test_out_of_searches_is_not_converged_and_still_covers(tmp_path, monkeypatch):
     """The integral's budget counts reach searches (a point of an arc set costs 2 pi r / step of
     them): with 20 000 the partly covered arm (X exact, as above) stops after its first rounds,

@@ -33,7 +33,13 @@ import numpy as np
 from kinematics.analyses.collision_prescan import Prescan
 from kinematics.analyses.collisions import CollisionMargin, collision_model_of, summary
 from kinematics.analyses.columns import ColumnVolume, column_volume
-from kinematics.analyses.workspace import BRANCH_FLOOR, Workspace, require_volume_task, root_tolerance
+from kinematics.analyses.workspace import (
+    BRANCH_FLOOR,
+    Workspace,
+    require_volume_task,
+    root_tolerance,
+    zero_measure_workspace,
+)
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.collision import CollisionModel
 from kinematics.generic.obstacles import Obstacles
@@ -179,6 +185,9 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
     mech.check_limits(limits)
     cm = collision_model if collision_model is not None else collision_model_of(robot, obstacles, self_collisions)
     dist = AnalyticDistances(cm)
+    zero = zero_measure_workspace(mech, limits, rtol, step)
+    if zero is not None:  # nothing to remove from: the same exact 0 as the kinematic measure
+        return CollisionWorkspace(zero, 0.0, 0.0, (), (), {**summary(cm, dist), "pairs_that_can_bind": 0})
     lo, hi = mech.bounding_box(limits) if box is None else (np.asarray(box[0], float), np.asarray(box[1], float))
     t0 = time.perf_counter()
     margin: Any

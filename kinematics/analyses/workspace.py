@@ -204,11 +204,9 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     if planes:
         margin = _plane_unions(margin, len(chosen), [idx for _, idx in planes])
     t0 = time.perf_counter()
-    zero = getattr(mech, "measure_zero", None)
-    why = zero() if zero is not None and engine == "columns" else None
-    if why is not None:  # no sampling can find a set of measure zero: say so rather than "not converged"
-        return Workspace(mech.name, mech.task_dim == 2, (UNION,), limits, _zero(lo.shape[0], rtol, step),
-                         time.perf_counter() - t0, mech.parameters(), measure_zero=why)
+    zero = zero_measure_workspace(mech, limits, rtol, step) if engine == "columns" else None
+    if zero is not None:
+        return zero
     res = _measure(margin, lo, hi, step, rtol, engine, progress, max_points, check)
     names = tuple(name for name, _ in planes)
     if planes:
@@ -217,11 +215,22 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
                      mech.parameters(), "elbows" if mech.branch_kind == "elbow" else "modes", names)
 
 
-def _zero(d: int, rtol: float | None, step: float) -> ColumnVolume:
-    """An exact zero measure (no evaluation): converged, no error."""
+def zero_measure_workspace(mech: Mechanism, limits: str, rtol: float | None, step: float) -> Workspace | None:
+    """The workspace of a mechanism whose reachable set has zero measure (`measure_zero`: a serial
+    tool point with fewer freedoms than the task space), as an exact 0, converged, with no
+    evaluation (no sampling can find such a set: not a "not converged" 0); None for any other.
+    Collisions only remove from it: the collision-aware measure is the same 0."""
+    t0 = time.perf_counter()
+    zero = getattr(mech, "measure_zero", None)
+    why = zero() if zero is not None else None
+    if why is None:
+        return None
+    d = mech.task_dim
     one = np.ones(1, bool)
-    return ColumnVolume(np.zeros(1), np.zeros(1), True, 1e-2 if rtol is None else rtol, step, step, 0, 0, np.zeros(1),
-                        np.full((2, d), np.nan), one, one)
+    res = ColumnVolume(np.zeros(1), np.zeros(1), True, 1e-2 if rtol is None else rtol, step, step, 0, 0, np.zeros(1),
+                       np.full((2, d), np.nan), one, one)
+    return Workspace(mech.name, d == 2, (UNION,), limits, res, time.perf_counter() - t0, mech.parameters(),
+                     measure_zero=why)
 
 
 def _plane_unions(margin: Callable[[np.ndarray], np.ndarray], B: int, planes: Sequence[Sequence[int]]

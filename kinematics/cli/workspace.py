@@ -219,6 +219,7 @@ def _collision_volume(args: argparse.Namespace, robot: Robot, mech: Mechanism, b
                                      f"({'converged' if ws.result.converged else 'NOT converged'})")),
                 (f"kinematic {key} [{unit}]", f"{fmt(cw.kinematic, 6)} +/- {fmt(cw.kinematic_error, 2)}"),
                 (f"removed by collisions [{unit}]", fmt(cw.removed, 4)),
+                *([("zero measure", ws.measure_zero)] if ws.measure_zero else []),
                 ("pairs checked", str(payload["collisions"]["pairs_checked"])),
                 *([("obstacles", ", ".join(payload["collisions"]["obstacles"]))] if args.obstacles else []),
                 *([("tool held at", held["text"])] if held else []),
@@ -318,7 +319,8 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
     lines.append(key_values([
         (f"{key} [{unit}]", (f"{fmt(ws.total, 8)} +/- {fmt(ws.error, 2)} (estimated error, {rel}"
                             f"rtol {fmt(r.rtol, 2)}; {'converged' if r.converged else 'NOT converged'})")),
-        ("method", ("cell refinement" if payload.get("method") != "columns" else
+        ("method", (f"none needed: {ws.measure_zero}" if ws.measure_zero else
+                    "cell refinement" if payload.get("method") != "columns" else
                     f"sampled columns (roots to {fmt(getattr(r, 'root_tol', 0.0), 2)} m) + adaptive Gauss quadrature; "
                     "inside intervals or gaps "
                     f"shorter than the column step {fmt(r.step)} m can be missed" if ws.planar or exact is None else
