@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from kinematics.analyses.boundary_mesh import margin_mesh, workspace_mesh
-from kinematics.analyses.usable import inverse_condition, largest_shape, shape_samples, usable
+from kinematics.analyses.usable import (
+    FIT_CHUNK,
+    contains,
+    inverse_condition,
+    largest_shape,
+    shape_fits,
+    shape_samples,
+    usable,
+)
 from kinematics.analyses.workspace import volume_monte_carlo
 from kinematics.mechanisms.p2us.closed_form import MODES, ik, jacobians
 from kinematics.mechanisms.p2us.mechanism import P2US
@@ -72,6 +80,33 @@ def test_inverse_condition_is_numpys_condition_number_where_finite():
     want = 1.0 / np.linalg.cond(J[~bad])
     assert np.allclose(got[~bad], want, rtol=1e-12, atol=0)
     assert np.all(inverse_condition(np.full((2, 3, 3), np.nan)) == 0.0)
+
+
+@pytest.mark.parametrize("shape", ["cube", "cylinder", "sphere"])
+def test_shape_fits_is_contains_nonnegative(shape):
+    """`shape_fits` (chunks, stopping at the first negative) answers as `contains(...) >= 0`: in
+    a unit ball's field 1 - |p| over seeded centres and sizes about the fitting limit, and when a
+    single sample, any of them (the first, a middle one, the last), is the only negative one:
+    every chunk must be consulted when the others pass."""
+    rng = np.random.default_rng(21)
+    ball = lambda p: 1.0 - np.linalg.norm(p, axis=1)
+    answers = set()
+    for _ in range(12):
+        c = rng.uniform(-0.3, 0.3, 3)
+        size = [rng.uniform(0.5, 1.2)] if shape != "cylinder" else [rng.uniform(0.3, 0.8), rng.uniform(0.3, 1.2)]
+        want = contains(ball, shape, c, size, 0.05) >= 0
+        assert shape_fits(ball, shape, c, size, 0.05) == want
+        answers.add(want)
+    assert answers == {True, False}, "the sample must hold shapes that fit and shapes that do not"
+    c, size = np.zeros(3), [0.6] if shape != "cylinder" else [0.5, 0.6]
+    pts = shape_samples(shape, c, size, 0.03)
+    assert len(pts) > 2 * FIT_CHUNK  # several chunks
+    chunks = -(-len(pts) // FIT_CHUNK)
+    for j in (*range(chunks), len(pts) // 2, len(pts) - 1):  # one in each chunk, whatever the striding
+        def pocket(p, j=j):
+            return np.where(np.all(p == pts[j], axis=1), -1e-9, 1.0)
+        assert not shape_fits(pocket, shape, c, size, 0.03)
+    assert shape_fits(lambda p: np.ones(len(p)), shape, c, size, 0.03)
 
 
 def test_samples_cover_the_shape():
