@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from kinematics.analyses.dexterity import conditioning_grid, dexterity
+from kinematics.analyses.dexterity import conditioning_grid, dexterity, indices
 from kinematics.mechanisms import mechanism_of
 from kinematics.model.robot import load_robot
 
@@ -149,3 +149,25 @@ def test_a_sliver_gets_no_error_bar(p2us):
     # few points and a replicate without any: the spread of the others says nothing, so no bar
     d = dexterity(p2us, ["---"], samples=16, replicates=4, seed=0)
     assert d.inside[0] < 16 and not math.isfinite(d.gci_error[0])
+
+
+def test_indices_against_their_definitions():
+    """`indices` per Jacobian against the definitions computed another way: 1/kappa =
+    1/numpy.linalg.cond, w = sqrt(det(J J^T)) by the determinant (not the singular values), the
+    smallest radius = sqrt of the smallest eigenvalue of J J^T (eigvalsh); rounding ~1e-15 relative
+    on these O(1) well-conditioned matrices, 1e-10 allowed (the eigenvalue route squares the
+    condition number). A NaN row gives (0, inf, 0), a wide-row J (a < d) w = radius = 0, a zero J 1/kappa = 0."""
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(5, 2, 3, 3))
+    J[1, 0, 2, 2] = np.nan
+    J[4, 1] = 0.0
+    inv, w, rad = indices(J)
+    good = np.ones((5, 2), bool)
+    good[1, 0] = good[4, 1] = False
+    G = J[good] @ np.swapaxes(J[good], -1, -2)
+    assert np.allclose(inv[good], 1 / np.linalg.cond(J[good]), rtol=1e-10, atol=0)
+    assert np.allclose(w[good], np.sqrt(np.linalg.det(G)), rtol=1e-10, atol=0)
+    assert np.allclose(rad[good], np.sqrt(np.linalg.eigvalsh(G)[:, 0]), rtol=1e-10, atol=0)
+    assert (inv[1, 0], w[1, 0], rad[1, 0]) == (0.0, np.inf, 0.0) and inv[4, 1] == 0.0
+    inv2, w2, rad2 = indices(rng.normal(size=(4, 3, 2)))
+    assert np.all(w2 == 0.0) and np.all(rad2 == 0.0) and np.all(inv2 > 0)
