@@ -149,3 +149,14 @@ def test_a_sliver_gets_no_error_bar(p2us):
     # few points and a replicate without any: the spread of the others says nothing, so no bar
     d = dexterity(p2us, ["---"], samples=16, replicates=4, seed=0)
     assert d.inside[0] < 16 and not math.isfinite(d.gci_error[0])
+
+
+@pytest.mark.parametrize("argv", [("dexterity", "scara", "--samples", "64", "--replicates", "2"),
+                                  ("synthesize", "p2us", "--param", "b=0.15:0.3", "--population", "4",
+                                   "--generations", "1", "--workers", "1")])
+def test_cli_negative_seed_is_bad_input(capsys, argv):
+    # numpy's SeedSequence takes only non-negative integers: a negative --seed is refused in one
+    # line (exit 2) before any work, not a traceback from the scrambling or the search
+    code, out, err = run(capsys, *argv, "--seed", "-1")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "seed" in err and "-1" in err

@@ -268,6 +268,8 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
         raise InvalidInputError("replicates", f"need at least 2 independent replicates for an error bar, got {replicates}")
     if samples < 16:
         raise InvalidInputError("samples", f"need at least 16 points per replicate, got {samples}")
+    if not (isinstance(seed, int) and seed >= 0):  # numpy's SeedSequence takes no negative entropy
+        raise InvalidInputError("seed", f"must be a whole number >= 0, got {seed}")
     if samples > MAX_SAMPLES:
         raise InvalidInputError("samples", f"at most {MAX_SAMPLES:,} points per replicate, got {samples:,}")
     m = math.ceil(math.log2(samples))
