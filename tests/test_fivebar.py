@@ -173,3 +173,17 @@ def test_point_closure_with_a_fixed_joint_agrees(tmp_path, robot, loop, five, rn
     rep = mob.analyse(point, pl.reference)
     assert rep.grubler.planar and rep.grubler.mobility == 2 and rep.numeric.mobility == 2
     assert rep.numeric.rank == 2  # the point closure's out-of-plane row is redundant
+
+
+def test_actuator_unit_follows_the_actuated_joints(robot):
+    # the generic closed loop's J has one column per actuator: its unit is rad when every actuator
+    # is revolute (this five-bar) and m when every one is prismatic (the p2us's sliders), so
+    # dexterity must not report the "J mixes m and rad columns" note for either
+    from kinematics.analyses.dexterity import dexterity
+    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+    mech = GenericClosedLoop(robot)
+    assert mech.actuator_unit == "rad"
+    assert GenericClosedLoop(load_robot("p2us")).actuator_unit == "m"
+    d = dexterity(mech, samples=16, replicates=2, seed=0).as_dict()
+    assert not d["mixed_units"] and d["yoshikawa_unit"] == "m^2/rad^2"
