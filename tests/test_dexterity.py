@@ -160,3 +160,13 @@ def test_cli_negative_seed_is_bad_input(capsys, argv):
     code, out, err = run(capsys, *argv, "--seed", "-1")
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and "seed" in err and "-1" in err
+
+
+def test_cli_failing_map_leaves_no_cells_file(capsys, tmp_path):
+    # the map's grid at 1e-7 m is refused (over the point limit) after the indices are measured;
+    # the per-cell table, ready before it, must not be left written by a command that fails
+    cells, png = tmp_path / "c.csv", tmp_path / "k.png"
+    code, _, err = run(capsys, "dexterity", "scara", "--samples", "64", "--replicates", "2", "--cells", "3",
+                       "--cells-out", str(cells), "--plot", str(png), "--step", "1e-7")
+    assert code == 2 and "step" in err
+    assert list(tmp_path.iterdir()) == []

@@ -220,18 +220,25 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = res.as_dict()
     if orientation is not None:
         payload["orientation"] = orientation.as_dict()
-    if args.cells_out:
-        write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
     target = payload["target"]
+    # the map and the scene (which refuse a --step too fine) are built before any file is written,
+    # so a command that fails leaves none of its outputs behind
+    fig = scene = None
     if args.plot:
         from kinematics.views import plots
 
         plots.headless()
-        plots.save(plots.conditioning_map(mech, target, args.limits, args.step), args.plot)
+        fig = plots.conditioning_map(mech, target, args.limits, args.step)
     if args.export:
         from kinematics.views.meshcat import conditioning_view
 
-        conditioning_view(mech, target, limits=args.limits, step=args.step).export(args.export)
+        scene = conditioning_view(mech, target, limits=args.limits, step=args.step)
+    if args.cells_out:
+        write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
+    if fig is not None:
+        plots.save(fig, args.plot)
+    if scene is not None:
+        scene.export(args.export)
 
     def human() -> str:
         from kinematics.cli.report import table
