@@ -40,6 +40,9 @@ UR5_DOF = ("ur5 has 6 degrees of freedom (shoulder_pan_joint, shoulder_lift_join
            "wrist_2_joint, wrist_3_joint), got {} value(s)")
 MODES8 = "valid: +++, ++-, +-+, +--, -++, -+-, --+, ---"
 ELBOWS = "valid: up, down"
+# where --mode also takes `union` (usable-workspace, workspace-mesh, dexterity, synthesize), the
+# refusal lists it with the modes
+OR_UNION = ", union"
 
 
 def unknown_mode(label: str, valid: str = MODES8) -> tuple[str, str]:
@@ -329,7 +332,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["usable-workspace", "p2us", "--shape", "cone"], "invalid choice"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5"], ">= 1"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "nan"], POSITIVE),
-    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz")),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
     (["usable-workspace", "scara", "--shape", "cube"], "spatial task space"),
@@ -340,12 +343,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-mesh", "p2us", "-o", "nodir/m.stl"], "does not exist"),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "-1"], POSITIVE),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "1e-9"], "200,000,000"),
-    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz")),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--limits", "none"], "invalid choice"),
     # dexterity
     (["dexterity", "nosuchbot"], "unknown robot"),
-    (["dexterity", "scara", "--mode", "zzz"], unknown_mode("zzz", ELBOWS)),
-    (["dexterity", "delta", "--mode", "up"], unknown_mode("up")),
+    (["dexterity", "scara", "--mode", "zzz"], unknown_mode("zzz", ELBOWS + OR_UNION)),
+    (["dexterity", "delta", "--mode", "up"], unknown_mode("up", MODES8 + OR_UNION)),
     (["dexterity", "scara", "--samples", "0"], "at least 16"),
     (["dexterity", "scara", "--samples", "1e6"], "expected a whole number"),
     (["dexterity", "scara", "--samples", "100000000000"], "at most"),
@@ -374,7 +377,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "2"], ">= 4"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--generations", "0"], "generations >= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "100000"], "limit"),
-    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz")),
+    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--kappa-max", "0.5"], ">= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--cube-cells", "1"], "cube_cells"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--gci-samples", "4"], "at least 16"),

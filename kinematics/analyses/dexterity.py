@@ -342,11 +342,10 @@ def conditioning_grid(mech: Mechanism, branch: str, *, limits: str = "all", step
     Args:
         step: grid step [m] (default: the box's longest side / MAP_CELLS).
     """
-    from kinematics.mechanisms.base import UNION
     from kinematics.sizes import grid_points
 
     mech.check_limits(limits)
-    chosen = mech.branches if branch == UNION else mech.check_branches([branch])
+    chosen = mech.check_target(branch)
     lo, hi = (np.asarray(a, dtype=float) for a in mech.bounding_box(limits))
     step = float(np.max(hi - lo)) / MAP_CELLS if step is None else step
     if not (step > 0 and math.isfinite(step)):

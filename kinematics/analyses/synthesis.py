@@ -295,8 +295,7 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
         if not (isinstance(s, int) and s >= 0):
             raise InvalidInputError("seed", f"must be a whole number >= 0, got {s}")
     check_points("population", float(population) * generations, limit=100_000, unit="design evaluations")
-    if settings.branch != "union":
-        mech.check_branches([settings.branch])
+    mech.check_target(settings.branch)
     t0 = time.perf_counter()
     history: list[dict[str, Any]] = []
 

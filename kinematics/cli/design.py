@@ -208,6 +208,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     orientation = orientation_of(args)
     mech: Mechanism = mechanism_of(robot, orientation)
+    if args.mode is not None:
+        mech.check_target(args.mode)  # the refusal lists union too
     branches = None if args.mode in (None, UNION) else [args.mode]
     if args.cells_out and args.cells is None:
         from kinematics.errors import InvalidInputError

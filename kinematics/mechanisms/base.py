@@ -277,6 +277,15 @@ class Mechanism(ABC):
             raise UnknownModeError("", self.branches)
         return tuple(dict.fromkeys(branches))
 
+    def check_target(self, branch: str) -> tuple[str, ...]:
+        """The branches behind one target: `branch` alone, or every branch for UNION; raises
+        UnknownModeError listing UNION beside the branches, since it is a valid answer here."""
+        if branch == UNION:
+            return self.branches
+        if branch not in self.branches:
+            raise UnknownModeError(branch, (*self.branches, UNION))
+        return (branch,)
+
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] containing every reachable task point under `limits`."""
         raise MissingCapabilityError(self.name, "bounding box", "a workspace scan", self.capabilities)
