@@ -130,6 +130,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["mobility", "p2us", "--position", "0", "0", "-0.45", "--q", "0.2", "0.2", "0.2"], "not both"),
     (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
     (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], unknown_mode("zzz")),
+    # an empty --mode is a label to refuse, not the default mode (likewise below)
+    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", ""], unknown_mode("")),
     # workspace-volume
     (["workspace-volume", "nosuchbot"], "unknown robot"),
     (["workspace-volume", str(MODELS / "rssr.urdf")], "1-dimensional"),
@@ -295,6 +297,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["show", "scara", "--export", "v.html", "--mesh", "nofile.stl"], "no such file"),
     (["show", "scara", "--export", "v.html", "--mesh", "m.obj"], "unknown suffix"),
     (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], unknown_mode("+0+")),
+    (["show", "delta", "--export", "v.html", "--position", "0", "0", "-0.8", "--mode", ""], unknown_mode("")),
     # urdf
     (["urdf", "p2us"], "required: -o/--output"),
     (["urdf", "scara", "-o", "d.urdf"], "invalid choice"),
@@ -333,6 +336,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5"], ">= 1"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "nan"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
     (["usable-workspace", "scara", "--shape", "cube"], "spatial task space"),
@@ -344,6 +348,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "-1"], POSITIVE),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "1e-9"], "200,000,000"),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--limits", "none"], "invalid choice"),
     # dexterity
     (["dexterity", "nosuchbot"], "unknown robot"),
@@ -378,6 +383,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--generations", "0"], "generations >= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "100000"], "limit"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--kappa-max", "0.5"], ">= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--cube-cells", "1"], "cube_cells"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--gci-samples", "4"], "at least 16"),

@@ -213,6 +213,12 @@ def values(args: argparse.Namespace, robot: Any) -> Any:
     return robot.joint_values(args.q, degrees=args.degrees)
 
 
+def mode_of(args: argparse.Namespace, default: str) -> str:
+    """--mode, or `default` when it is not given. An empty --mode '' is given: a label to check
+    (and refuse, listing the valid ones), not the default."""
+    return default if args.mode is None else args.mode
+
+
 def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
     """The `CollisionModel` of --collisions and --obstacles, or None when neither is given."""
     if not (getattr(args, "collisions", False) or getattr(args, "obstacles", None)):

@@ -11,6 +11,7 @@ from kinematics.cli.args import (
     collision_checks,
     integer,
     load,
+    mode_of,
     orientation_args,
     orientation_of,
     positive,
@@ -124,7 +125,7 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    mode = args.mode or default_branch(mech)
+    mode = mode_of(args, default_branch(mech))
     checks = collision_checks(args, robot)
     margin_of = None
     if checks is not None:
@@ -181,7 +182,7 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    mode = args.mode or default_branch(mech)
+    mode = mode_of(args, default_branch(mech))
     mesh = mesh_of(mech, mode, args.step, args.limits)
     write_atomic(args.o, lambda tmp: export(mesh, tmp), "-o")
     payload = {"robot": robot.name, "mode": mode, "file": args.o, "faces": len(mesh.mesh.faces),
@@ -312,7 +313,7 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.analyses.collisions import design_options
 
         collisions = design_options(robot, args.collisions, args.obstacles)
-    settings = syn.Settings(branch=args.mode or "---", kappa_max=args.kappa_max, limits=args.limits,
+    settings = syn.Settings(branch=mode_of(args, "---"), kappa_max=args.kappa_max, limits=args.limits,
                             cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed,
                             collisions=collisions)
     res = syn.synthesize(mech, bounds, population=args.population, generations=args.generations, seed=args.seed,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from kinematics.cli.args import Command, load, number, q_args, robot_arg
+from kinematics.cli.args import Command, load, mode_of, number, q_args, robot_arg
 from kinematics.cli.report import emit, fmt, key_values, table, with_plane
 from kinematics.errors import InvalidInputError
 
@@ -59,9 +59,9 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
 
         mech = require_closed_forms(robot)
         p = position_arg(args)
-        values = mech.joint_values(p, args.mode or "---")
+        values = mech.joint_values(p, mode_of(args, "---"))
         q = robot.configuration([values[n] for n in robot.joint_names])
-        return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
+        return q, f"platform at {p.tolist()} m, mode {mode_of(args, '---')}"
     if args.q is not None:
         from kinematics.cli.parallel import actuated_arg
 
@@ -85,7 +85,7 @@ def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | Non
         if fk.exists:
             return None
         return {"robot": robot.name, "q": q.tolist(), "reachable": False, "reason": fk.reason}
-    mech.check_branches([args.mode or "---"])  # a bad mode is bad input even where nothing reaches
+    mech.check_branches([mode_of(args, "---")])  # a bad mode is bad input even where nothing reaches
     p = position_arg(args)
     ik = mech.pose_ik(p)
     if all(lb["reachable"] for lb in ik.limbs):

@@ -11,6 +11,7 @@ from kinematics.cli.args import (
     collision_args,
     collision_checks,
     load,
+    mode_of,
     non_negative,
     number,
     positive,
@@ -103,7 +104,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 if len(args.q) != 3:
                     raise InvalidInputError("--q", f"give the 3 actuator values [{mech.actuator_unit}], got {len(args.q)}")
                 actuators = np.array(args.q, dtype=float)
-            viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
+            viz.parallel_view(robot, None if args.position is None else np.array(args.position), mode_of(args, "---"),
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
                           step=0.02 if args.step is None else args.step, scene=scene, collisions=checks)
@@ -243,7 +244,7 @@ def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[st
                 "reason": fk.reason}
     if args.position is None:
         return None
-    mode = mech.check_branches([args.mode or "---"])[0]
+    mode = mech.check_branches([mode_of(args, "---")])[0]
     m = mech.branches.index(mode)
     p = np.array(args.position, dtype=float)
     sol = mech.pose_ik(p)
