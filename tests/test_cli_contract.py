@@ -62,6 +62,11 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["info", "scara", "--frame", "x"], "unrecognized arguments"),
     (["info", "scara", "--range", "joint1=1:0"], "expected JOINT=LO:HI with finite LO < HI, got 'joint1=1:0'"),
     (["info", "scara", "--range", "nojoint=0:1"], ("unknown joint 'nojoint'", "valid: joint1, joint2")),
+    # the p2us's and the Delta's limits are design parameters read from the URDF, which a joint
+    # range does not reach: refused, not silently ignored (an IK "within limits" outside it)
+    (["ik", "delta", "--position", "0", "0", "-0.8", "--range", "actuator_1=0.5:0.6"],
+     ("--range", "design parameters", "kinematics urdf delta")),
+    (["workspace-volume", "p2us", "--range", "slider_1=0.1:0.2"], ("--range", "kinematics urdf p2us")),
     # fk
     (["fk", "scara"], "needs joint values"),
     (["fk", "scara", "--q"], "expected at least one argument"),

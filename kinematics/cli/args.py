@@ -191,10 +191,22 @@ def collision_args(p: argparse.ArgumentParser, what: str = "") -> None:
 
 # -- what handlers read from the arguments -------------------------------------------------------
 def load(args: argparse.Namespace) -> Any:
-    """The robot of ROBOT and --range."""
+    """The robot of ROBOT and --range. --range is refused for a mechanism whose limits are design
+    parameters (the p2us, the Delta): its closed forms would answer as if it were not given."""
     from kinematics.model.robot import load_robot
 
-    return load_robot(args.robot, ranges=dict(getattr(args, "range", None) or ()))
+    ranges = dict(getattr(args, "range", None) or ())
+    robot = load_robot(args.robot, ranges=ranges)
+    if ranges:
+        from kinematics.errors import InvalidInputError
+        from kinematics.mechanisms import mechanism_of
+
+        mech = mechanism_of(robot)
+        if mech.limits_in_design:
+            raise InvalidInputError("--range", f"{robot.name}'s limits are design parameters read from its URDF, "
+                                    "which a joint range does not change; write a design with other limits "
+                                    f"(`kinematics urdf {mech.family} --help`)")
+    return robot
 
 
 def is_parallel(robot: Any) -> bool:

@@ -213,6 +213,8 @@ class Mechanism(ABC):
             for the generic families.
         assembly_modes: the labels of `fk`'s assembly modes.
         iota_I_label: how `iota_I` is computed, for reports (e.g. "iota_I = min |n.w|").
+        limits_in_design: the limits are design parameters (`params`, read from the URDF's
+            layout), which joint ranges given at loading (`load_robot(ranges=...)`) do not reach.
     """
 
     family: ClassVar[str]
@@ -229,6 +231,7 @@ class Mechanism(ABC):
     params: Any = None
     assembly_modes: tuple[str, ...] = ()
     iota_I_label: str = "iota_I"
+    limits_in_design: ClassVar[bool] = False
 
     # -- what the mechanism provides ---------------------------------------------------------
     @property
