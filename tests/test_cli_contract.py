@@ -484,7 +484,7 @@ def test_help_texts_match_behaviour(capsys):
     assert main(["jacobian", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "default: every mode" not in text and "first mode within the limits" in text
-    assert "p2us: not used, give --position" in text
+    assert "p2us, delta: not used, give --position" in text
     code = main(["jacobian", "p2us", "--position", "0", "0", "-0.45", "--json"])
     import json
 

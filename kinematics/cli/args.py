@@ -151,10 +151,12 @@ def robot_arg(p: argparse.ArgumentParser) -> None:
 
 
 def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
-           loops: str = "") -> None:
+           loops: str | None = "") -> None:
+    """--q and --degrees. `loops`: what follows "closed-loop robot, one per actuated joint" (None:
+    the command takes serial robots only); `p2us`: what --q is for the p2us and the Delta."""
+    closed = "" if loops is None else f"; closed-loop robot, one per actuated joint{loops}; p2us, delta: {p2us}"
     p.add_argument("--q", nargs="+", type=number, required=required, metavar="Q",
-                   help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
-                        f"robot, one per actuated joint{loops}; p2us: {p2us}")
+                   help=f"joint values [rad or m]: serial robot, one per degree of freedom{closed}")
     p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
 

@@ -12,7 +12,7 @@ from kinematics.cli.report import emit
 def register(command: Command) -> None:
     p = command("manipulability", cmd_manipulability, "manipulability ellipsoid at a configuration")
     robot_arg(p)
-    q_args(p)
+    q_args(p, loops=None)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
 
 
