@@ -40,6 +40,10 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     import numpy as np
 
     if robot.loops is None:
+        if robot.nv == 0:  # its tool Jacobian is 6 x 0: no rank, no regular pose, no twist to count
+            from kinematics.errors import UnsupportedRobotError
+
+            raise UnsupportedRobotError(robot.name, "has no degree of freedom (every joint is fixed): nothing moves")
         if args.position is not None:
             raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
         if args.q is None:
