@@ -520,3 +520,18 @@ def test_robot_delta_skeleton_in_a_real_browser(tmp_path):
     for part in ("ground", "link", "revolute", "closure", "end_effector"):
         rgb = np.array(viz.SKELETON_STYLE[part][0])
         assert (np.linalg.norm(a[mask] - rgb, axis=-1) < 0.25).sum() >= 30, part
+
+
+def test_show_robot_without_degrees_of_freedom(tmp_path, capsys):
+    # fixed joints only: drawn at its one pose; its 6 x 0 Jacobian has no ellipsoid, said in one
+    # line, never a reshape traceback (the default pose's conditioning test, the ellipsoid's J)
+    from kinematics.cli import main
+
+    urdf, page = tmp_path / "fixed.urdf", tmp_path / "v.html"
+    urdf.write_text('<robot name="fixed"><link name="base"/><link name="tip"/><joint name="j" type="fixed">'
+                    '<parent link="base"/><child link="tip"/><origin xyz="0.1 0 0"/></joint></robot>')
+    assert main(["show", str(urdf), "--export", str(page)]) == 0 and page.stat().st_size > 0
+    capsys.readouterr()
+    page.unlink()
+    assert main(["show", str(urdf), "--ellipsoid", "--export", str(page)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not page.exists()
