@@ -144,6 +144,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
     (["workspace-volume", "scara", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     (["singularities", "ur5", "--max-points", "10"], "at least 1000"),
+    (["singularities", "ur5", "--max-points", "0.5"], "must be at least 1000, got 0.5"),  # not "at least 1"
     (["singularities", "ur5", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["singularities", "ur5", "--max-points", "nan"], POSITIVE),
     (["singularities", "ur5", "--resolution", "2"], "at least 4"),

@@ -76,9 +76,9 @@ def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
         raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
     if getattr(args, "plot", None):
         raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    if args.max_points < 1000:  # before check_points, whose floor (1) is not this one
+        raise InvalidInputError("--max-points", f"must be at least 1000, got {args.max_points:g}")
     budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
-    if budget < 1000:
-        raise InvalidInputError("--max-points", f"must be at least 1000, got {budget}")
     if args.resolution is not None:
         if args.resolution < 4:
             raise InvalidInputError("--resolution", f"must be at least 4 cells, got {args.resolution}")
