@@ -187,3 +187,23 @@ def test_actuator_unit_follows_the_actuated_joints(robot):
     assert GenericClosedLoop(load_robot("p2us")).actuator_unit == "m"
     d = dexterity(mech, samples=16, replicates=2, seed=0).as_dict()
     assert not d["mixed_units"] and d["yoshikawa_unit"] == "m^2/rad^2"
+
+
+def test_cli_fk_closes_where_mobility_does(capsys, robot):
+    # at actuator values [2, -2] the continuation from the fixture's pose gets stuck, but the loops
+    # close with the actuators held (another assembly mode): mobility analyses that pose, so fk and
+    # jacobian answer there too, saying how it was reached, instead of "no assembly there"
+    import json
+
+    from kinematics.cli import main
+
+    argv = ["--q", "2", "-2", "--json"]
+    assert main(["mobility", str(FIXTURE), *argv]) == 0
+    capsys.readouterr()
+    assert main(["fk", str(FIXTURE), *argv]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["q"] == pytest.approx([2, -2], abs=1e-12) and d["residual"] <= 1e-12  # the solver's tolerance
+    assert "actuators held" in d["configuration"]
+    values = np.array([d["joint_values"][n] for n in robot.joint_names])
+    assert np.abs(ClosedLoop(robot).residual(robot.configuration(values))[0]).max() <= 1e-10  # closed (TOL)
+    assert main(["jacobian", str(FIXTURE), *argv]) == 0
