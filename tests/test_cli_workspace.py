@@ -265,3 +265,10 @@ def test_report_keeps_a_prismatic_joints_limits_in_metres(capsys, tmp_path):
     lines = {ln.split(":")[0].strip(): ln.split(":", 1)[1].strip() for ln in out.splitlines() if ln.startswith(("lower", "upper"))}
     assert code == 0 and lines == {"lower [deg; m for prismatic]": "[-57.2958, 0.1]",
                                    "upper [deg; m for prismatic]": "[57.2958, 0.5]"}
+
+
+@pytest.mark.parametrize("zero", ["0", "0.00", "-0", "0e0"])
+def test_rtol_zero_in_any_spelling_is_the_default_tolerance(capsys, zero):
+    # --rtol's help: "0: 1e-2"; a zero is a zero however written, not "must be positive"
+    code, d, err = run_json(capsys, "workspace-volume", "scara", "--step", "0.05", "--rtol", zero)
+    assert code == 0 and d["rtol"] == 1e-2, err

@@ -56,7 +56,12 @@ def positive(text: str) -> float:
 
 
 def non_negative(text: str) -> float:
-    return 0.0 if text.strip() in ("0", "0.0") else positive(text)
+    try:  # a zero however spelt (0.00, -0, 0e0), not only "0"
+        if float(text) == 0.0:
+            return 0.0
+    except ValueError:
+        pass  # positive() says it is not a number
+    return positive(text)
 
 
 def number(text: str) -> float:
