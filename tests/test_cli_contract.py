@@ -279,7 +279,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     ([*EXP, "--csv", "nodir/g.csv"], "does not exist"),
     # show (always with --export: no viewer is started)
     (["show", "nosuchbot", "--export", "v.html"], "unknown robot"),
-    ([*SHOW, "--q", "0.3", "0.3"], "3 actuator values"),
+    ([*SHOW, "--q", "0.3", "0.3"], "p2us has 3 actuated joints (slider_1, slider_2, slider_3), got 2"),
     ([*SHOW, "--q", "0.3", "0.3", "nan"], FINITE),
     ([*SHOW, "--position", "0", "0", "nan"], FINITE),
     ([*SHOW, "--position", "1e308", "1e308", "1e308"], FINITE),

@@ -535,3 +535,17 @@ def test_show_robot_without_degrees_of_freedom(tmp_path, capsys):
     page.unlink()
     assert main(["show", str(urdf), "--ellipsoid", "--export", str(page)]) == 2
     assert capsys.readouterr().err.count("\n") == 1 and not page.exists()
+
+
+def test_show_closed_loop_q_in_degrees(tmp_path, capsys):
+    # a Delta with 0.3 m forearms cannot assemble at theta = -40 deg on every limb (the closed form
+    # says so: tests/test_delta_urdf.py); --degrees must make --q -40 those degrees (an unreachable
+    # answer, exit 1), not -40 rad, which the view tried to reach and failed on (exit 2)
+    from kinematics.cli import main
+    from kinematics.mechanisms.delta import closed_form as dl
+    from kinematics.mechanisms.delta.urdf import write
+
+    urdf, _ = write(dl.DeltaParams(lb=0.3), tmp_path / "short.urdf")
+    page = tmp_path / "v.html"
+    assert main(["show", str(urdf), "--q", "-40", "-40", "-40", "--degrees", "--export", str(page), "--json"]) == 1
+    assert "do not meet" in capsys.readouterr().out and not page.exists()
