@@ -549,3 +549,16 @@ def test_show_closed_loop_q_in_degrees(tmp_path, capsys):
     page = tmp_path / "v.html"
     assert main(["show", str(urdf), "--q", "-40", "-40", "-40", "--degrees", "--export", str(page), "--json"]) == 1
     assert "do not meet" in capsys.readouterr().out and not page.exists()
+
+
+def test_unreachable_actuators_are_reported_in_their_unit(tmp_path, capsys):
+    # the Delta's actuators turn: an unreachable --q is reported in rad (show and mobility), not m
+    from kinematics.cli import main
+    from kinematics.mechanisms.delta import closed_form as dl
+    from kinematics.mechanisms.delta.urdf import write
+
+    urdf, _ = write(dl.DeltaParams(lb=0.3), tmp_path / "short.urdf")
+    for argv in (["show", str(urdf), "--export", str(tmp_path / "v.html")], ["mobility", str(urdf)]):
+        assert main([*argv, "--q", "-0.5", "-0.5", "-0.5"]) == 1
+        out = capsys.readouterr().out
+        assert out.startswith("actuators at [-0.5, -0.5, -0.5] rad is NOT reachable"), out

@@ -109,7 +109,10 @@ def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
 
     answer = _unreachable(args, robot)
     if answer is not None:
-        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} m"
+        from kinematics.mechanisms import mechanism_of
+
+        unit = mechanism_of(robot).actuator_unit
+        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} {unit}"
         out(args, answer, lambda: f"{where} is NOT reachable: {answer['reason']}")
         return 1
     q, where = configuration(args, robot)

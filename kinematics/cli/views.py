@@ -88,7 +88,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         unreachable = _parallel_checks(args, robot, mech, actuators)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
-                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
+                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
     grid = _serial_collision_grid(args, robot, mech, checks)
