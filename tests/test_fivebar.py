@@ -207,3 +207,14 @@ def test_cli_fk_closes_where_mobility_does(capsys, robot):
     values = np.array([d["joint_values"][n] for n in robot.joint_names])
     assert np.abs(ClosedLoop(robot).residual(robot.configuration(values))[0]).max() <= 1e-10  # closed (TOL)
     assert main(["jacobian", str(FIXTURE), *argv]) == 0
+
+
+def test_cli_mobility_says_the_actuator_values_it_used(capsys):
+    # --degrees: the report gives the values analysed, in rad, not the numbers typed
+    import json
+
+    from kinematics.cli import main
+
+    assert main(["mobility", str(FIXTURE), "--q", "20", "20", "--degrees", "--json"]) == 0
+    where = json.loads(capsys.readouterr().out)["configuration"]
+    assert where.startswith("actuators at [0.34906585, 0.34906585] rad"), where

@@ -68,8 +68,12 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
         return q, f"platform at {p.tolist()} m, mode {mode_of(args, '---')}"
     if args.q is not None:
         from kinematics.cli.parallel import actuated_arg
+        from kinematics.mechanisms import mechanism_of
 
-        return loop.solve(actuated_arg(args, robot), fallback=True).q, f"actuators at {list(args.q)}"
+        actuators = actuated_arg(args, robot)  # --degrees applied: the values analysed are these
+        sol = loop.solve(actuators, fallback=True)
+        held = " (closed with the actuators held: possibly another assembly mode)" if sol.held else ""
+        return sol.q, f"actuators at {np.round(actuators, 9).tolist()} {mechanism_of(robot).actuator_unit}{held}"
     return loop.assembly.q, loop.assembly.description
 
 
