@@ -165,7 +165,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "over the 200,000 limit"),  # before the volume
     (["show", "ur5", "--workspace", "--collisions", "--step", "0.005", "--export", "x.html"], "too fine a step"),
     (["show", "ur5", "--workspace", "--collisions", "--limits", "actuators", "--export", "x.html"], "joint limits only"),
-    (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'"),
+    # a serial arm has no working mode: said, not "valid: " with an empty list
+    (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'; valid: none (ur5 has no mode to choose)"),
     (["workspace-volume", "ur5", "--limits", "actuators"], "actuators"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "0"], "not all zero"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "x"], NUMBER),

@@ -275,9 +275,9 @@ class Mechanism(ABC):
             return self.branches
         for b in branches:
             if b not in self.branches:
-                raise UnknownModeError(b, self.branches)
+                raise UnknownModeError(b, self.branches, self.name)
         if not branches:
-            raise UnknownModeError("", self.branches)
+            raise UnknownModeError("", self.branches, self.name)
         return tuple(dict.fromkeys(branches))
 
     def check_target(self, branch: str) -> tuple[str, ...]:
