@@ -108,6 +108,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["jacobian", "scara", "--q", "0", "0", "--task", "bogus"], "invalid choice"),
     (["jacobian", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
     (["jacobian", "ur5", "--q", "0", "0", "0"], UR5_DOF.format(3)),
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--task", "planar"],
+     ("not a planar arm", "auto, translation, rotation or full")),  # every task that would work
     (["jacobian", "p2us"], "X Y Z"),
     (["jacobian", "p2us", "--position", "0", "0"], "expected 3 arguments"),
     (["jacobian", "p2us", "--position", "0", "0", "nan"], FINITE),
