@@ -60,8 +60,9 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["info", "nodir/x.urdf"], "no such file"),
     (["info", "adir"], "adir: a folder with no .urdf file in it"),
     (["info", "scara", "--frame", "x"], "unrecognized arguments"),
-    (["info", "scara", "--range", "joint1=1:0"], "expected JOINT=LO:HI with finite LO < HI, got 'joint1=1:0'"),
+    (["info", "scara", "--range", "joint1=1:0"], ("expected JOINT=LO:HI with finite LO < HI", "got 'joint1=1:0'")),
     (["info", "scara", "--range", "nojoint=0:1"], ("unknown joint 'nojoint'", "valid: joint1, joint2")),
+    (["info", "scara", "--range", "joint1=0:1e7"], "at most 1e+06 in magnitude"),  # finite, LO < HI, too large
     # the p2us's and the Delta's limits are design parameters read from the URDF, which a joint
     # range does not reach: refused, not silently ignored (an IK "within limits" outside it)
     (["ik", "delta", "--position", "0", "0", "-0.8", "--range", "actuator_1=0.5:0.6"],

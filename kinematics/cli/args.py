@@ -105,8 +105,9 @@ def joint_range(text: str) -> tuple[str, tuple[float, float]]:
     lo, colon, hi = pair.partition(":")
     a, b = angle_value(lo), angle_value(hi)
     if not (sep and colon and name) or not (abs(a) <= MAX_MAGNITUDE and abs(b) <= MAX_MAGNITUDE and a < b):
-        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r} (LO, HI: numbers "
-                                         "or multiples of pi such as -pi, pi/2)")
+        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, each at most {MAX_MAGNITUDE:g} in "
+                                         f"magnitude, got {text!r} (LO, HI: numbers or multiples of pi such as -pi, "
+                                         "pi/2)")
     return name, (a, b)
 
 
