@@ -63,6 +63,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["info", "scara", "--range", "joint1=1:0"], ("expected JOINT=LO:HI with finite LO < HI", "got 'joint1=1:0'")),
     (["info", "scara", "--range", "nojoint=0:1"], ("unknown joint 'nojoint'", "valid: joint1, joint2")),
     (["info", "scara", "--range", "joint1=0:1e7"], "at most 1e+06 in magnitude"),  # finite, LO < HI, too large
+    # workspace-volume has no --angle-step-deg: the joint-grid scan's refusal names the ranges too
+    (["workspace-volume", "scara", "--range", "joint2=-1e6:1e6"], ("joint ranges of 3.84 and 2e+06 rad", "--range")),
     # the p2us's and the Delta's limits are design parameters read from the URDF, which a joint
     # range does not reach: refused, not silently ignored (an IK "within limits" outside it)
     (["ik", "delta", "--position", "0", "0", "-0.8", "--range", "actuator_1=0.5:0.6"],
