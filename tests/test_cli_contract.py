@@ -515,6 +515,22 @@ def test_outputs_written_atomically(capsys, workdir):
     assert (workdir / "g.csv").read_text().count("\n") == 601  # header + 6 s at 10 ms
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_output_directory_that_takes_no_file_is_refused_before_work(capsys, monkeypatch):
+    # /proc passes os.access(W_OK) for root, yet no file can be created in it: the check tries,
+    # so the refusal comes before the volume is measured (its wording), not at the final write
+    # after the work ("cannot write ...")
+    import kinematics.cli.workspace as ws
+
+    def no_work(*a, **k):
+        raise AssertionError("the volume was measured before the output was refused")
+
+    monkeypatch.setattr(ws, "workspace_volume", no_work)
+    assert main(["workspace-volume", "scara", "--plot", "/proc/kinematics-test.png"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--plot" in err and "cannot create a file in directory '/proc'" in err
+
+
 def test_write_atomic_leaves_nothing_on_failure(tmp_path):
     from kinematics.errors import InvalidInputError
     from kinematics.files import write_atomic
