@@ -120,6 +120,10 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
     (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "++"], unknown_mode("++")),
     (["jacobian", "p2us", "--q", "0.3", "0.3", "0.3"], "--position"),
+    # the closed forms give the platform's translational J only: another frame or task is refused (as
+    # fk refuses the frame), not answered with the platform's J
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--frame", "base"], ("--frame", "frame 'platform'")),
+    (["jacobian", "delta", "--position", "0", "0", "-0.8", "--task", "rotation"], ("--task", "auto or translation")),
     (["jacobian", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
     # manipulability
     (["manipulability", "scara"], "required: --q"),

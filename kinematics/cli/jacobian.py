@@ -26,7 +26,8 @@ def register(command: Command) -> None:
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
                    help="task-space rows (default auto: x-y for planar arms, x-y-z for other serial robots, all "
-                        "six for closed loops other than p2us and delta)")
+                        "six for closed loops other than p2us and delta; p2us, delta: their platform's x-y-z, auto "
+                        "or translation only)")
     p.add_argument("--position", nargs=3, type=number, metavar=("X", "Y", "Z"), help="p2us, delta: platform position [m]")
     p.add_argument("--mode", help="p2us, delta: working mode label such as +++ (default: the first mode within the "
                                   "limits, else the first that assembles)")
