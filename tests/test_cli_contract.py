@@ -111,6 +111,10 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["jacobian", "scara", "--q", "0", "0", "--task", "bogus"], "invalid choice"),
     (["jacobian", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
     (["jacobian", "ur5", "--q", "0", "0", "0"], UR5_DOF.format(3)),
+    # --position and --mode pose the p2us and the Delta: a serial arm's are refused, not ignored
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--position", "0", "0", "0"], ("--position", "--q")),
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--mode", "+++"], ("--mode", "serial")),
+    (["mobility", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--mode", "+++"], ("--mode", "serial")),
     (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--task", "planar"],
      ("not a planar arm", "auto, translation, rotation or full")),  # every task that would work
     (["jacobian", "p2us"], "X Y Z"),

@@ -44,8 +44,9 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
             from kinematics.errors import UnsupportedRobotError
 
             raise UnsupportedRobotError(robot.name, "has no degree of freedom (every joint is fixed): nothing moves")
-        if args.position is not None:
-            raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
+        for flag in ("position", "mode"):  # they pose the p2us and the Delta
+            if getattr(args, flag) is not None:
+                raise InvalidInputError(f"--{flag}", f"{robot.name} is serial: give its joint values with --q")
         if args.q is None:
             from kinematics.analyses.mobility import REGULAR_SEED, regular_configuration
 
