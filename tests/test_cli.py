@@ -180,3 +180,10 @@ def test_q_help_says_which_robots_take_it(capsys):
     assert "p2us, delta: not used" in _q_help(capsys, "jacobian")
     assert main(["jacobian", "delta", "--q", "0.4", "0.4", "0.4"]) == 2
     assert main(["manipulability", "delta", "--q", "0.4", "0.4", "0.4"]) == 2
+
+
+def test_workspace_mesh_help_names_the_delta(capsys, tmp_path):
+    # the help said "p2us:" alone, yet the Delta's boundary is meshed too
+    assert main(["workspace-mesh", "--help"]) == 0
+    assert "p2us, delta" in " ".join(capsys.readouterr().out.split())
+    assert main(["workspace-mesh", "delta", "-o", str(tmp_path / "d.stl"), "--step", "0.1"]) == 0

@@ -90,8 +90,8 @@ def register(command: Command) -> None:
     collision_args(p, "; the usable cube is then collision-free (each design's URDF generated with the robot's "
                       "collision sizes; the GCI stays kinematic)")
 
-    p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
-                "watertight triangle mesh (STL, PLY or glTF binary)")
+    p = command("workspace-mesh", cmd_workspace_mesh, "p2us, delta (any spatial mechanism with a workspace margin): a "
+                "working mode's workspace boundary as a watertight triangle mesh (STL, PLY or glTF binary)")
     robot_arg(p)
     p.add_argument("--mode", help="working mode such as --- (default), or union")
     p.add_argument("-o", required=True, metavar="FILE.stl|.ply|.glb", help="the mesh file")
