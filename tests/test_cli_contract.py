@@ -314,6 +314,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),
     (["show", "ur5", "--export", "v.html", "--guide", "1"], "planar arms"),
+    # the double pendulum is a planar arm, but not of the scara family the guidance runs on
+    (["show", "double_pendulum", "--export", "v.html", "--guide", "1"], ("planar 2R arms", "scara family", "which double_pendulum is not")),
     (["show", "scara", "--export", "v.html", "--mesh", "nofile.stl"], "no such file"),
     (["show", "scara", "--export", "v.html", "--mesh", "m.obj"], "unknown suffix"),
     (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], unknown_mode("+0+")),

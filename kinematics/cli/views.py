@@ -65,6 +65,11 @@ def cmd_show(args: argparse.Namespace) -> int:
     return run(args, robot, with_plane(robot, emit))
 
 
+GUIDE_ROBOTS = ("guidance runs are for planar arms of the scara family (planar 2R arms with closed forms, joint "
+                "axes along z), which {} is not")
+"""--guide's refusal: a planar arm such as the double pendulum (axes along x) is not enough."""
+
+
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import signal
     import sys
@@ -100,7 +105,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     try:
         if three_limb:
             if args.guide is not None:
-                raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
             viz.parallel_view(robot, None if args.position is None else np.array(args.position), mode_of(args, "---"),
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
@@ -116,7 +121,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                                step=0.02 if args.step is None else args.step)
             else:
                 if args.guide is not None:
-                    raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                    raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
                 ws = None
                 if (args.workspace and checks is None) or args.singularities:  # the cell engine's
                     from kinematics.cli.singular import serial_scan
