@@ -228,6 +228,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "p2us", "--plot", "adir"], "is a directory"),
     (["singularities", "p2us", "--plot", "nodir/s.png"], "does not exist"),
     (["singularities", "scara", "--angle-step-deg", "1e-9"], "over the 200,000,000 limit"),
+    (["singularities", "delta", "--angle-step-deg", "5"], ("--angle-step-deg", "planar arm")),  # not ignored
     (["singularities", "scara", "--angle-step-deg", "0"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "-1"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),
