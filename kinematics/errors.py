@@ -49,12 +49,14 @@ class UnknownNameError(KinematicsError, LookupError):
 
     kind = "name"
 
-    def __init__(self, name: str, valid: Sequence[str]) -> None:
+    def __init__(self, name: str, valid: Sequence[str], owner: str = "this robot") -> None:
         self.name = name
         self.valid = tuple(valid)
         self.closest = closest(name, self.valid)
         hint = f" (did you mean {' or '.join(map(repr, self.closest))}?)" if self.closest else ""
-        super().__init__(f"unknown {self.kind} {name!r}{hint}; valid: {_choices(self.valid)}")
+        # an empty set is said in words (e.g. a serial arm's working modes), not as "valid: " and nothing
+        shown = _choices(self.valid) if self.valid else f"none ({owner} has no {self.kind} to choose)"
+        super().__init__(f"unknown {self.kind} {name!r}{hint}; valid: {shown}")
 
 
 class UnknownRobotError(UnknownNameError):

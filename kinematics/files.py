@@ -36,6 +36,14 @@ def check_output(path: str, option: str, kind: str) -> None:
         raise InvalidInputError(option, f"{path!r}: directory {parent!r} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InvalidInputError(option, f"{path!r}: directory {parent!r} is not writable")
+    import tempfile
+
+    try:  # root passes os.access everywhere; only creating a file says (/proc, /sys, read-only mounts)
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as exc:
+        raise InvalidInputError(option, f"{path!r}: cannot create a file in directory {parent!r} "
+                                f"({exc.strerror or exc})") from None
 
 
 Content = str | bytes | Callable[[str], None]

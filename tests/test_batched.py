@@ -243,3 +243,12 @@ def test_cli_refuses_bad_q_files(tmp_path, capsys, content, message):
     q.write_text(content)
     assert main(["fk", "scara", "--q-file", str(q), "--out", str(out)]) == 2
     assert message in capsys.readouterr().err and not out.exists()
+
+
+def test_cli_out_without_q_file_names_the_missing_q_file(tmp_path, capsys):
+    # --q with --out but no --q-file: the error is the missing --q-file, not a clash with it
+    out = tmp_path / "p.csv"
+    assert main(["fk", "scara", "--q", "0", "0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "give --q-file" in err and "not both" not in err and err.count("\n") == 1
+    assert not out.exists()

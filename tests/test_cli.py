@@ -163,3 +163,27 @@ def test_any_urdf_path(capsys, tmp_path):
     write_2r_urdf(path, 1.0, 0.5)
     code, data, _ = run_json(capsys, "ik", str(path), "--position", "1.5", "0")
     assert code == 0 and data["solutions"][0]["q"] == pytest.approx([0, 0], abs=1e-12)
+
+
+def _q_help(capsys, command):
+    """--q's description in `kinematics COMMAND --help` (unwrapped), up to the next option."""
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    start = text.index("--q Q [Q ...] joint values")
+    return text[start:text.index(" --degrees", start)]
+
+
+def test_q_help_says_which_robots_take_it(capsys):
+    # manipulability refuses every closed loop, and the Delta's Jacobian (like the p2us') is taken
+    # at --position: --q's help must not promise actuator values there
+    assert "closed-loop" not in _q_help(capsys, "manipulability")
+    assert "p2us, delta: not used" in _q_help(capsys, "jacobian")
+    assert main(["jacobian", "delta", "--q", "0.4", "0.4", "0.4"]) == 2
+    assert main(["manipulability", "delta", "--q", "0.4", "0.4", "0.4"]) == 2
+
+
+def test_workspace_mesh_help_names_the_delta(capsys, tmp_path):
+    # the help said "p2us:" alone, yet the Delta's boundary is meshed too
+    assert main(["workspace-mesh", "--help"]) == 0
+    assert "p2us, delta" in " ".join(capsys.readouterr().out.split())
+    assert main(["workspace-mesh", "delta", "-o", str(tmp_path / "d.stl"), "--step", "0.1"]) == 0

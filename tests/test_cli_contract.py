@@ -40,6 +40,9 @@ UR5_DOF = ("ur5 has 6 degrees of freedom (shoulder_pan_joint, shoulder_lift_join
            "wrist_2_joint, wrist_3_joint), got {} value(s)")
 MODES8 = "valid: +++, ++-, +-+, +--, -++, -+-, --+, ---"
 ELBOWS = "valid: up, down"
+# where --mode also takes `union` (usable-workspace, workspace-mesh, dexterity, synthesize), the
+# refusal lists it with the modes
+OR_UNION = ", union"
 
 
 def unknown_mode(label: str, valid: str = MODES8) -> tuple[str, str]:
@@ -57,8 +60,16 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["info", "nodir/x.urdf"], "no such file"),
     (["info", "adir"], "adir: a folder with no .urdf file in it"),
     (["info", "scara", "--frame", "x"], "unrecognized arguments"),
-    (["info", "scara", "--range", "joint1=1:0"], "expected JOINT=LO:HI with finite LO < HI, got 'joint1=1:0'"),
+    (["info", "scara", "--range", "joint1=1:0"], ("expected JOINT=LO:HI with finite LO < HI", "got 'joint1=1:0'")),
     (["info", "scara", "--range", "nojoint=0:1"], ("unknown joint 'nojoint'", "valid: joint1, joint2")),
+    (["info", "scara", "--range", "joint1=0:1e7"], "at most 1e+06 in magnitude"),  # finite, LO < HI, too large
+    # workspace-volume has no --angle-step-deg: the joint-grid scan's refusal names the ranges too
+    (["workspace-volume", "scara", "--range", "joint2=-1e6:1e6"], ("joint ranges of 3.84 and 2e+06 rad", "--range")),
+    # the p2us's and the Delta's limits are design parameters read from the URDF, which a joint
+    # range does not reach: refused, not silently ignored (an IK "within limits" outside it)
+    (["ik", "delta", "--position", "0", "0", "-0.8", "--range", "actuator_1=0.5:0.6"],
+     ("--range", "design parameters", "kinematics urdf delta")),
+    (["workspace-volume", "p2us", "--range", "slider_1=0.1:0.2"], ("--range", "kinematics urdf p2us")),
     # fk
     (["fk", "scara"], "needs joint values"),
     (["fk", "scara", "--q"], "expected at least one argument"),
@@ -100,6 +111,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["jacobian", "scara", "--q", "0", "0", "--task", "bogus"], "invalid choice"),
     (["jacobian", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
     (["jacobian", "ur5", "--q", "0", "0", "0"], UR5_DOF.format(3)),
+    # --position and --mode pose the p2us and the Delta: a serial arm's are refused, not ignored
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--position", "0", "0", "0"], ("--position", "--q")),
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--mode", "+++"], ("--mode", "serial")),
+    (["mobility", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--mode", "+++"], ("--mode", "serial")),
+    (["jacobian", "ur5", "--q", "0", "0", "0", "0", "0", "0", "--task", "planar"],
+     ("not a planar arm", "auto, translation, rotation or full")),  # every task that would work
     (["jacobian", "p2us"], "X Y Z"),
     (["jacobian", "p2us", "--position", "0", "0"], "expected 3 arguments"),
     (["jacobian", "p2us", "--position", "0", "0", "nan"], FINITE),
@@ -107,6 +124,10 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
     (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--mode", "++"], unknown_mode("++")),
     (["jacobian", "p2us", "--q", "0.3", "0.3", "0.3"], "--position"),
+    # the closed forms give the platform's translational J only: another frame or task is refused (as
+    # fk refuses the frame), not answered with the platform's J
+    (["jacobian", "p2us", "--position", "0", "0", "-0.45", "--frame", "base"], ("--frame", "frame 'platform'")),
+    (["jacobian", "delta", "--position", "0", "0", "-0.8", "--task", "rotation"], ("--task", "auto or translation")),
     (["jacobian", FOURBAR, "--q", "0.1", "0.2"], "actuated"),
     # manipulability
     (["manipulability", "scara"], "required: --q"),
@@ -127,6 +148,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["mobility", "p2us", "--position", "0", "0", "-0.45", "--q", "0.2", "0.2", "0.2"], "not both"),
     (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", "zzz"], unknown_mode("zzz")),
     (["mobility", "p2us", "--position", "10", "10", "10", "--mode", "zzz"], unknown_mode("zzz")),
+    # an empty --mode is a label to refuse, not the default mode (likewise below)
+    (["mobility", "p2us", "--position", "0", "0", "-0.45", "--mode", ""], unknown_mode("")),
     # workspace-volume
     (["workspace-volume", "nosuchbot"], "unknown robot"),
     (["workspace-volume", str(MODELS / "rssr.urdf")], "1-dimensional"),
@@ -134,6 +157,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "delta", "--limits", "strokes"], "invalid choice"),
     (["workspace-volume", "scara", "--obstacles", "nofile.yaml"], "nofile.yaml: obstacle file not found"),
     (["singularities", "ur5", "--max-points", "10"], "at least 1000"),
+    (["singularities", "ur5", "--max-points", "0.5"], "must be at least 1000, got 0.5"),  # not "at least 1"
     (["singularities", "ur5", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["singularities", "ur5", "--max-points", "nan"], POSITIVE),
     (["singularities", "ur5", "--resolution", "2"], "at least 4"),
@@ -154,7 +178,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "ur5", "--collisions", "--plot", "w.png"], "over the 200,000 limit"),  # before the volume
     (["show", "ur5", "--workspace", "--collisions", "--step", "0.005", "--export", "x.html"], "too fine a step"),
     (["show", "ur5", "--workspace", "--collisions", "--limits", "actuators", "--export", "x.html"], "joint limits only"),
-    (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'"),
+    # a serial arm has no working mode: said, not "valid: " with an empty list
+    (["workspace-volume", "ur5", "--modes", "up"], "unknown mode 'up'; valid: none (ur5 has no mode to choose)"),
     (["workspace-volume", "ur5", "--limits", "actuators"], "actuators"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "0"], "not all zero"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "x"], NUMBER),
@@ -203,6 +228,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "p2us", "--plot", "adir"], "is a directory"),
     (["singularities", "p2us", "--plot", "nodir/s.png"], "does not exist"),
     (["singularities", "scara", "--angle-step-deg", "1e-9"], "over the 200,000,000 limit"),
+    (["singularities", "delta", "--angle-step-deg", "5"], ("--angle-step-deg", "planar arm")),  # not ignored
     (["singularities", "scara", "--angle-step-deg", "0"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "-1"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),
@@ -268,7 +294,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     ([*EXP, "--csv", "nodir/g.csv"], "does not exist"),
     # show (always with --export: no viewer is started)
     (["show", "nosuchbot", "--export", "v.html"], "unknown robot"),
-    ([*SHOW, "--q", "0.3", "0.3"], "3 actuator values"),
+    ([*SHOW, "--q", "0.3", "0.3"], "p2us has 3 actuated joints (slider_1, slider_2, slider_3), got 2"),
     ([*SHOW, "--q", "0.3", "0.3", "nan"], FINITE),
     ([*SHOW, "--position", "0", "0", "nan"], FINITE),
     ([*SHOW, "--position", "1e308", "1e308", "1e308"], FINITE),
@@ -289,9 +315,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),
     (["show", "ur5", "--export", "v.html", "--guide", "1"], "planar arms"),
+    # the double pendulum is a planar arm, but not of the scara family the guidance runs on
+    (["show", "double_pendulum", "--export", "v.html", "--guide", "1"], ("planar 2R arms", "scara family", "which double_pendulum is not")),
     (["show", "scara", "--export", "v.html", "--mesh", "nofile.stl"], "no such file"),
     (["show", "scara", "--export", "v.html", "--mesh", "m.obj"], "unknown suffix"),
     (["show", "delta", "--export", "v.html", "--position", "0", "0", "0.5", "--mode", "+0+"], unknown_mode("+0+")),
+    (["show", "delta", "--export", "v.html", "--position", "0", "0", "-0.8", "--mode", ""], unknown_mode("")),
     # urdf
     (["urdf", "p2us"], "required: -o/--output"),
     (["urdf", "scara", "-o", "d.urdf"], "invalid choice"),
@@ -329,7 +358,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["usable-workspace", "p2us", "--shape", "cone"], "invalid choice"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5"], ">= 1"),
     (["usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "nan"], POSITIVE),
-    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz")),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["usable-workspace", "p2us", "--shape", "cube", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
     (["usable-workspace", "scara", "--shape", "cube"], "spatial task space"),
@@ -340,12 +370,13 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-mesh", "p2us", "-o", "nodir/m.stl"], "does not exist"),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "-1"], POSITIVE),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--step", "1e-9"], "200,000,000"),
-    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz")),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["workspace-mesh", "p2us", "-o", "m.stl", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["workspace-mesh", "p2us", "-o", "m.stl", "--limits", "none"], "invalid choice"),
     # dexterity
     (["dexterity", "nosuchbot"], "unknown robot"),
-    (["dexterity", "scara", "--mode", "zzz"], unknown_mode("zzz", ELBOWS)),
-    (["dexterity", "delta", "--mode", "up"], unknown_mode("up")),
+    (["dexterity", "scara", "--mode", "zzz"], unknown_mode("zzz", ELBOWS + OR_UNION)),
+    (["dexterity", "delta", "--mode", "up"], unknown_mode("up", MODES8 + OR_UNION)),
     (["dexterity", "scara", "--samples", "0"], "at least 16"),
     (["dexterity", "scara", "--samples", "1e6"], "expected a whole number"),
     (["dexterity", "scara", "--samples", "100000000000"], "at most"),
@@ -374,7 +405,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "2"], ">= 4"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--generations", "0"], "generations >= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--population", "100000"], "limit"),
-    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz")),
+    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", "zzz"], unknown_mode("zzz", MODES8 + OR_UNION)),
+    (["synthesize", "p2us", "--param", "b=0.3:0.4", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--kappa-max", "0.5"], ">= 1"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--cube-cells", "1"], "cube_cells"),
     (["synthesize", "p2us", "--param", "b=0.3:0.4", "--gci-samples", "4"], "at least 16"),
@@ -470,7 +502,7 @@ def test_help_texts_match_behaviour(capsys):
     assert main(["jacobian", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "default: every mode" not in text and "first mode within the limits" in text
-    assert "p2us: not used, give --position" in text
+    assert "p2us, delta: not used, give --position" in text
     code = main(["jacobian", "p2us", "--position", "0", "0", "-0.45", "--json"])
     import json
 
@@ -492,6 +524,22 @@ def test_outputs_written_atomically(capsys, workdir):
     assert _listing(workdir) == {"adir", "g.csv", "g.png"}
     assert (workdir / "g.png").read_bytes()[:4] == b"\x89PNG"
     assert (workdir / "g.csv").read_text().count("\n") == 601  # header + 6 s at 10 ms
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_output_directory_that_takes_no_file_is_refused_before_work(capsys, monkeypatch):
+    # /proc passes os.access(W_OK) for root, yet no file can be created in it: the check tries,
+    # so the refusal comes before the volume is measured (its wording), not at the final write
+    # after the work ("cannot write ...")
+    import kinematics.cli.workspace as ws
+
+    def no_work(*a, **k):
+        raise AssertionError("the volume was measured before the output was refused")
+
+    monkeypatch.setattr(ws, "workspace_volume", no_work)
+    assert main(["workspace-volume", "scara", "--plot", "/proc/kinematics-test.png"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--plot" in err and "cannot create a file in directory '/proc'" in err
 
 
 def test_write_atomic_leaves_nothing_on_failure(tmp_path):

@@ -162,3 +162,18 @@ def test_subprocess(tmp_path):
     argv, needle = bad_inputs(tmp_path)[6]
     proc = subprocess.run([sys.executable, "-m", "kinematics", *argv], capture_output=True, text=True)
     assert proc.returncode == 2 and needle in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize(("robot", "q"), [
+    # an actuator on its range's end, every other limit held (found by sampling such poses): the
+    # IK recovers that actuator a few ulp beyond the end, which must still count as within
+    ("p2us", ["0.16754825251120561", "0.1", "0.362677161237863"]),  # stroke's lower end 0.1 m
+    ("delta", ["1.5707963267948966", "0.43048459455480026", "0.5028394948183198"]),  # theta's upper end pi/2
+])
+def test_fk_then_ik_round_trip_on_an_actuator_bound(capsys, robot, q):
+    code, fk, _ = run_json(capsys, "fk", robot, "--q", *q)
+    below = fk["solutions"][0]
+    assert code == 0 and below["within_limits"] is True
+    code, ik, _ = run_json(capsys, "ik", robot, "--position", *map(repr, below["position"]))
+    back = [s for s in ik["solutions"] if np.abs(np.array(s["q"]) - np.array(q, dtype=float)).max() <= 1e-9]
+    assert code == 0 and len(back) == 1 and back[0]["within_limits"] is True and back[0]["violations"] == []

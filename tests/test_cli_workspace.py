@@ -245,3 +245,30 @@ def test_an_empty_workspace_reports_no_inf_or_nan(capsys):
     assert code == 0, err
     assert "area [m^2]                         : 0 +/- 0" in out
     assert "nan" not in out.lower() and "inf" not in out.lower(), out
+
+
+POLAR_ARM = """<robot name="polar"><link name="base"/><link name="l1"/><link name="l2"/><link name="tip"/>
+<joint name="turn" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="reach" type="prismatic"><parent link="l1"/><child link="l2"/><axis xyz="1 0 0"/>
+<limit lower="0.1" upper="0.5" effort="1" velocity="1"/></joint>
+<joint name="t" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.05 0 0"/></joint></robot>
+"""
+
+
+def test_report_keeps_a_prismatic_joints_limits_in_metres(capsys, tmp_path):
+    # the report shows revolute limits in degrees; a prismatic joint's [0.1, 0.5] m stays in m,
+    # not 5.72958 and 28.6479 "deg" (0.1 and 0.5 taken for radians)
+    urdf = tmp_path / "polar.urdf"
+    urdf.write_text(POLAR_ARM)
+    code, out, _ = run(capsys, "workspace-volume", str(urdf), "--step", "0.05", "--rtol", "0.1")
+    lines = {ln.split(":")[0].strip(): ln.split(":", 1)[1].strip() for ln in out.splitlines() if ln.startswith(("lower", "upper"))}
+    assert code == 0 and lines == {"lower [deg; m for prismatic]": "[-57.2958, 0.1]",
+                                   "upper [deg; m for prismatic]": "[57.2958, 0.5]"}
+
+
+@pytest.mark.parametrize("zero", ["0", "0.00", "-0", "0e0"])
+def test_rtol_zero_in_any_spelling_is_the_default_tolerance(capsys, zero):
+    # --rtol's help: "0: 1e-2"; a zero is a zero however written, not "must be positive"
+    code, d, err = run_json(capsys, "workspace-volume", "scara", "--step", "0.05", "--rtol", zero)
+    assert code == 0 and d["rtol"] == 1e-2, err

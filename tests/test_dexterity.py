@@ -171,3 +171,24 @@ def test_indices_against_their_definitions():
     assert (inv[1, 0], w[1, 0], rad[1, 0]) == (0.0, np.inf, 0.0) and inv[4, 1] == 0.0
     inv2, w2, rad2 = indices(rng.normal(size=(4, 3, 2)))
     assert np.all(w2 == 0.0) and np.all(rad2 == 0.0) and np.all(inv2 > 0)
+
+
+@pytest.mark.parametrize("argv", [("dexterity", "scara", "--samples", "64", "--replicates", "2"),
+                                  ("synthesize", "p2us", "--param", "b=0.15:0.3", "--population", "4",
+                                   "--generations", "1", "--workers", "1")])
+def test_cli_negative_seed_is_bad_input(capsys, argv):
+    # numpy's SeedSequence takes only non-negative integers: a negative --seed is refused in one
+    # line (exit 2) before any work, not a traceback from the scrambling or the search
+    code, out, err = run(capsys, *argv, "--seed", "-1")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "seed" in err and "-1" in err
+
+
+def test_cli_failing_map_leaves_no_cells_file(capsys, tmp_path):
+    # the map's grid at 1e-7 m is refused (over the point limit) after the indices are measured;
+    # the per-cell table, ready before it, must not be left written by a command that fails
+    cells, png = tmp_path / "c.csv", tmp_path / "k.png"
+    code, _, err = run(capsys, "dexterity", "scara", "--samples", "64", "--replicates", "2", "--cells", "3",
+                       "--cells-out", str(cells), "--plot", str(png), "--step", "1e-7")
+    assert code == 2 and "step" in err
+    assert list(tmp_path.iterdir()) == []

@@ -173,3 +173,48 @@ def test_point_closure_with_a_fixed_joint_agrees(tmp_path, robot, loop, five, rn
     rep = mob.analyse(point, pl.reference)
     assert rep.grubler.planar and rep.grubler.mobility == 2 and rep.numeric.mobility == 2
     assert rep.numeric.rank == 2  # the point closure's out-of-plane row is redundant
+
+
+def test_actuator_unit_follows_the_actuated_joints(robot):
+    # the generic closed loop's J has one column per actuator: its unit is rad when every actuator
+    # is revolute (this five-bar) and m when every one is prismatic (the p2us's sliders), so
+    # dexterity must not report the "J mixes m and rad columns" note for either
+    from kinematics.analyses.dexterity import dexterity
+    from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+    mech = GenericClosedLoop(robot)
+    assert mech.actuator_unit == "rad"
+    assert GenericClosedLoop(load_robot("p2us")).actuator_unit == "m"
+    d = dexterity(mech, samples=16, replicates=2, seed=0).as_dict()
+    assert not d["mixed_units"] and d["yoshikawa_unit"] == "m^2/rad^2"
+
+
+def test_cli_fk_closes_where_mobility_does(capsys, robot):
+    # at actuator values [2, -2] the continuation from the fixture's pose gets stuck, but the loops
+    # close with the actuators held (another assembly mode): mobility analyses that pose, so fk and
+    # jacobian answer there too, saying how it was reached, instead of "no assembly there"
+    import json
+
+    from kinematics.cli import main
+
+    argv = ["--q", "2", "-2", "--json"]
+    assert main(["mobility", str(FIXTURE), *argv]) == 0
+    capsys.readouterr()
+    assert main(["fk", str(FIXTURE), *argv]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["q"] == pytest.approx([2, -2], abs=1e-12) and d["residual"] <= 1e-12  # the solver's tolerance
+    assert "actuators held" in d["configuration"]
+    values = np.array([d["joint_values"][n] for n in robot.joint_names])
+    assert np.abs(ClosedLoop(robot).residual(robot.configuration(values))[0]).max() <= 1e-10  # closed (TOL)
+    assert main(["jacobian", str(FIXTURE), *argv]) == 0
+
+
+def test_cli_mobility_says_the_actuator_values_it_used(capsys):
+    # --degrees: the report gives the values analysed, in rad, not the numbers typed
+    import json
+
+    from kinematics.cli import main
+
+    assert main(["mobility", str(FIXTURE), "--q", "20", "20", "--degrees", "--json"]) == 0
+    where = json.loads(capsys.readouterr().out)["configuration"]
+    assert where.startswith("actuators at [0.34906585, 0.34906585] rad"), where

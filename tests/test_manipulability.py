@@ -132,3 +132,13 @@ def test_rejects_bad_jacobians():
         ellipsoid(np.zeros(3))
     with pytest.raises(InvalidInputError):
         ellipses_2x2(np.zeros((4, 3, 2)))
+
+
+@pytest.mark.parametrize("robot", ["delta", "p2us"])
+def test_cli_closed_loop_is_sent_to_jacobian_with_how(capsys, robot):
+    # the refusal points every closed loop (not only the p2us) to `jacobian`, with its argument
+    from kinematics.cli import main
+
+    assert main(["manipulability", robot, "--q", "0.3", "0.3", "0.3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "`jacobian`" in err and "--position" in err

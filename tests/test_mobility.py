@@ -357,3 +357,18 @@ def test_translation_threshold_is_scale_and_origin_free():
             if w.type == "force":  # the line's point nearest E
                 nearest = p + (E - p)[0] * np.array([1.0, 0, 0])
                 assert np.allclose(w.point, nearest, rtol=1e-9, atol=1e-9 * abs(origin).max(initial=L))
+
+
+FIXED_ONLY = """<robot name="fixed"><link name="base"/><link name="tip"/>
+<joint name="j" type="fixed"><parent link="base"/><child link="tip"/><origin xyz="0.1 0 0"/></joint></robot>
+"""
+
+
+def test_cli_robot_without_degrees_of_freedom(capsys, tmp_path):
+    # a robot of fixed joints only (its tool Jacobian is 6 x 0) is refused in one line, as
+    # workspace-volume refuses it, not with a reshape error from the regular-pose search
+    urdf = tmp_path / "fixed.urdf"
+    urdf.write_text(FIXED_ONLY)
+    code, out, err = run(capsys, "mobility", str(urdf))
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "no degree of freedom" in err

@@ -130,3 +130,21 @@ def test_ik_rejects_bad_input(params):
         sc.solve_ik(params, (0.1, 0.2, 0.3))
     with pytest.raises(InvalidInputError):
         sc.fk(params, np.zeros(3))
+
+
+def test_fk_then_ik_on_a_joint_limit_stays_within():
+    # a joint on its limit: the IK gives it back a few ulp beyond (atan2 round-off), which must
+    # still count as within the limits (sampled poses with one joint on an end, both elbows)
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.model.robot import load_robot
+
+    m = mechanism_of(load_robot("scara"))
+    lo, hi = np.array(m.params.lower), np.array(m.params.upper)
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        q = rng.uniform(lo, hi)
+        k = rng.integers(2)
+        q[k] = (lo if rng.random() < 0.5 else hi)[k]
+        ik = m.pose_ik(m.fk(q[None]).p[0, 0])
+        back = [j for j in range(2) if ik.reachable[j] and np.abs(ik.q[j] - q).max() <= 1e-9]
+        assert len(back) == 1 and ik.within_limits[back[0]] and ik.violations[back[0]] == (), q

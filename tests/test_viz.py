@@ -520,3 +520,45 @@ def test_robot_delta_skeleton_in_a_real_browser(tmp_path):
     for part in ("ground", "link", "revolute", "closure", "end_effector"):
         rgb = np.array(viz.SKELETON_STYLE[part][0])
         assert (np.linalg.norm(a[mask] - rgb, axis=-1) < 0.25).sum() >= 30, part
+
+
+def test_show_robot_without_degrees_of_freedom(tmp_path, capsys):
+    # fixed joints only: drawn at its one pose; its 6 x 0 Jacobian has no ellipsoid, said in one
+    # line, never a reshape traceback (the default pose's conditioning test, the ellipsoid's J)
+    from kinematics.cli import main
+
+    urdf, page = tmp_path / "fixed.urdf", tmp_path / "v.html"
+    urdf.write_text('<robot name="fixed"><link name="base"/><link name="tip"/><joint name="j" type="fixed">'
+                    '<parent link="base"/><child link="tip"/><origin xyz="0.1 0 0"/></joint></robot>')
+    assert main(["show", str(urdf), "--export", str(page)]) == 0 and page.stat().st_size > 0
+    capsys.readouterr()
+    page.unlink()
+    assert main(["show", str(urdf), "--ellipsoid", "--export", str(page)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not page.exists()
+
+
+def test_show_closed_loop_q_in_degrees(tmp_path, capsys):
+    # a Delta with 0.3 m forearms cannot assemble at theta = -40 deg on every limb (the closed form
+    # says so: tests/test_delta_urdf.py); --degrees must make --q -40 those degrees (an unreachable
+    # answer, exit 1), not -40 rad, which the view tried to reach and failed on (exit 2)
+    from kinematics.cli import main
+    from kinematics.mechanisms.delta import closed_form as dl
+    from kinematics.mechanisms.delta.urdf import write
+
+    urdf, _ = write(dl.DeltaParams(lb=0.3), tmp_path / "short.urdf")
+    page = tmp_path / "v.html"
+    assert main(["show", str(urdf), "--q", "-40", "-40", "-40", "--degrees", "--export", str(page), "--json"]) == 1
+    assert "do not meet" in capsys.readouterr().out and not page.exists()
+
+
+def test_unreachable_actuators_are_reported_in_their_unit(tmp_path, capsys):
+    # the Delta's actuators turn: an unreachable --q is reported in rad (show and mobility), not m
+    from kinematics.cli import main
+    from kinematics.mechanisms.delta import closed_form as dl
+    from kinematics.mechanisms.delta.urdf import write
+
+    urdf, _ = write(dl.DeltaParams(lb=0.3), tmp_path / "short.urdf")
+    for argv in (["show", str(urdf), "--export", str(tmp_path / "v.html")], ["mobility", str(urdf)]):
+        assert main([*argv, "--q", "-0.5", "-0.5", "-0.5"]) == 1
+        out = capsys.readouterr().out
+        assert out.startswith("actuators at [-0.5, -0.5, -0.5] rad is NOT reachable"), out

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinematics.errors import InvalidInputError
-from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.mechanisms.base import Mechanism
 from kinematics.sizes import check_points, grid_points
 
 MESH_SUFFIXES = (".stl", ".ply", ".glb")
@@ -105,7 +105,7 @@ def workspace_mesh(mech: Mechanism, branch: str = "---", step: float = 0.01, lim
 
         raise UnsupportedRobotError(mech.name, "a boundary mesh needs a spatial task space; this mechanism's is "
                                     f"{mech.task_dim}-dimensional")
-    chosen = mech.check_branches(None if branch == UNION else [branch])
+    chosen = mech.check_target(branch)
     field = mech.margin(chosen, limits)
     lo, hi = mech.bounding_box(limits)
     return margin_mesh(lambda p: field(p)[:, -1], lo, hi, step)

@@ -267,6 +267,8 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
         raise InvalidInputError("replicates", f"need at least 2 independent replicates for an error bar, got {replicates}")
     if samples < 16:
         raise InvalidInputError("samples", f"need at least 16 points per replicate, got {samples}")
+    if not (isinstance(seed, int) and seed >= 0):  # numpy's SeedSequence takes no negative entropy
+        raise InvalidInputError("seed", f"must be a whole number >= 0, got {seed}")
     if samples > MAX_SAMPLES:
         raise InvalidInputError("samples", f"at most {MAX_SAMPLES:,} points per replicate, got {samples:,}")
     m = math.ceil(math.log2(samples))
@@ -339,11 +341,10 @@ def conditioning_grid(mech: Mechanism, branch: str, *, limits: str = "all", step
     Args:
         step: grid step [m] (default: the box's longest side / MAP_CELLS).
     """
-    from kinematics.mechanisms.base import UNION
     from kinematics.sizes import grid_points
 
     mech.check_limits(limits)
-    chosen = mech.branches if branch == UNION else mech.check_branches([branch])
+    chosen = mech.check_target(branch)
     lo, hi = (np.asarray(a, dtype=float) for a in mech.bounding_box(limits))
     step = float(np.max(hi - lo)) / MAP_CELLS if step is None else step
     if not (step > 0 and math.isfinite(step)):

@@ -291,9 +291,11 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
     if population < 4 or generations < 1:
         raise InvalidInputError("population", f"need a population >= 4 and generations >= 1, got {population}, "
                                 f"{generations}")
+    for s in (seed, settings.seed):  # NSGA-II's and the GCI's generators take no negative seed
+        if not (isinstance(s, int) and s >= 0):
+            raise InvalidInputError("seed", f"must be a whole number >= 0, got {s}")
     check_points("population", float(population) * generations, limit=100_000, unit="design evaluations")
-    if settings.branch != "union":
-        mech.check_branches([settings.branch])
+    mech.check_target(settings.branch)
     t0 = time.perf_counter()
     history: list[dict[str, Any]] = []
 

@@ -445,11 +445,9 @@ def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, lim
     margin_of: builds the margin of the branches (points -> a column per branch first) instead of
     `mech.margin(branches, limits)`, e.g. the collision-aware one (`analyses.collisions`).
     """
-    from kinematics.mechanisms.base import UNION
-
     _check_kappa(kappa_max)
     mech.check_limits(limits)
-    branches = mech.branches if branch == UNION else mech.check_branches([branch])
+    branches = mech.check_target(branch)
     margin = mech.margin(branches, limits) if margin_of is None else margin_of(branches)
 
     def field(points: np.ndarray) -> np.ndarray:

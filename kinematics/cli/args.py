@@ -56,7 +56,12 @@ def positive(text: str) -> float:
 
 
 def non_negative(text: str) -> float:
-    return 0.0 if text.strip() in ("0", "0.0") else positive(text)
+    try:  # a zero however spelt (0.00, -0, 0e0), not only "0"
+        if float(text) == 0.0:
+            return 0.0
+    except ValueError:
+        pass  # positive() says it is not a number
+    return positive(text)
 
 
 def number(text: str) -> float:
@@ -100,8 +105,9 @@ def joint_range(text: str) -> tuple[str, tuple[float, float]]:
     lo, colon, hi = pair.partition(":")
     a, b = angle_value(lo), angle_value(hi)
     if not (sep and colon and name) or not (abs(a) <= MAX_MAGNITUDE and abs(b) <= MAX_MAGNITUDE and a < b):
-        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, got {text!r} (LO, HI: numbers "
-                                         "or multiples of pi such as -pi, pi/2)")
+        raise argparse.ArgumentTypeError(f"expected JOINT=LO:HI with finite LO < HI, each at most {MAX_MAGNITUDE:g} in "
+                                         f"magnitude, got {text!r} (LO, HI: numbers or multiples of pi such as -pi, "
+                                         "pi/2)")
     return name, (a, b)
 
 
@@ -151,10 +157,12 @@ def robot_arg(p: argparse.ArgumentParser) -> None:
 
 
 def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
-           loops: str = "") -> None:
+           loops: str | None = "") -> None:
+    """--q and --degrees. `loops`: what follows "closed-loop robot, one per actuated joint" (None:
+    the command takes serial robots only); `p2us`: what --q is for the p2us and the Delta."""
+    closed = "" if loops is None else f"; closed-loop robot, one per actuated joint{loops}; p2us, delta: {p2us}"
     p.add_argument("--q", nargs="+", type=number, required=required, metavar="Q",
-                   help="joint values [rad or m]: serial robot, one per degree of freedom; closed-loop "
-                        f"robot, one per actuated joint{loops}; p2us: {p2us}")
+                   help=f"joint values [rad or m]: serial robot, one per degree of freedom{closed}")
     p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
 
 
@@ -191,10 +199,22 @@ def collision_args(p: argparse.ArgumentParser, what: str = "") -> None:
 
 # -- what handlers read from the arguments -------------------------------------------------------
 def load(args: argparse.Namespace) -> Any:
-    """The robot of ROBOT and --range."""
+    """The robot of ROBOT and --range. --range is refused for a mechanism whose limits are design
+    parameters (the p2us, the Delta): its closed forms would answer as if it were not given."""
     from kinematics.model.robot import load_robot
 
-    return load_robot(args.robot, ranges=dict(getattr(args, "range", None) or ()))
+    ranges = dict(getattr(args, "range", None) or ())
+    robot = load_robot(args.robot, ranges=ranges)
+    if ranges:
+        from kinematics.errors import InvalidInputError
+        from kinematics.mechanisms import mechanism_of
+
+        mech = mechanism_of(robot)
+        if mech.limits_in_design:
+            raise InvalidInputError("--range", f"{robot.name}'s limits are design parameters read from its URDF, "
+                                    "which a joint range does not change; write a design with other limits "
+                                    f"(`kinematics urdf {mech.family} --help`)")
+    return robot
 
 
 def is_parallel(robot: Any) -> bool:
@@ -211,6 +231,12 @@ def values(args: argparse.Namespace, robot: Any) -> Any:
 
         raise InvalidInputError("--q", f"{robot.name} needs joint values, one per degree of freedom ({robot.nv})")
     return robot.joint_values(args.q, degrees=args.degrees)
+
+
+def mode_of(args: argparse.Namespace, default: str) -> str:
+    """--mode, or `default` when it is not given. An empty --mode '' is given: a label to check
+    (and refuse, listing the valid ones), not the default."""
+    return default if args.mode is None else args.mode
 
 
 def collision_checks(args: argparse.Namespace, robot: Any) -> Any:

@@ -11,6 +11,7 @@ from kinematics.cli.args import (
     collision_checks,
     integer,
     load,
+    mode_of,
     orientation_args,
     orientation_of,
     positive,
@@ -89,8 +90,8 @@ def register(command: Command) -> None:
     collision_args(p, "; the usable cube is then collision-free (each design's URDF generated with the robot's "
                       "collision sizes; the GCI stays kinematic)")
 
-    p = command("workspace-mesh", cmd_workspace_mesh, "p2us: a working mode's workspace boundary as a "
-                "watertight triangle mesh (STL, PLY or glTF binary)")
+    p = command("workspace-mesh", cmd_workspace_mesh, "p2us, delta (any spatial mechanism with a workspace margin): a "
+                "working mode's workspace boundary as a watertight triangle mesh (STL, PLY or glTF binary)")
     robot_arg(p)
     p.add_argument("--mode", help="working mode such as --- (default), or union")
     p.add_argument("-o", required=True, metavar="FILE.stl|.ply|.glb", help="the mesh file")
@@ -124,7 +125,7 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    mode = args.mode or default_branch(mech)
+    mode = mode_of(args, default_branch(mech))
     checks = collision_checks(args, robot)
     margin_of = None
     if checks is not None:
@@ -181,7 +182,7 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
-    mode = args.mode or default_branch(mech)
+    mode = mode_of(args, default_branch(mech))
     mesh = mesh_of(mech, mode, args.step, args.limits)
     write_atomic(args.o, lambda tmp: export(mesh, tmp), "-o")
     payload = {"robot": robot.name, "mode": mode, "file": args.o, "faces": len(mesh.mesh.faces),
@@ -208,6 +209,8 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     orientation = orientation_of(args)
     mech: Mechanism = mechanism_of(robot, orientation)
+    if args.mode is not None:
+        mech.check_target(args.mode)  # the refusal lists union too
     branches = None if args.mode in (None, UNION) else [args.mode]
     if args.cells_out and args.cells is None:
         from kinematics.errors import InvalidInputError
@@ -220,18 +223,25 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = res.as_dict()
     if orientation is not None:
         payload["orientation"] = orientation.as_dict()
-    if args.cells_out:
-        write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
     target = payload["target"]
+    # the map and the scene (which refuse a --step too fine) are built before any file is written,
+    # so a command that fails leaves none of its outputs behind
+    fig = scene = None
     if args.plot:
         from kinematics.views import plots
 
         plots.headless()
-        plots.save(plots.conditioning_map(mech, target, args.limits, args.step), args.plot)
+        fig = plots.conditioning_map(mech, target, args.limits, args.step)
     if args.export:
         from kinematics.views.meshcat import conditioning_view
 
-        conditioning_view(mech, target, limits=args.limits, step=args.step).export(args.export)
+        scene = conditioning_view(mech, target, limits=args.limits, step=args.step)
+    if args.cells_out:
+        write_atomic(args.cells_out, _cells_csv(payload["cells"]["rows"]), "--cells-out")
+    if fig is not None:
+        plots.save(fig, args.plot)
+    if scene is not None:
+        scene.export(args.export)
 
     def human() -> str:
         from kinematics.cli.report import table
@@ -303,7 +313,7 @@ def synthesize(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.analyses.collisions import design_options
 
         collisions = design_options(robot, args.collisions, args.obstacles)
-    settings = syn.Settings(branch=args.mode or "---", kappa_max=args.kappa_max, limits=args.limits,
+    settings = syn.Settings(branch=mode_of(args, "---"), kappa_max=args.kappa_max, limits=args.limits,
                             cube_cells=args.cube_cells, gci_samples=args.gci_samples, seed=args.seed,
                             collisions=collisions)
     res = syn.synthesize(mech, bounds, population=args.population, generations=args.generations, seed=args.seed,

@@ -112,12 +112,13 @@ def fk_file(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.generic.batched import compile_frame, configurations
     from kinematics.generic.serial import plane
 
+    # the missing --q-file first: --q with --out is a missing file, not a clash with one
+    if args.q_file is None:
+        raise InvalidInputError("--q-file", "--out writes the poses of the --q-file rows; give --q-file")
     if args.q is not None:
         raise InvalidInputError("--q-file", "give either --q or --q-file, not both")
     if args.out is None:
         raise InvalidInputError("--out", "--q-file needs --out, the .csv or .npy file for the poses")
-    if args.q_file is None:
-        raise InvalidInputError("--q-file", "--out writes the poses of the --q-file rows; give --q-file")
     _check_out(args.out, args.q_file)
     if robot.loops is not None:
         raise UnsupportedRobotError(robot.name, "--q-file evaluates serial robots; this one has loop closures")

@@ -26,7 +26,8 @@ def register(command: Command) -> None:
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
     p.add_argument("--task", default="auto", choices=["auto", "planar", "translation", "rotation", "full"],
                    help="task-space rows (default auto: x-y for planar arms, x-y-z for other serial robots, all "
-                        "six for closed loops other than p2us and delta)")
+                        "six for closed loops other than p2us and delta; p2us, delta: their platform's x-y-z, auto "
+                        "or translation only)")
     p.add_argument("--position", nargs=3, type=number, metavar=("X", "Y", "Z"), help="p2us, delta: platform position [m]")
     p.add_argument("--mode", help="p2us, delta: working mode label such as +++ (default: the first mode within the "
                                   "limits, else the first that assembles)")
@@ -41,8 +42,12 @@ def cmd_jacobian(args: argparse.Namespace) -> int:
 
         return parallel_jacobian(args, robot, out)
     from kinematics.cli.report import matrix
+    from kinematics.errors import InvalidInputError
     from kinematics.generic.serial import task_jacobian, task_rows
 
+    for flag in ("position", "mode"):  # they pose the p2us and the Delta; ignored here, they would mislead
+        if getattr(args, flag) is not None:
+            raise InvalidInputError(f"--{flag}", f"{robot.name} is serial: its Jacobian is at its joint values (--q)")
     v = values(args, robot)
     task = args.task
     J = task_jacobian(robot, robot.configuration(v), args.frame, task)

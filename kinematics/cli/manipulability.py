@@ -12,7 +12,7 @@ from kinematics.cli.report import emit
 def register(command: Command) -> None:
     p = command("manipulability", cmd_manipulability, "manipulability ellipsoid at a configuration")
     robot_arg(p)
-    q_args(p)
+    q_args(p, loops=None)
     p.add_argument("--frame", help="frame name (default: the robot's tool frame)")
 
 
@@ -40,7 +40,8 @@ def cmd_manipulability(args: argparse.Namespace) -> int:
     if is_parallel(robot):
         from kinematics.errors import UnsupportedRobotError
 
-        raise UnsupportedRobotError(robot.name, "manipulability needs a serial robot; use `jacobian` for p2us")
+        raise UnsupportedRobotError(robot.name, "manipulability needs a serial robot; a closed loop's Jacobian is "
+                                                "`jacobian` (p2us, delta: at --position X Y Z; others: at --q)")
     v = values(args, robot)
     J6 = frame_jacobian(robot, robot.configuration(v), args.frame)
     planar = plane(robot) is not None

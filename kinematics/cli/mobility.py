@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from kinematics.cli.args import Command, load, number, q_args, robot_arg
+from kinematics.cli.args import Command, load, mode_of, number, q_args, robot_arg
 from kinematics.cli.report import emit, fmt, key_values, table, with_plane
 from kinematics.errors import InvalidInputError
 
@@ -40,8 +40,13 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
     import numpy as np
 
     if robot.loops is None:
-        if args.position is not None:
-            raise InvalidInputError("--position", f"{robot.name} is serial: give its joint values with --q")
+        if robot.nv == 0:  # its tool Jacobian is 6 x 0: no rank, no regular pose, no twist to count
+            from kinematics.errors import UnsupportedRobotError
+
+            raise UnsupportedRobotError(robot.name, "has no degree of freedom (every joint is fixed): nothing moves")
+        for flag in ("position", "mode"):  # they pose the p2us and the Delta
+            if getattr(args, flag) is not None:
+                raise InvalidInputError(f"--{flag}", f"{robot.name} is serial: give its joint values with --q")
         if args.q is None:
             from kinematics.analyses.mobility import REGULAR_SEED, regular_configuration
 
@@ -59,13 +64,17 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
 
         mech = require_closed_forms(robot)
         p = position_arg(args)
-        values = mech.joint_values(p, args.mode or "---")
+        values = mech.joint_values(p, mode_of(args, "---"))
         q = robot.configuration([values[n] for n in robot.joint_names])
-        return q, f"platform at {p.tolist()} m, mode {args.mode or '---'}"
+        return q, f"platform at {p.tolist()} m, mode {mode_of(args, '---')}"
     if args.q is not None:
         from kinematics.cli.parallel import actuated_arg
+        from kinematics.mechanisms import mechanism_of
 
-        return loop.solve(actuated_arg(args, robot), fallback=True).q, f"actuators at {list(args.q)}"
+        actuators = actuated_arg(args, robot)  # --degrees applied: the values analysed are these
+        sol = loop.solve(actuators, fallback=True)
+        held = " (closed with the actuators held: possibly another assembly mode)" if sol.held else ""
+        return sol.q, f"actuators at {np.round(actuators, 9).tolist()} {mechanism_of(robot).actuator_unit}{held}"
     return loop.assembly.q, loop.assembly.description
 
 
@@ -85,7 +94,7 @@ def _unreachable(args: argparse.Namespace, robot: Robot) -> dict[str, Any] | Non
         if fk.exists:
             return None
         return {"robot": robot.name, "q": q.tolist(), "reachable": False, "reason": fk.reason}
-    mech.check_branches([args.mode or "---"])  # a bad mode is bad input even where nothing reaches
+    mech.check_branches([mode_of(args, "---")])  # a bad mode is bad input even where nothing reaches
     p = position_arg(args)
     ik = mech.pose_ik(p)
     if all(lb["reachable"] for lb in ik.limbs):
@@ -105,7 +114,10 @@ def run(args: argparse.Namespace, robot: Robot, out: Any) -> int:
 
     answer = _unreachable(args, robot)
     if answer is not None:
-        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} m"
+        from kinematics.mechanisms import mechanism_of
+
+        unit = mechanism_of(robot).actuator_unit
+        where = f"platform at {answer['position']} m" if "position" in answer else f"actuators at {answer['q']} {unit}"
         out(args, answer, lambda: f"{where} is NOT reachable: {answer['reason']}")
         return 1
     q, where = configuration(args, robot)

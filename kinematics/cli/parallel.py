@@ -204,6 +204,14 @@ def jacobian(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         return _generic_jacobian(args, robot, out)
     if args.q is not None:
         raise InvalidInputError("--q", f"{robot.name}'s Jacobian is taken at a platform position: give --position X Y Z")
+    # the closed forms give the platform's translational J alone: another frame or task would be
+    # answered with it, so they are refused (as fk refuses the frame)
+    if args.frame is not None and robot.frame_id(args.frame) != robot.frame_id():
+        raise InvalidInputError("--frame", f"{robot.name}'s Jacobian is its platform's from the closed forms "
+                                f"(frame {robot.tool_frame!r}); another frame is not computed")
+    if args.task not in ("auto", "translation"):
+        raise InvalidInputError("--task", f"{robot.name}'s Jacobian is its platform's translation (J = Jq^-1 Jx, "
+                                "3 x 3); use auto or translation")
     p = position_arg(args)
     res = mech.pose_ik(p)
     if args.mode is not None:

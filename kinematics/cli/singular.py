@@ -49,7 +49,7 @@ def register(command: Command) -> None:
     robot_arg(p)
     scan_args(p, 0.01)
     p.add_argument("--paper-scan", action="store_true", help="p2us: also paper B's 8x8x8 actuator scan")
-    p.add_argument("--angle-step-deg", type=positive, default=1.0, metavar="DEG",
+    p.add_argument("--angle-step-deg", type=positive, default=None, metavar="DEG",
                    help="planar arm: joint-grid step in degrees (default 1)")
     p.add_argument("--base-step-deg", type=base_step_deg, default=None, metavar="DEG",
                    help="serial arms with --collisions/--obstacles: the finest base-angle interval [deg] of the "
@@ -76,9 +76,9 @@ def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
         raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
     if getattr(args, "plot", None):
         raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    if args.max_points < 1000:  # before check_points, whose floor (1) is not this one
+        raise InvalidInputError("--max-points", f"must be at least 1000, got {args.max_points:g}")
     budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
-    if budget < 1000:
-        raise InvalidInputError("--max-points", f"must be at least 1000, got {budget}")
     if args.resolution is not None:
         if args.resolution < 4:
             raise InvalidInputError("--resolution", f"must be at least 4 cells, got {args.resolution}")
@@ -176,13 +176,16 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     serial = not ({"joint_singularities", "singular_fields"} & mech.capabilities)
     if args.base_step_deg is not None and (checks is None or not serial):
         raise InvalidInputError("--base-step-deg", "is for serial arms with --collisions or --obstacles")
+    if args.angle_step_deg is not None and "joint_singularities" not in mech.capabilities:  # else ignored
+        raise InvalidInputError("--angle-step-deg", "is for a planar arm's joint grid (scara); this robot's scan "
+                                "is on task-space points (--step) or joint boxes (--max-points)")
     if serial:
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
         return _serial_singularities(args, robot, out, checks)
     if "joint_singularities" in mech.capabilities:
         mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
-        s = mech.joint_singularities(math.radians(args.angle_step_deg))
+        s = mech.joint_singularities(math.radians(args.angle_step_deg or 1.0))
         pts = joint_singular_points(s)
         payload = {
             "robot": robot.name,

@@ -11,6 +11,7 @@ from kinematics.cli.args import (
     collision_args,
     collision_checks,
     load,
+    mode_of,
     non_negative,
     number,
     positive,
@@ -64,28 +65,35 @@ def cmd_show(args: argparse.Namespace) -> int:
     return run(args, robot, with_plane(robot, emit))
 
 
+GUIDE_ROBOTS = ("guidance runs are for planar arms of the scara family (planar 2R arms with closed forms, joint "
+                "axes along z), which {} is not")
+"""--guide's refusal: a planar arm such as the double pendulum (axes along x) is not enough."""
+
+
 def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     import signal
     import sys
 
     import numpy as np
 
-    from kinematics.cli.parallel import POSE_REPORTS
+    from kinematics.cli.parallel import POSE_REPORTS, actuated_arg
     from kinematics.mechanisms import mechanism_of
     from kinematics.views import meshcat as viz
 
     mech = mechanism_of(robot)
     three_limb = mech.capabilities >= POSE_REPORTS  # the closed-form parallel robots (`parallel_view`)
+    # a closed loop's --q: its actuator values, checked and with --degrees applied, for every use below
+    actuators = None if args.q is None or robot.loops is None else actuated_arg(args, robot)
     checks = None
     if args.collisions or args.obstacles:
         if not args.workspace:
             raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
         checks = collision_checks(args, robot)
     if three_limb:
-        unreachable = _parallel_checks(args, robot, mech)
+        unreachable = _parallel_checks(args, robot, mech, actuators)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
-                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} m")
+                     if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
     grid = _serial_collision_grid(args, robot, mech, checks)
@@ -97,13 +105,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     try:
         if three_limb:
             if args.guide is not None:
-                raise InvalidInputError("--guide", "guidance runs are for planar arms")
-            actuators = None
-            if args.q is not None:
-                if len(args.q) != 3:
-                    raise InvalidInputError("--q", f"give the 3 actuator values [{mech.actuator_unit}], got {len(args.q)}")
-                actuators = np.array(args.q, dtype=float)
-            viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode or "---",
+                raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
+            viz.parallel_view(robot, None if args.position is None else np.array(args.position), mode_of(args, "---"),
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
                           step=0.02 if args.step is None else args.step, scene=scene, collisions=checks)
@@ -118,7 +121,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                                step=0.02 if args.step is None else args.step)
             else:
                 if args.guide is not None:
-                    raise InvalidInputError("--guide", "guidance runs are for planar arms")
+                    raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
                 ws = None
                 if (args.workspace and checks is None) or args.singularities:  # the cell engine's
                     from kinematics.cli.singular import serial_scan
@@ -127,7 +130,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 viz.serial_view(robot, q, ellipsoid=args.ellipsoid, workspace=ws, singularities=args.singularities,
                                 scene=scene, collisions=checks, step=args.step, grid=grid)
         else:
-            viz.closed_loop_view(robot, None if args.q is None else np.array(args.q, dtype=float),
+            viz.closed_loop_view(robot, actuators,
                                  workspace=args.workspace, singularities=args.singularities, limits=args.limits,
                                  step=0.05 if args.step is None else args.step, scene=scene, collisions=checks)
         if mesh is not None:
@@ -224,9 +227,9 @@ def _load_mesh(path: str) -> Any:
     return mesh
 
 
-def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[str, Any] | None:
-    """Before a scene starts: the overlay grid fits the view budget, and --position (or --q) is
-    reachable in --mode (else the answer to report, exit 1)."""
+def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any, actuators: Any) -> dict[str, Any] | None:
+    """Before a scene starts: the overlay grid fits the view budget, and --position (or the
+    `actuators` of --q, in rad or m) is reachable in --mode (else the answer to report, exit 1)."""
     import numpy as np
 
     from kinematics.sizes import MAX_VIEW_POINTS, check_points, grid_points
@@ -235,15 +238,15 @@ def _parallel_checks(args: argparse.Namespace, robot: Any, mech: Any) -> dict[st
         lo, hi = mech.bounding_box(args.limits)
         check_points("--step", grid_points(lo, hi, 0.02 if args.step is None else args.step), limit=MAX_VIEW_POINTS,
                      hint=f"{args.step or 0.02:g} m is too fine a step for a view")
-    if args.q is not None and args.position is None and len(args.q) == 3:
-        fk = mech.pose_fk(np.array(args.q, dtype=float))
+    if actuators is not None and args.position is None:
+        fk = mech.pose_fk(actuators)
         if fk.exists:
             return None
-        return {"robot": robot.name, "q": list(args.q), "position": None, "mode": "-", "reachable": False,
+        return {"robot": robot.name, "q": actuators.tolist(), "position": None, "mode": "-", "reachable": False,
                 "reason": fk.reason}
     if args.position is None:
         return None
-    mode = mech.check_branches([args.mode or "---"])[0]
+    mode = mech.check_branches([mode_of(args, "---")])[0]
     m = mech.branches.index(mode)
     p = np.array(args.position, dtype=float)
     sol = mech.pose_ik(p)

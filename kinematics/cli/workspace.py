@@ -262,13 +262,18 @@ _LENGTHS = {"b", "d", "L", "rod_spacing", "stroke", "l1", "l2"}
 _ANGLES = {"beta", "alpha", "theta_limits", "phi_limits", "theta_zero", "lower", "upper"}
 
 
-def _parameter_rows(parameters: dict[str, Any]) -> list[tuple[str, str]]:
-    """(name [unit], value) rows: lengths in m, angles shown in degrees."""
+def _parameter_rows(parameters: dict[str, Any], prismatic: frozenset[int] = frozenset()) -> list[tuple[str, str]]:
+    """(name [unit], value) rows: lengths in m, angles shown in degrees; `prismatic`: the
+    entries of a joint list (a serial arm's lower, upper) that are lengths, kept in m."""
     rows = []
     for k, v in parameters.items():
         if k in _ANGLES:
-            deg = [math.degrees(x) for x in v] if isinstance(v, (list, tuple)) else math.degrees(v)
-            rows.append((f"{k} [deg]", fmt(deg, 6)))
+            if isinstance(v, (list, tuple)):
+                shown: Any = [x if i in prismatic else math.degrees(x) for i, x in enumerate(v)]
+                unit = "m" if len(prismatic) == len(v) else "deg; m for prismatic" if prismatic else "deg"
+            else:
+                shown, unit = math.degrees(v), "deg"
+            rows.append((f"{k} [{unit}]", fmt(shown, 6)))
         else:
             rows.append((f"{k} [m]" if k in _LENGTHS else k, fmt(v, 6)))
     return rows
@@ -307,7 +312,10 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
     held = payload.get("orientation")
     lines += [f"{ws.robot}: workspace {key} ({ws.limits} limits"
               + (f"; tool held at {held['text']})" if held else ")"), ""]
-    lines.append(key_values(_parameter_rows({k: v for k, v in ws.parameters.items() if k != "orientation"}),
+    robot = getattr(mech, "robot", None)  # a serial arm's joints, some of which may be prismatic
+    kinds = {d.name: d.kind for d in robot.dofs} if robot is not None else {}
+    prismatic = frozenset(i for i, n in enumerate(ws.parameters.get("joints", ())) if kinds.get(n) == "prismatic")
+    lines.append(key_values(_parameter_rows({k: v for k, v in ws.parameters.items() if k != "orientation"}, prismatic),
                             digits=None))
     lines += ["", table([mech.branch_kind, f"{key} [{unit}]", f"error estimate [{unit}]"], rows),
               mech.branch_legend, ""]

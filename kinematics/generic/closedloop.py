@@ -73,6 +73,8 @@ class LoopSolution(NamedTuple):
         pose: world placement of the end-effector frame.
         residual: largest constraint error at q [m].
         iterations: Newton iterations spent (all continuation steps together).
+        held: closed by `solve`'s fallback (the actuators held), not by the continuation: possibly
+            another assembly mode than a path from the reference reaches.
     """
 
     q: np.ndarray
@@ -80,6 +82,7 @@ class LoopSolution(NamedTuple):
     pose: pin.SE3
     residual: float
     iterations: int
+    held: bool = False
 
 
 class ClosedLoop:
@@ -260,7 +263,7 @@ class ClosedLoop:
         q, err, it = self.newton(a.q, tol)  # polish to the solver's tolerance
         if err > tol:
             raise ConvergenceError(what, total + it, err, tol)
-        return self._solution(q, err, total + it)
+        return self._solution(q, err, total + it)._replace(held=True)
 
     def _predict(self, q: np.ndarray, da: np.ndarray) -> tuple[np.ndarray, float] | None:
         """First-order step of every joint for an actuated change `da` along the loop manifold,

@@ -75,7 +75,7 @@ def task_rows(robot: Robot, task: Task = "auto") -> tuple[int, ...]:
     if task == "planar":
         rows = plane(robot)
         if rows is None:
-            raise InvalidInputError("task", f"{robot.name} is not a planar arm; use translation/rotation")
+            raise InvalidInputError("task", f"{robot.name} is not a planar arm; use auto, translation, rotation or full")
         return rows
     return {"translation": (0, 1, 2), "rotation": (3, 4, 5), "full": (0, 1, 2, 3, 4, 5)}[task]
 

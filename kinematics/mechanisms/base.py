@@ -213,6 +213,8 @@ class Mechanism(ABC):
             for the generic families.
         assembly_modes: the labels of `fk`'s assembly modes.
         iota_I_label: how `iota_I` is computed, for reports (e.g. "iota_I = min |n.w|").
+        limits_in_design: the limits are design parameters (`params`, read from the URDF's
+            layout), which joint ranges given at loading (`load_robot(ranges=...)`) do not reach.
     """
 
     family: ClassVar[str]
@@ -229,6 +231,7 @@ class Mechanism(ABC):
     params: Any = None
     assembly_modes: tuple[str, ...] = ()
     iota_I_label: str = "iota_I"
+    limits_in_design: ClassVar[bool] = False
 
     # -- what the mechanism provides ---------------------------------------------------------
     @property
@@ -272,10 +275,19 @@ class Mechanism(ABC):
             return self.branches
         for b in branches:
             if b not in self.branches:
-                raise UnknownModeError(b, self.branches)
+                raise UnknownModeError(b, self.branches, self.name)
         if not branches:
-            raise UnknownModeError("", self.branches)
+            raise UnknownModeError("", self.branches, self.name)
         return tuple(dict.fromkeys(branches))
+
+    def check_target(self, branch: str) -> tuple[str, ...]:
+        """The branches behind one target: `branch` alone, or every branch for UNION; raises
+        UnknownModeError listing UNION beside the branches, since it is a valid answer here."""
+        if branch == UNION:
+            return self.branches
+        if branch not in self.branches:
+            raise UnknownModeError(branch, (*self.branches, UNION))
+        return (branch,)
 
     def bounding_box(self, limits: str = "all") -> tuple[np.ndarray, np.ndarray]:
         """A box [m] containing every reachable task point under `limits`."""

@@ -72,7 +72,10 @@ JointKind = Literal["revolute", "prismatic", "continuous"]
 def matrix(J: object, ncols: int) -> np.ndarray:
     """A Pinocchio matrix as a 2-D array with `ncols` columns: Pinocchio's Python bindings
     return an n x 1 matrix (a 1-DOF robot's Jacobian) as a 1-D array."""
-    return np.asarray(J).reshape(-1, ncols)
+    a = np.asarray(J)
+    if a.ndim == 2 and a.shape[1] == ncols:  # an n x 0 one too, whose row count -1 cannot infer from size 0
+        return a
+    return a.reshape(-1, ncols)
 
 
 class Dof(NamedTuple):

@@ -57,6 +57,12 @@ class GenericClosedLoop(Mechanism):
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.name = robot.name
+        # the unit of J's columns, one per actuator: one unit when every actuator shares it (as
+        # SerialArm), so dexterity notes a mixed J only for a mechanism that has one
+        kinds = {d.name: d.kind for d in robot.dofs}
+        prismatic = [kinds.get(a) == "prismatic" for a in (robot.loops.actuated if robot.loops else ())]
+        if prismatic:
+            self.actuator_unit = "m" if all(prismatic) else "rad" if not any(prismatic) else "rad or m"
 
     @functools.cached_property
     def batch(self) -> Any:

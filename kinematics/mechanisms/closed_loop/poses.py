@@ -55,8 +55,9 @@ def closed_pose(loop: ClosedLoop, actuated: Sequence[float] | np.ndarray | None 
 
     Raises:
         AssemblyError: no closed pose was found for the default.
-        ConvergenceError: the loops do not close at `actuated` from the default pose (no assembly
-            there, or a singularity on the continuation's path).
+        ConvergenceError: the loops do not close at `actuated`, neither by continuation from the
+            default pose nor with the actuators held (`ClosedLoop.solve`'s fallback, as mobility and
+            show pose it): no assembly there, or none found.
     """
     robot = loop.robot
     if actuated is None:
@@ -67,9 +68,11 @@ def closed_pose(loop: ClosedLoop, actuated: Sequence[float] | np.ndarray | None 
         values = robot.values_from_configuration(q)
         return ClosedPose(q, values, values[loop.actuated_dofs], float(err), a.description)
     target = np.asarray(actuated, dtype=float).reshape(-1)
-    sol = loop.solve(target)
-    where = (f"the actuator values {np.round(target, 9).tolist()} (reached by continuation from "
-             f"{loop.assembly.description})")
+    sol = loop.solve(target, fallback=True)
+    start = loop.assembly.description
+    how = (f"closed with the actuators held, possibly in another assembly mode: the continuation from {start} "
+           "got stuck" if sol.held else f"reached by continuation from {start}")
+    where = f"the actuator values {np.round(target, 9).tolist()} ({how})"
     return ClosedPose(sol.q, sol.values, sol.values[loop.actuated_dofs], float(sol.residual), where)
 
 

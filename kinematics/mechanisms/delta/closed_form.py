@@ -54,6 +54,7 @@ from kinematics.errors import InvalidDesignError
 from kinematics.mechanisms.base import SINGULAR_TOL, SINGULARITY_TYPES, classify
 from kinematics.mechanisms.three_limb import modes
 from kinematics.mechanisms.three_limb.closed_form import (
+    ACTUATOR_TOL,
     ASSEMBLY_MODES,
     MODES,
     FKResult,
@@ -228,7 +229,7 @@ def cone_angles(params: DeltaParams, theta: np.ndarray, n: np.ndarray) -> tuple[
 def limb_limits(params: DeltaParams, limbs: LimbSolutions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per limb and root: (theta ok, elbow cone ok, platform cone ok), each S + (3, 2)."""
     with np.errstate(invalid="ignore"):
-        theta_ok = (limbs.q >= params.theta_limits[0]) & (limbs.q <= params.theta_limits[1])
+        theta_ok = (limbs.q >= params.theta_limits[0] - ACTUATOR_TOL) & (limbs.q <= params.theta_limits[1] + ACTUATOR_TOL)
         ce, cp = cone_angles(params, limbs.q, limbs.n)
         return theta_ok, ce <= params.cone, cp <= params.cone
 
@@ -317,7 +318,7 @@ def violations(params: DeltaParams, q: np.ndarray, n: np.ndarray) -> list[str]:
     out = []
     for i in range(3):
         lim = f"limb {i + 1}: "
-        if not lo <= q[i] <= hi:
+        if not lo - ACTUATOR_TOL <= q[i] <= hi + ACTUATOR_TOL:
             out.append(lim + f"theta = {deg(q[i])} outside [{deg(lo)}, {deg(hi)}]")
         if ce[i] > params.cone:
             out.append(lim + f"elbow ball joint at {deg(ce[i])} from its socket axis, beyond the cone's {deg(params.cone)}")

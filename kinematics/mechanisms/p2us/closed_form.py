@@ -53,6 +53,7 @@ from kinematics.mechanisms.base import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.mechanisms.base import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.mechanisms.base import classify as classify
 from kinematics.mechanisms.three_limb import modes
+from kinematics.mechanisms.three_limb.closed_form import ACTUATOR_TOL
 from kinematics.mechanisms.three_limb.closed_form import ASSEMBLY_MODES as ASSEMBLY_MODES
 from kinematics.mechanisms.three_limb.closed_form import BOUNDARY_TOL as BOUNDARY_TOL
 from kinematics.mechanisms.three_limb.closed_form import MODES as MODES
@@ -263,7 +264,7 @@ def passive_limits_ok(params: P2USParams, n: np.ndarray) -> tuple[np.ndarray, np
 def limb_limits(params: P2USParams, limbs: LimbSolutions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per limb and root: (stroke ok, theta ok, phi ok), each S + (3, 2)."""
     with np.errstate(invalid="ignore"):
-        stroke_ok = (limbs.q >= params.stroke[0]) & (limbs.q <= params.stroke[1])
+        stroke_ok = (limbs.q >= params.stroke[0] - ACTUATOR_TOL) & (limbs.q <= params.stroke[1] + ACTUATOR_TOL)
     theta_ok, phi_ok = passive_limits_ok(params, limbs.n)
     return stroke_ok, theta_ok, phi_ok
 
@@ -321,9 +322,9 @@ def violations(params: P2USParams, q: np.ndarray, n: np.ndarray) -> list[str]:
     out = []
     for i in range(3):
         lim = f"limb {i + 1}: "
-        if q[i] < params.stroke[0]:
+        if q[i] < params.stroke[0] - ACTUATOR_TOL:
             out.append(lim + f"q = {q[i]:.6g} m below the stroke's {params.stroke[0]:g} m")
-        elif q[i] > params.stroke[1]:
+        elif q[i] > params.stroke[1] + ACTUATOR_TOL:
             out.append(lim + f"q = {q[i]:.6g} m above the stroke's {params.stroke[1]:g} m")
         if not theta_ok[i]:
             lo, hi = params.theta_limits

@@ -33,6 +33,11 @@ ELBOWS = ("up", "down")
 BOUNDARY_TOL = 1e-12
 """|cos theta2| may exceed 1 by this much (rounding on the workspace boundary) and still count."""
 
+LIMIT_TOL = 1e-12
+"""[rad] A joint angle this close beyond an end of its range counts as within it: the IK gives
+back an angle the FK was given on an end to a few ulp (atan2's round-off, ~1e-16 rad), so fk then
+ik keeps such a pose within the limits; 1e-12 leaves a factor 1e4."""
+
 
 @dataclass(frozen=True)
 class ScaraParams:
@@ -218,7 +223,7 @@ def ik(p: ScaraParams, xy: np.ndarray) -> ScaraIK:
     out[~reachable] = np.nan
     lo, hi = np.asarray(p.lower), np.asarray(p.upper)
     with np.errstate(invalid="ignore"):
-        within = np.all((out >= lo) & (out <= hi), axis=-1) & reachable[..., None]
+        within = np.all((out >= lo - LIMIT_TOL) & (out <= hi + LIMIT_TOL), axis=-1) & reachable[..., None]
     return ScaraIK(out, reachable, within)
 
 
@@ -307,7 +312,7 @@ def solve_ik(p: ScaraParams, xy: tuple[float, float] | np.ndarray) -> IKAnswer:
         viol = tuple(
             f"{names[j]} = {q[j]:.6g} rad outside [{p.lower[j]:.6g}, {p.upper[j]:.6g}]"
             for j in range(2)
-            if not p.lower[j] <= q[j] <= p.upper[j]
+            if not p.lower[j] - LIMIT_TOL <= q[j] <= p.upper[j] + LIMIT_TOL
         )
         sols.append(IKSolution((float(q[0]), float(q[1])), elbow, not viol, viol))
     ok = any(s.within_limits for s in sols)

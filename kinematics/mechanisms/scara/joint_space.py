@@ -25,8 +25,11 @@ def singular_set(sp: ScaraParams, step: float = math.radians(1.0)) -> dict[str, 
     """
     if not (math.isfinite(step) and step > 0):
         raise InvalidInputError("step", f"must be a positive angle [rad], got {step}")
-    check_points("angle step", ((sp.upper[0] - sp.lower[0]) / step + 1) * ((sp.upper[1] - sp.lower[1]) / step + 1),
-                 hint=f"{math.degrees(step):g} deg is too fine a joint-grid step")
+    w1, w2 = sp.upper[0] - sp.lower[0], sp.upper[1] - sp.lower[1]
+    # workspace-volume scans at the default step: the ranges (--range) are what its user can change
+    check_points("angle step", (w1 / step + 1) * (w2 / step + 1),
+                 hint=f"{math.degrees(step):g} deg is too fine a joint-grid step for joint ranges of {w1:.3g} and "
+                      f"{w2:.3g} rad (a coarser --angle-step-deg, or narrower --range)")
     t1 = np.linspace(sp.lower[0], sp.upper[0], max(2, math.ceil((sp.upper[0] - sp.lower[0]) / step) + 1))
     t2 = np.linspace(sp.lower[1], sp.upper[1], max(2, math.ceil((sp.upper[1] - sp.lower[1]) / step) + 1))
     Q = np.stack(np.meshgrid(t1, t2, indexing="ij"), axis=-1)

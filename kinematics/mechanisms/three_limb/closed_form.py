@@ -22,6 +22,11 @@ BOUNDARY_TOL = 1e-12
 """IK discriminants (and FK's h^2) down to -BOUNDARY_TOL * L^2 count as zero: exactly on a
 reach boundary (a type I pose) rounding leaves them at +/-1e-17 m^2."""
 
+ACTUATOR_TOL = 1e-12
+"""[m or rad] An actuator value this close beyond an end of its range counts as within it: the IK
+gives back an actuator value the FK was given on an end to a few ulp (~1e-16 for values of order
+1), so fk then ik keeps such a pose within the limits; 1e-12 leaves a factor 1e4."""
+
 
 def mode_index(mode: str) -> int:
     """Index of a working-mode label in MODES; raises UnknownModeError."""

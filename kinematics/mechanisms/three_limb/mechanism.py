@@ -43,6 +43,7 @@ class ThreeLimbMechanism(Mechanism):
     branches = MODES
     assembly_modes = ASSEMBLY_MODES
     limit_sets = LIMITS
+    limits_in_design = True  # one stroke, theta range, cone... for the three limbs, from the URDF
     closed_form: ClassVar[ModuleType]
 
     def __init__(self, params: Any, name: str | None = None) -> None:

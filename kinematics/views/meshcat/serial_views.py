@@ -27,6 +27,8 @@ def default_pose(robot: Any) -> np.ndarray:
     bounded = np.isfinite(lo) & np.isfinite(hi)  # a continuous joint's -inf + inf would be NaN
     lo, hi = np.where(bounded, lo, 0.0), np.where(bounded, hi, 0.0)
     mid = (lo + hi) / 2
+    if robot.nv == 0:  # nothing moves: the one pose (its Jacobian is 6 x 0, no conditioning to test)
+        return mid
     step = np.minimum(0.3 * np.where(bounded, (hi - lo) / 2, np.inf), 1.0)
     offset = step * (-1.0) ** np.arange(robot.nv)
     for q in (mid, mid + offset):
