@@ -717,3 +717,43 @@ def test_ctrl_c_during_a_sweep_is_one_line():
     proc = _interrupt(_kinematics("sweep", "p2us", "--param", "b=0.3:0.35:20", "--param", "L=0.3:0.4:10", "--workers", "2"),
                       10.0, group=True)
     assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr
+
+
+def _ctrl_c_inside_a_kernel(args: object) -> int:
+    # What Python makes of Ctrl-C when it lands while a compiled Numba kernel calls back into the
+    # interpreter (seen in `workspace-volume ur5`'s reachability search): the KeyboardInterrupt
+    # comes back as the cause of a SystemError, itself the cause of the kernel's SystemError.
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as ctrl_c:
+            raise SystemError("<function _numba_unpickle> returned a result with an exception set") from ctrl_c
+    except SystemError as inner:
+        raise SystemError("CPUDispatcher(<function search>) returned a result with an exception set") from inner
+
+
+def test_ctrl_c_inside_a_compiled_kernel_is_one_line(capsys, monkeypatch):
+    from kinematics.cli import info
+
+    monkeypatch.setattr(info, "cmd_info", _ctrl_c_inside_a_kernel)
+    assert main(["info", "scara"]) == 130
+    assert capsys.readouterr().err == "kinematics: interrupted\n"
+
+
+def test_a_system_error_without_ctrl_c_is_not_an_interrupt(monkeypatch):
+    from kinematics.cli import info
+
+    def broken(args: object) -> int:
+        raise SystemError("a bug, not an interrupt")
+
+    monkeypatch.setattr(info, "cmd_info", broken)
+    with pytest.raises(SystemError, match="a bug"):
+        main(["info", "scara"])
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_serial_arm_volume_is_one_line():
+    # the UR5's volume at rtol 1e-5 runs well over a minute, so the interrupt at 8 s lands inside
+    # the compiled reachability search (it came out as a 76-line SystemError traceback, exit 1)
+    proc = _interrupt(_kinematics("workspace-volume", "ur5", "--rtol", "1e-5"), 8.0)
+    assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr

@@ -141,6 +141,18 @@ def _run(argv: Sequence[str] | None) -> int:
         return EXIT_ERROR
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """True for Ctrl-C, also when it reaches us disguised: a KeyboardInterrupt raised while a
+    compiled Numba kernel was calling back into Python comes out of the kernel as the cause (or
+    the cause's cause) of a SystemError."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            return True
+        seen = seen.__cause__
+    return False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 ok, 1 unreachable, 2 bad input, 130 interrupted,
     141 stdout closed early)."""
@@ -150,7 +162,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = _run(argv)
         sys.stdout.flush()
         return code
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not _interrupted(exc):
+            raise
         print("kinematics: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except OSError as exc:
