@@ -187,3 +187,27 @@ def test_workspace_mesh_help_names_the_delta(capsys, tmp_path):
     assert main(["workspace-mesh", "--help"]) == 0
     assert "p2us, delta" in " ".join(capsys.readouterr().out.split())
     assert main(["workspace-mesh", "delta", "-o", str(tmp_path / "d.stl"), "--step", "0.1"]) == 0
+
+
+@pytest.mark.parametrize("argv", [
+    ("workspace-volume", "p2us", "--step", "0.05", "--rtol", "0.1"),
+    ("singularities", "p2us", "--step", "0.05"),
+    ("usable-workspace", "p2us", "--shape", "cube", "--step", "0.05"),
+    ("dexterity", "p2us", "--samples", "64", "--replicates", "2"),
+    ("show", "p2us", "--workspace", "--step", "0.05", "--export", "{tmp}/v.html"),
+])
+def test_compile_notice_before_uncached_kernels(capsys, monkeypatch, tmp_path, argv):
+    """On a terminal, every command that runs a mechanism's compiled kernels says "compiling kernels
+    (first run only)" when Numba's cache lacks them (a generic closed loop's solver: minutes of
+    silence otherwise); told the cache is full, none does. The terminal and the cache's state are
+    simulated (the kernels are in fact cached by then: the runs stay quick)."""
+    from kinematics import jit
+    from kinematics.cli import report
+
+    argv = tuple(a.replace("{tmp}", str(tmp_path)) for a in argv)
+    monkeypatch.setattr(report, "show_progress", lambda args: not getattr(args, "json", False))
+    for cached, want in ((False, 1), (True, 0)):
+        monkeypatch.setattr(jit, "cached", lambda kernels, cached=cached: cached)
+        code, _, err = run(capsys, *argv)
+        assert code == 0, err
+        assert err.count("compiling kernels (first run only)") == want, err

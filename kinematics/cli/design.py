@@ -17,7 +17,7 @@ from kinematics.cli.args import (
     positive,
     robot_arg,
 )
-from kinematics.cli.report import Out, emit, fmt, key_values
+from kinematics.cli.report import Out, compile_notice, emit, fmt, key_values
 from kinematics.files import check_output, write_atomic
 
 if TYPE_CHECKING:
@@ -125,6 +125,7 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    compile_notice(args, mech.kernels())  # before the branches: a generic closed loop's come from its solver
     mode = mode_of(args, default_branch(mech))
     checks = collision_checks(args, robot)
     margin_of = None
@@ -182,6 +183,7 @@ def workspace_mesh(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    compile_notice(args, mech.kernels())  # before the branches: a generic closed loop's come from its solver
     mode = mode_of(args, default_branch(mech))
     mesh = mesh_of(mech, mode, args.step, args.limits)
     write_atomic(args.o, lambda tmp: export(mesh, tmp), "-o")
@@ -209,6 +211,7 @@ def dexterity(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     orientation = orientation_of(args)
     mech: Mechanism = mechanism_of(robot, orientation)
+    compile_notice(args, mech.kernels())
     if args.mode is not None:
         mech.check_target(args.mode)  # the refusal lists union too
     branches = None if args.mode in (None, UNION) else [args.mode]

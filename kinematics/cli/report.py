@@ -101,3 +101,15 @@ def show_progress(args: argparse.Namespace) -> bool:
     import sys
 
     return not getattr(args, "json", False) and sys.stderr.isatty()
+
+
+def compile_notice(args: argparse.Namespace, kernels: Sequence[Any]) -> None:
+    """On a terminal (as the progress bars), "compiling kernels (first run only)" on stderr before
+    a wait for Numba kernels its cache does not hold (a generic closed loop's solver: minutes)."""
+    if kernels and show_progress(args):
+        import sys
+
+        from kinematics import jit
+
+        if not jit.cached(kernels):
+            print("compiling kernels (first run only)", file=sys.stderr, flush=True)

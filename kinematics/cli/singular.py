@@ -17,7 +17,7 @@ from kinematics.cli.args import (
     scan_args,
     serial_args,
 )
-from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
+from kinematics.cli.report import Out, compile_notice, emit, fmt, key_values, show_progress, table
 from kinematics.errors import InvalidInputError
 from kinematics.sizes import check_points
 
@@ -172,6 +172,7 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(robot)
+    compile_notice(args, mech.kernels())
     checks = collision_checks(args, robot)
     serial = not ({"joint_singularities", "singular_fields"} & mech.capabilities)
     if args.base_step_deg is not None and (checks is None or not serial):

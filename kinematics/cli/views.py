@@ -18,7 +18,7 @@ from kinematics.cli.args import (
     robot_arg,
     serial_args,
 )
-from kinematics.cli.report import Out, emit, with_plane
+from kinematics.cli.report import Out, compile_notice, emit, with_plane
 from kinematics.errors import InvalidInputError
 
 
@@ -81,6 +81,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
     from kinematics.views import meshcat as viz
 
     mech = mechanism_of(robot)
+    if args.workspace:  # its scan (a generic closed loop: the batched solver)
+        compile_notice(args, mech.kernels())
     three_limb = mech.capabilities >= POSE_REPORTS  # the closed-form parallel robots (`parallel_view`)
     # a closed loop's --q: its actuator values, checked and with --degrees applied, for every use below
     actuators = None if args.q is None or robot.loops is None else actuated_arg(args, robot)

@@ -19,7 +19,7 @@ from kinematics.cli.args import (
     robot_arg,
     scan_args,
 )
-from kinematics.cli.report import Out, emit, fmt, key_values, show_progress, table
+from kinematics.cli.report import Out, compile_notice, emit, fmt, key_values, show_progress, table
 from kinematics.errors import InvalidInputError
 from kinematics.files import write_atomic
 from kinematics.sizes import MAX_LISTED_POINTS, cell_centres, check_points, grid_points
@@ -95,13 +95,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         from kinematics.analyses import singular_edges
 
         kernels += singular_edges.kernels()
-    if kernels and show_progress(args):  # a terminal's notice, like the progress bars
-        from kinematics import jit
-
-        if not jit.cached(kernels):
-            import sys
-
-            print("compiling kernels (first run only)", file=sys.stderr, flush=True)
+    compile_notice(args, kernels)
     colliding = getattr(args, "collisions", False) or getattr(args, "obstacles", None)
     # the collision model (or the refusal) before the branches: a generic closed loop compiles its solver to find them
     checks = collision_checks(args, robot)
