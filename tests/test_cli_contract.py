@@ -229,6 +229,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["singularities", "p2us", "--plot", "nodir/s.png"], "does not exist"),
     (["singularities", "scara", "--angle-step-deg", "1e-9"], "over the 200,000,000 limit"),
     (["singularities", "delta", "--angle-step-deg", "5"], ("--angle-step-deg", "planar arm")),  # not ignored
+    # a serial arm's cell-engine flags where no cell engine runs: refused, not ignored
+    (["singularities", "p2us", "--max-points", "5000"], ("--max-points", "serial arm's joint boxes")),
+    (["singularities", FOURBAR, "--resolution", "10"], ("--resolution", "task-space points")),
+    (SHOW + ["--workspace", "--max-points", "5000"], ("--max-points", "show runs it only")),
+    (["show", "scara", "--workspace", "--resolution", "10", "--export", "v.html"], ("--resolution", "serial arm")),
+    (["show", "ur5", "--max-points", "5000", "--export", "v.html"], ("--max-points", "--singularities")),
     (["singularities", "scara", "--angle-step-deg", "0"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "-1"], POSITIVE),
     (["singularities", "scara", "--angle-step-deg", "nan"], POSITIVE),

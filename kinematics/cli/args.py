@@ -178,8 +178,12 @@ def scan_args(p: argparse.ArgumentParser, step: float) -> None:
     p.add_argument("--plot", metavar="FILE.png", help="write a figure")
 
 
+SERIAL_BUDGET = 2_000_000
+"""--max-points' default: configurations of a serial arm's cell engine."""
+
+
 def serial_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--max-points", type=positive, default=2_000_000, metavar="N",
+    p.add_argument("--max-points", type=positive, default=None, metavar="N",
                    help="serial arms: budget of configurations (default 2e6: 15-25 s for the UR5 on 2 cores, "
                         "proved bounds about +/-50 %%; the bounds stay valid at any budget)")
     p.add_argument("--resolution", type=integer, metavar="N",
@@ -198,6 +202,16 @@ def collision_args(p: argparse.ArgumentParser, what: str = "") -> None:
 
 
 # -- what handlers read from the arguments -------------------------------------------------------
+def refuse_serial_args(args: argparse.Namespace, why: str) -> None:
+    """Refuse --max-points or --resolution (`serial_args`) where no serial arm's cell engine runs
+    (`why` says what runs instead), rather than ignore them."""
+    from kinematics.errors import InvalidInputError
+
+    for flag, value in (("--max-points", args.max_points), ("--resolution", args.resolution)):
+        if value is not None:
+            raise InvalidInputError(flag, f"is for a serial arm's joint boxes (the cell engine); {why}")
+
+
 def load(args: argparse.Namespace) -> Any:
     """The robot of ROBOT and --range. --range is refused for a mechanism whose limits are design
     parameters (the p2us, the Delta): its closed forms would answer as if it were not given."""

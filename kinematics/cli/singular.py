@@ -8,11 +8,13 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from kinematics.cli.args import (
+    SERIAL_BUDGET,
     Command,
     collision_args,
     collision_checks,
     load,
     positive,
+    refuse_serial_args,
     robot_arg,
     scan_args,
     serial_args,
@@ -76,6 +78,8 @@ def serial_scan(args: argparse.Namespace, robot: Robot) -> Any:
         raise InvalidInputError("--limits", "a serial arm has its URDF's joint limits only: use all")
     if getattr(args, "plot", None):
         raise InvalidInputError("--plot", "no figure for serial arms yet; use `show ROBOT --workspace --export F.html`")
+    if args.max_points is None:
+        args.max_points = SERIAL_BUDGET
     if args.max_points < 1000:  # before check_points, whose floor (1) is not this one
         raise InvalidInputError("--max-points", f"must be at least 1000, got {args.max_points:g}")
     budget = args.max_points = check_points("--max-points", args.max_points, hint="a smaller budget")
@@ -180,6 +184,8 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if args.angle_step_deg is not None and "joint_singularities" not in mech.capabilities:  # else ignored
         raise InvalidInputError("--angle-step-deg", "is for a planar arm's joint grid (scara); this robot's scan "
                                 "is on task-space points (--step) or joint boxes (--max-points)")
+    if not serial:
+        refuse_serial_args(args, "this robot's singular loci are scanned on task-space points (--step)")
     if serial:
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)

@@ -15,6 +15,7 @@ from kinematics.cli.args import (
     non_negative,
     number,
     positive,
+    refuse_serial_args,
     robot_arg,
     serial_args,
 )
@@ -98,6 +99,10 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
+    cell_engine = (robot.loops is None and not three_limb and "joint_singularities" not in mech.capabilities
+                   and ((args.workspace and checks is None) or args.singularities))
+    if not cell_engine:  # before the scene: bad input starts no server
+        refuse_serial_args(args, "show runs it only for a serial arm's --singularities, or its --workspace without collisions")
     grid = _serial_collision_grid(args, robot, mech, checks)
     mesh = _load_mesh(args.mesh) if args.mesh else None
     if not args.export:
