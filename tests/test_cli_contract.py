@@ -200,8 +200,8 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "p2us", "--modes", "+++", "up"], unknown_mode("up")),
     (["workspace-volume", "scara", "--modes", "zzz"], unknown_mode("zzz", ELBOWS)),
     (["workspace-volume", "p2us", "--limits", "some"], "invalid choice"),
-    (["workspace-volume", "p2us", "--rtol", "-1"], POSITIVE),
-    (["workspace-volume", "p2us", "--rtol", "nan"], POSITIVE),
+    (["workspace-volume", "p2us", "--rtol", "-1"], "must be 0 or positive"),  # 0 is allowed: the message says so
+    (["workspace-volume", "p2us", "--rtol", "nan"], "must be 0 or positive and finite"),
     (["workspace-volume", "p2us", "--rtol", "x"], NUMBER),
     (["workspace-volume", "scara", "--rtol", "1e-12"], "too tight a tolerance"),  # refused after the first grid
     (["workspace-volume", "p2us", "--plot", "myplot"], "unknown suffix"),

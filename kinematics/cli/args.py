@@ -61,7 +61,12 @@ def non_negative(text: str) -> float:
             return 0.0
     except ValueError:
         pass  # positive() says it is not a number
-    return positive(text)
+    try:
+        return positive(text)
+    except argparse.ArgumentTypeError as exc:
+        if "must be positive" not in str(exc):
+            raise
+        raise argparse.ArgumentTypeError(f"must be 0 or positive and finite, got {text}") from None
 
 
 def number(text: str) -> float:
