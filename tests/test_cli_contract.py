@@ -312,7 +312,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     ([*SHOW, "--step", "0"], POSITIVE),
     ([*SHOW, "--step", "1e-9", "--workspace"], "limit"),
     ([*SHOW, "--step", "0.001", "--singularities"], "limit"),
-    ([*SHOW, "--serve-seconds", "-1"], POSITIVE),
+    ([*SHOW, "--serve-seconds", "-1"], "must be 0 or positive"),
     (["show", "p2us", "--export", "v.png"], "unknown suffix"),
     (["show", "p2us", "--export", "adir"], "is a directory"),
     (["show", "p2us", "--export", "nodir/v.html"], "does not exist"),
