@@ -155,6 +155,18 @@ def configurations(mech: Mechanism, robot: Any, points: np.ndarray, branch: str)
     return out
 
 
+def found_distances(dist: AnalyticDistances, q: np.ndarray, signs: bool = True) -> np.ndarray:
+    """(N, P) every pair's signed distance [m] at configurations q (N, nq) (`dist.distances`), +inf
+    in the rows of q holding NaN: where `configurations` found none (a generic loop's solver can
+    miss a point near its reach boundary that the margin's own solve reached)."""
+    found = np.isfinite(q).all(axis=1)
+    if found.all():
+        return dist.distances(q, signs=signs)
+    out = np.full((len(q), len(dist.kinds)), np.inf)
+    out[found] = dist.distances(q[found], signs=signs)
+    return out
+
+
 class CollisionMargin:
     """The collision-aware margin (module docstring) of `branches` under `limits`, as a column
     engine margin: points (N, d) -> (N, B + 2 + W) columns: each branch's m_b, the kinematic
@@ -173,15 +185,10 @@ class CollisionMargin:
     def branch_distances(self, points: np.ndarray, b: int, inside: np.ndarray, signs: bool = True) -> np.ndarray:
         """(M, P) pair distances at the points `inside` (a mask) in branch b (`signs`: only their
         signs need be right, `AnalyticDistances.distances`)."""
-        q = configurations(self.mech, self.robot, points[inside], self.branches[b])
-        found = np.isfinite(q).all(axis=1)
-        if found.all():
-            return self.distances.distances(q, signs=signs)
-        # no configuration (a generic loop's solver missing a point at its reach boundary): the
-        # kinematic margin decides there, as where the exact columns' rounding leaves none
-        out = np.full((len(q), len(self.distances.kinds)), np.inf)
-        out[found] = self.distances.distances(q[found], signs=signs)
-        return out
+        # a point with no configuration gets +inf: the kinematic margin decides there, as where
+        # the exact columns' rounding leaves none
+        return found_distances(self.distances, configurations(self.mech, self.robot, points[inside],
+                                                              self.branches[b]), signs)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         pts = np.asarray(points, dtype=float)
@@ -281,9 +288,8 @@ def colliding_at(mech: Mechanism, robot: Any, model: CollisionModel, points: np.
         name = mech.branches[int(w)]
         sel = sel[mech.margin([name], limits)(pts[sel])[:, 0] > 0]
         if len(sel):
-            q = configurations(mech, robot, pts[sel], name)
-            found = np.isfinite(q).all(axis=1)  # (a generic loop's solver can miss a point: not flagged)
-            out[sel[found]] = dist.distances(q[found], signs=True).min(axis=1) < 0
+            # (+inf where a generic loop's solver misses a point: not flagged)
+            out[sel] = found_distances(dist, configurations(mech, robot, pts[sel], name), True).min(axis=1) < 0
     return out
 
 
