@@ -1,9 +1,12 @@
-"""Output files written safely: paths checked before any work, content written atomically."""
+"""Files: inputs read with one-line errors; outputs written safely (paths checked before any
+work, content written atomically)."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 OUTPUT_SUFFIXES: dict[str, tuple[str, ...]] = {
     "figure": (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff"),
@@ -15,6 +18,22 @@ OUTPUT_SUFFIXES: dict[str, tuple[str, ...]] = {
     "mesh": (".stl", ".ply", ".glb"),
 }
 """The suffixes each kind of output file may have (the writer is chosen by the suffix)."""
+
+
+def read_text(path: str | os.PathLike[str], error: Callable[[Path, str], Exception] | None = None) -> str:
+    """The UTF-8 text of an input file (a loop sidecar, a Gepetto robot.yaml, an obstacle file);
+    where it cannot be had, `error(path, reason)` is raised (default `ModelFileError`) with a
+    one-line reason: not UTF-8 text, or unreadable."""
+    from kinematics.errors import ModelFileError
+
+    p = Path(path)
+    fail = ModelFileError if error is None else error
+    try:
+        return p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise fail(p, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise fail(p, f"cannot read ({exc.strerror or exc})") from None
 
 
 def check_output(path: str, option: str, kind: str) -> None:

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.errors import InvalidInputError, ModelFileError
+from kinematics.files import read_text
 
 SHAPES = ("box", "cylinder", "capsule", "sphere", "halfspace", "mesh")
 """The YAML format's shape keys."""
@@ -75,7 +76,7 @@ def _from_urdf(path: Path) -> Obstacles:
     from kinematics.model.geometry import load_failure, mesh_file
 
     try:
-        root = ET.fromstring(_text(path))
+        root = ET.fromstring(read_text(path))
     except ET.ParseError as exc:
         raise ModelFileError(path, f"not XML: {exc}") from None
     moving = [j.get("name", "?") for j in root.iter("joint") if j.get("type") != "fixed"]
@@ -119,7 +120,7 @@ def _from_yaml(path: Path) -> Obstacles:
     import yaml
 
     try:
-        data = yaml.safe_load(_text(path))
+        data = yaml.safe_load(read_text(path))
     except yaml.YAMLError as exc:  # the parser's own message spans lines (it quotes the text)
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -147,15 +148,6 @@ def _from_yaml(path: Path) -> Obstacles:
         out.addGeometryObject(pin.GeometryObject(name, 0, 0, placement, shape))
         links.append(name)
     return Obstacles(out, links, str(path))
-
-
-def _text(path: Path) -> str:
-    try:
-        return path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ModelFileError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise ModelFileError(path, f"cannot read ({exc.strerror or exc})") from None
 
 
 def _floats(value: Any, n: int, what: str = "size") -> list[float]:

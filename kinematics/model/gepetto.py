@@ -43,6 +43,7 @@ from typing import Any
 import pinocchio as pin
 
 from kinematics.errors import KinematicsWarning, ModelFileError, UnknownFrameError, UnknownJointError, closest
+from kinematics.files import read_text
 from kinematics.model.loops import Closure, LoopSpec
 
 FILENAME = "robot.yaml"
@@ -123,13 +124,9 @@ def read_gepetto(path: str | os.PathLike[str]) -> GepettoSpec | None:
 
     p = Path(path)
     try:
-        raw = yaml.safe_load(p.read_text())
+        raw = yaml.safe_load(read_text(p, GepettoFormatError))
     except yaml.YAMLError as exc:
         raise GepettoFormatError(p, f"malformed YAML ({str(exc).splitlines()[0]})") from None
-    except UnicodeDecodeError as exc:
-        raise GepettoFormatError(p, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise GepettoFormatError(p, f"cannot read ({exc.strerror})") from None
     if not isinstance(raw, dict) or not set(raw) & set(KEYS + LEGACY_KEYS):
         return None
     legacy = [k for k in LEGACY_KEYS if k in raw] or (["name_mot"] if isinstance(raw.get("name_mot"), str) else [])

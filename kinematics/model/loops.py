@@ -28,6 +28,7 @@ from typing import Any, Literal
 import pinocchio as pin
 
 from kinematics.errors import InvalidInputError, ModelFileError, UnknownFrameError, UnknownJointError
+from kinematics.files import read_text
 
 ClosureType = Literal["point", "6d"]
 CLOSURE_TYPES: tuple[str, ...] = ("point", "6d")
@@ -91,13 +92,9 @@ def load_loop_spec(path: Path, model: pin.Model) -> LoopSpec:
     import yaml
 
     try:
-        raw = yaml.safe_load(Path(path).read_text())
+        raw = yaml.safe_load(read_text(path))
     except yaml.YAMLError as exc:
         raise ModelFileError(path, f"malformed YAML ({str(exc).splitlines()[0]})") from None
-    except UnicodeDecodeError as exc:
-        raise ModelFileError(path, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise ModelFileError(path, f"cannot read ({exc.strerror})") from None
     if not isinstance(raw, dict):
         raise ModelFileError(path, "expected a mapping at the top level")
     if raw.get("format", FORMAT) != FORMAT:
