@@ -43,40 +43,39 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_ERROR, f"{self.prog}: error: {message}\n")
 
 
+def _real(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
 def positive(text: str) -> float:
     import math
 
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    v = _real(text)
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"must be positive and finite, got {text}")
     return v
 
 
 def non_negative(text: str) -> float:
-    try:  # a zero however spelt (0.00, -0, 0e0), not only "0"
-        if float(text) == 0.0:
-            return 0.0
-    except ValueError:
-        pass  # positive() says it is not a number
-    try:
-        return positive(text)
-    except argparse.ArgumentTypeError as exc:
-        if "must be positive" not in str(exc):
-            raise
-        raise argparse.ArgumentTypeError(f"must be 0 or positive and finite, got {text}") from None
+    """0 (however spelt: 0.00, -0, 0e0) or a positive finite number."""
+    import math
+
+    v = _real(text)
+    if v == 0.0:
+        return 0.0
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be 0 or positive and finite, got {text}")
+    return v
 
 
 def number(text: str) -> float:
     """A coordinate: finite, magnitude at most MAX_MAGNITUDE."""
     import math
 
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    v = _real(text)
     if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
         raise argparse.ArgumentTypeError(f"must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {text}")
     return v
