@@ -200,13 +200,14 @@ def indices(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per (..., d, a) Jacobian: 1/kappa, w = sqrt(det(J J^T)) and the smallest radius sigma_d
     (the d-th singular value: 0 when a < d). A non-finite J (a type II pose) gives 1/kappa = 0,
     w = inf and radius 0."""
+    from kinematics.analyses.usable import singular_ratio
+
     J = np.asarray(J, dtype=float)
     d, a = J.shape[-2:]
     finite = np.isfinite(J).all(axis=(-2, -1))
     inv, w, rad = np.zeros(J.shape[:-2]), np.full(J.shape[:-2], np.inf), np.zeros(J.shape[:-2])
     sv = np.linalg.svd(J[finite], compute_uv=False)  # one SVD, of the finite rows only
-    top = sv[..., 0]
-    inv[finite] = np.where(top > 0, sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)  # as `usable.inverse_condition`
+    inv[finite] = singular_ratio(sv)
     w[finite] = np.prod(sv, axis=-1) if a >= d else 0.0  # sqrt(det(J J^T)) = prod of the d sigmas
     rad[finite] = sv[..., d - 1] if a >= d else 0.0
     return inv, w, rad

@@ -410,10 +410,15 @@ def inverse_condition(J: np.ndarray) -> np.ndarray:
     finite = np.isfinite(J).all(axis=(-2, -1))
     out = np.zeros(J.shape[:-2])
     # only the finite rows: outside a branch (NaN rows, most of a union's) the SVD is wasted
-    sv = np.linalg.svd(J[finite], compute_uv=False)
-    top = sv[..., 0]
-    out[finite] = np.where(top > 0, sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)
+    out[finite] = singular_ratio(np.linalg.svd(J[finite], compute_uv=False))
     return out
+
+
+def singular_ratio(sv: np.ndarray) -> np.ndarray:
+    """sigma_min / sigma_max of each row of singular values (..., k), largest first (numpy's
+    order): 1/kappa, 0 where sigma_max is 0."""
+    top = sv[..., 0]
+    return np.where(top > 0, sv[..., -1] / np.where(top > 0, top, 1.0), 0.0)
 
 
 def condition_slack_of(v: Any, inside: np.ndarray, kappa_max: float) -> np.ndarray:

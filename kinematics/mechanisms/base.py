@@ -389,12 +389,12 @@ class Mechanism(ABC):
         chosen = self.check_branches(list(branches))
         res = self.ik(points, limits)
         points = np.asarray(points, dtype=float)
+        n, d, a = len(points), self.task_dim, res.q.shape[-1]
         out = []
         for b in chosen:
             k = self.branches.index(b)
             q = res.q[:, k]
             ok = res.within_limits[:, k] & np.isfinite(q).all(axis=-1)
-            n, d, a = len(points), self.task_dim, res.q.shape[-1]
             J, Ji = np.full((n, d, a), np.nan), np.full((n, a, d), np.nan)
             iota_I, iota_II = np.full(n, np.nan), np.full(n, np.nan)
             if ok.any():  # only where the branch exists: outside it the Jacobians are NaN anyway
