@@ -184,12 +184,11 @@ def singularities(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     if args.angle_step_deg is not None and "joint_singularities" not in mech.capabilities:  # else ignored
         raise InvalidInputError("--angle-step-deg", "is for a planar arm's joint grid (scara); this robot's scan "
                                 "is on task-space points (--step) or joint boxes (--max-points)")
-    if not serial:
-        refuse_serial_args(args, "this robot's singular loci are scanned on task-space points (--step)")
     if serial:
         # an open chain without closed forms: its joint boxes that may hold a rank-deficient
         # position Jacobian (the cell engine's Lipschitz test, a guarantee no sampling gives)
         return _serial_singularities(args, robot, out, checks)
+    refuse_serial_args(args, "this robot's singular loci are scanned on task-space points (--step)")
     if "joint_singularities" in mech.capabilities:
         mech.check_branches(args.modes or None)  # the singular set is every branch's; a typo is still bad input
         s = mech.joint_singularities(math.radians(args.angle_step_deg or 1.0))
