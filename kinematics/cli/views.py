@@ -99,6 +99,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
+    # a serial arm's cell engine (`serial_scan`) draws its --singularities and collision-free --workspace
     cell_engine = (robot.loops is None and not three_limb and "joint_singularities" not in mech.capabilities
                    and ((args.workspace and checks is None) or args.singularities))
     if not cell_engine:  # before the scene: bad input starts no server
@@ -130,7 +131,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                 if args.guide is not None:
                     raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
                 ws = None
-                if (args.workspace and checks is None) or args.singularities:  # the cell engine's
+                if cell_engine:
                     from kinematics.cli.singular import serial_scan
 
                     ws = serial_scan(args, robot)
