@@ -11,8 +11,12 @@ inside the handlers so that `kinematics --help` stays instant.
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from kinematics.cli import (
     design,
@@ -31,6 +35,9 @@ from kinematics.cli import (
 )
 from kinematics.cli.args import EXIT_ERROR, EXIT_OK, Command, Parser, Version, subcommands
 from kinematics.errors import KinematicsError
+
+if TYPE_CHECKING:
+    from sys import UnraisableHookArgs
 
 EXIT_INTERRUPTED, EXIT_PIPE = 130, 141
 
@@ -69,8 +76,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def reference_markdown() -> str:
     """The CLI reference (docs/cli.md): every command's --help, at a fixed width of 100 columns."""
-    import os
-
     saved = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = "100"
     try:
@@ -141,46 +146,95 @@ def _run(argv: Sequence[str] | None) -> int:
         return EXIT_ERROR
 
 
-def _interrupted(exc: BaseException) -> bool:
-    """True for Ctrl-C, also when it reaches us disguised: a KeyboardInterrupt raised while a
-    compiled Numba kernel was calling back into Python comes out of the kernel as the cause (or
-    the cause's cause) of a SystemError."""
-    seen: BaseException | None = exc
-    while seen is not None:
-        if isinstance(seen, KeyboardInterrupt):
-            return True
-        seen = seen.__cause__
-    return False
+class _CtrlC:
+    """Ctrl-C as one line and exit 130, wherever it lands.
+
+    Python raises KeyboardInterrupt in whatever Python code runs when the signal arrives. Two
+    places hide it: a compiled Numba kernel calling back into Python returns it wrapped in
+    SystemErrors, and a C library's callback into Python (LLVM's object cache, while Numba
+    compiles) swallows it, reports it as "Exception ignored", and either carries on as if nothing
+    happened or fails later with an unrelated error. So the handler remembers the press (any error
+    after it is the interrupt's doing), and a swallowed one is delivered again 50 ms later, once
+    the callback has returned. Installed only where Python's own handler is (the main thread, SIGINT
+    not ignored), and restored on the way out.
+    """
+
+    def __init__(self) -> None:
+        self.pressed = False
+        self.stopping = False  # set once the command is ending: a late Ctrl-C has nothing to stop
+        self._installed = False
+        self._timer: threading.Timer | None = None
+
+    def __enter__(self) -> _CtrlC:
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self._handler = signal.signal(signal.SIGINT, self._press)
+            self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stopping = True
+        if self._timer is not None:
+            self._timer.cancel()
+        if self._installed:
+            if self.pressed:  # objects the interrupt left half-built go now, quietly, not at exit
+                import gc
+
+                gc.collect()
+            sys.unraisablehook = self._hook
+            signal.signal(signal.SIGINT, self._handler)
+
+    def _press(self, signum: int, frame: object) -> None:
+        self.pressed = True
+        if not self.stopping:
+            raise KeyboardInterrupt
+
+    def _unraisable(self, info: UnraisableHookArgs) -> None:
+        if issubclass(info.exc_type, KeyboardInterrupt):
+            if self._timer is None or not self._timer.is_alive():
+                self._timer = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT))
+                self._timer.daemon = True
+                self._timer.start()
+        elif not self.pressed:  # after a press, errors like this are the fallout of the interrupt
+            self._hook(info)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 ok, 1 unreachable, 2 bad input, 130 interrupted,
     141 stdout closed early)."""
-    import os
-
-    try:
-        code = _run(argv)
-        sys.stdout.flush()
-        return code
-    except (KeyboardInterrupt, SystemError) as exc:
-        if not _interrupted(exc):
-            raise
-        print("kinematics: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except OSError as exc:
-        import errno
-
-        if not isinstance(exc, BrokenPipeError) and exc.errno != errno.ENOSPC and exc.errno != errno.EIO:
-            raise
-        # stdout is gone (reader closed the pipe) or full: send what is left to /dev/null so the
-        # interpreter's final flush is quiet too
+    with _CtrlC() as ctrl_c:
         try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-        except (OSError, ValueError, AttributeError):  # pragma: no cover - stdout without a descriptor
-            pass
-        if isinstance(exc, BrokenPipeError):
-            return EXIT_PIPE
-        print(f"kinematics: error: cannot write the report to stdout: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_ERROR
+            code = _run(argv)
+            sys.stdout.flush()
+            return code
+        except SystemExit:
+            raise
+        except BaseException as exc:
+            ctrl_c.stopping = True
+            if not (ctrl_c.pressed or isinstance(exc, KeyboardInterrupt)):
+                lost = _lost_stdout(exc) if isinstance(exc, OSError) else None
+                if lost is None:
+                    raise
+                return lost
+            print("kinematics: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
 
+
+def _lost_stdout(exc: OSError) -> int | None:
+    """The exit status when `exc` says stdout is gone (its reader closed the pipe) or full; None for
+    any other OSError."""
+    import errno
+
+    if not isinstance(exc, BrokenPipeError) and exc.errno != errno.ENOSPC and exc.errno != errno.EIO:
+        return None
+    # send what is left to /dev/null so the interpreter's final flush is quiet too
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - stdout without a descriptor
+        pass
+    if isinstance(exc, BrokenPipeError):
+        return EXIT_PIPE
+    print(f"kinematics: error: cannot write the report to stdout: {exc.strerror or exc}", file=sys.stderr)
+    return EXIT_ERROR
