@@ -1,7 +1,5 @@
 """`python -m kinematics` runs the command line."""
 
-import sys
+from kinematics.cli import run
 
-from kinematics.cli import main
-
-sys.exit(main())
+run()

@@ -733,16 +733,23 @@ def test_ctrl_c_during_a_sweep_is_one_line():
 # ...", then the library either fails with an unrelated error or carries on as if no key had been
 # pressed ("carries on" sleeps 10 s, then reports success). A compiled Numba kernel calling back
 # into Python (`workspace-volume ur5`'s reachability search) returns it as the cause of a
-# SystemError, itself the cause of the kernel's SystemError. The info command plays each.
+# SystemError, itself the cause of the kernel's SystemError. And what the interrupted work left
+# half-built can crash when freed (LLVM's modules from an interrupted compilation: a segfault after
+# "interrupted" was printed), played by an object whose destructor reads address 0. The info
+# command plays each, run through the process's entry point.
 CTRL_C_HIDDEN = """
 import ctypes, signal, sys, time
-from kinematics.cli import info
+from kinematics.cli import info, run
+where = sys.argv.pop()
+class HalfBuilt:
+    def __del__(self):
+        ctypes.string_at(0)
 def press():
     signal.raise_signal(signal.SIGINT)
     for _ in range(1000):  # the handler runs at the next check of pending signals
         pass
 def command(args):
-    if sys.argv[1] == "in a kernel":
+    if where == "in a kernel":
         try:
             try:
                 press()
@@ -750,19 +757,22 @@ def command(args):
                 raise SystemError("<function _numba_unpickle> returned a result with an exception set") from ctrl_c
         except SystemError as inner:
             raise SystemError("CPUDispatcher(<function search>) returned a result with an exception set") from inner
+    if where == "leaves a crash behind":
+        half = HalfBuilt()
+        press()
     ctypes.CFUNCTYPE(None)(press)()
-    if sys.argv[1] == "fails":
+    if where == "fails":
         raise RuntimeError("no compiled object yet")
     time.sleep(10)
     print("finished")
     return 0
 info.cmd_info = command
-from kinematics.cli.app import main
-sys.exit(main(["info", "scara"]))
+sys.argv[1:] = ["info", "scara"]
+run()
 """
 
 
-@pytest.mark.parametrize("where", ["fails", "carries on", "in a kernel"])
+@pytest.mark.parametrize("where", ["fails", "carries on", "in a kernel", "leaves a crash behind"])
 def test_ctrl_c_that_python_loses_is_one_line(where):
     proc = subprocess.run([sys.executable, "-c", CTRL_C_HIDDEN, where], capture_output=True, text=True, timeout=60,
                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))

@@ -1,6 +1,7 @@
 """The `kinematics` command line. Private to the package: the library never imports it.
 
-`main` (in `app`) parses the command line and hands each command to its handler. Each command is
+`main` (in `app`) parses the command line and hands each command to its handler; `run` is the
+process's entry point around it. Each command is
 registered in one place, its module's `register(command)`, which adds its subparser, arguments and
 handler: `info`, `fk`, `ik`, `jacobian`, `manipulability`, `mobility`, `workspace`
 (workspace-volume, singularities, sweep), `design` (usable-workspace, dexterity, synthesize,
@@ -14,4 +15,5 @@ handlers import NumPy, Pinocchio etc. when the command runs, so `kinematics --he
 from __future__ import annotations
 
 from kinematics.cli.app import main as main
+from kinematics.cli.app import run as run
 

@@ -16,7 +16,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from kinematics.cli import (
     design,
@@ -178,10 +178,6 @@ class _CtrlC:
         if self._timer is not None:
             self._timer.cancel()
         if self._installed:
-            if self.pressed:  # objects the interrupt left half-built go now, quietly, not at exit
-                import gc
-
-                gc.collect()
             sys.unraisablehook = self._hook
             signal.signal(signal.SIGINT, self._handler)
 
@@ -218,7 +214,27 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise
                 return lost
             print("kinematics: interrupted", file=sys.stderr)
+            _INTERRUPTED.append(exc)
             return EXIT_INTERRUPTED
+
+
+_INTERRUPTED: list[BaseException] = []
+"""The interrupts `main` reported, kept: freeing their tracebacks frees what the interrupted work
+left half-built, and LLVM's modules from an interrupted Numba compilation can crash the process
+when freed (a segfault in llvmlite's module disposal, twice in about 70 interrupts of compilation). `run` then
+exits without freeing anything."""
+
+
+def run() -> NoReturn:
+    """The process entry point (`kinematics`, `python -m kinematics`): `main`'s status as the exit
+    status; after an interrupt, with the streams flushed and nothing else torn down (`_INTERRUPTED`;
+    the coal pool's workers and Dask's stop on their own, the viewer's server in its command)."""
+    code = main()
+    if code == EXIT_INTERRUPTED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 def _lost_stdout(exc: OSError) -> int | None:
