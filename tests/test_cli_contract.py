@@ -316,7 +316,12 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["show", "p2us", "--export", "v.png"], "unknown suffix"),
     (["show", "p2us", "--export", "adir"], "is a directory"),
     (["show", "p2us", "--export", "nodir/v.html"], "does not exist"),
-    (["show", "scara", "--export", "v.html", "--position", "0", "0", "0"], "--position: give a serial robot's joint values with --q"),
+    (["show", "scara", "--export", "v.html", "--position", "0", "0", "0"], "--position: poses the p2us and the Delta; give scara's joint values"),
+    # --mode poses the p2us and the Delta at --position: elsewhere it was ignored (exit 0)
+    (["show", "ur5", "--export", "v.html", "--mode", "+++"], "--mode: poses the p2us and the Delta; give ur5's joint values"),
+    (["show", "p2us", "--export", "v.html", "--mode", "+++"], "--mode: the working mode of --position"),
+    (["show", FOURBAR, "--export", "v.html", "--position", "0", "0", "0"], "give fourbar's actuator values with --q"),
+    (["show", "delta", "--export", "v.html", "--mode", "+++", "--q", "0", "0", "0"], "--mode: the working mode of --position"),
     (["show", "scara", "--export", "v.html", "--q", "0"], SCARA_DOF.format(1)),
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),

@@ -99,6 +99,14 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
+    if not three_limb:  # they pose the p2us and the Delta; ignored here, they would mislead
+        for flag in ("position", "mode"):
+            if getattr(args, flag) is not None:
+                what = "joint values" if robot.loops is None else "actuator values"
+                raise InvalidInputError(f"--{flag}", f"poses the p2us and the Delta; give {robot.name}'s {what} with --q")
+    elif args.mode is not None and args.position is None:
+        raise InvalidInputError("--mode", "the working mode of --position; without it the view is at --q's actuators "
+                                          "(they decide the mode) or at the reference pose")
     # a serial arm's cell engine (`serial_scan`) draws its --singularities and collision-free --workspace
     cell_engine = (robot.loops is None and not three_limb and "joint_singularities" not in mech.capabilities
                    and ((args.workspace and checks is None) or args.singularities))
@@ -119,8 +127,6 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                           singularities=args.singularities, limits=args.limits,
                           step=0.02 if args.step is None else args.step, scene=scene, collisions=checks)
         elif robot.loops is None:  # an open chain: joint values drive it
-            if args.position is not None:
-                raise InvalidInputError("--position", "give a serial robot's joint values with --q")
             q = robot.values_from_configuration(robot.configuration(args.q, degrees=args.degrees)) \
                 if args.q is not None else None
             if "joint_singularities" in mech.capabilities:  # a planar arm with closed forms
