@@ -12,7 +12,7 @@ NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.i
 
 def test_the_notebooks_are_there():
     assert {p.stem for p in NOTEBOOKS} == {"scara_manipulability", "p2us_kinematics", "p2us_workspace", "guidance",
-                                        "paper_b_reproduction", "design_synthesis"}
+                                        "paper_b_reproduction", "design_synthesis", "collisions"}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
