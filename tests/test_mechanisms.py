@@ -205,3 +205,34 @@ def test_the_serial_arm_jacobian_is_pinocchios():
         assert np.allclose(v.J[k], J, atol=1e-12)
         s = np.linalg.svd(J, compute_uv=False)
         assert np.isclose(v.iota_I[k], s[-1] / s[0], rtol=1e-9)
+
+
+def test_a_generic_loops_fk_and_velocity_take_and_give_its_task_coordinates():
+    """The generic closed loop's fk returns points in the task coordinates its ik takes (the
+    five-bar's plane: 2, not the world position's 3), so ik then fk returns the point on a branch
+    the continuation from the reference reaches; bad actuator values are refused, not NaN, and an
+    empty batch is an empty answer. Tolerance: the batched IK and the continuation each close the
+    loops to ~1e-12 m; 1e-9 m leaves the same margin as tests/test_loop_batch.py."""
+    from kinematics.errors import InvalidInputError
+
+    mech = mechanism_of(load_robot(str(MODELS / "fivebar_gepetto" / "robot.urdf")))
+    assert mech.task_dim == 2
+    p = np.array([[0.1, 0.3], [0.05, 0.35]])
+    res = mech.ik(p)
+    assert res.reachable.all(axis=0).any()
+    errors = []
+    for b in np.flatnonzero(res.reachable.all(axis=0)):
+        asm = mech.fk(res.q[:, b])
+        assert asm.p.shape == (2, 1, 2)
+        errors.append(np.linalg.norm(asm.p[:, 0] - p, axis=-1))
+    assert np.nanmin(errors, axis=0).max() <= 1e-9
+    for bad in (np.zeros((1, 3)), np.zeros((1, 1)), np.array([[np.nan, 0.0]]), 0.3):
+        with pytest.raises(InvalidInputError, match="q"):
+            mech.fk(bad)
+    q = res.q[:, np.flatnonzero(res.reachable.all(axis=0))[0]]
+    assert mech.velocity(p, q).J.shape == (2, 2, 2)
+    empty = mech.velocity(np.zeros((0, 2)), np.zeros((0, 2)))
+    assert empty.J.shape == (0, 2, 2) and empty.iota_I.shape == (0,)
+    for bad in (np.zeros((2, 3)), q[:1], np.full((2, 2), np.nan)):
+        with pytest.raises(InvalidInputError, match="q"):
+            mech.velocity(p, bad)
