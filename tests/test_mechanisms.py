@@ -236,3 +236,24 @@ def test_a_generic_loops_fk_and_velocity_take_and_give_its_task_coordinates():
     for bad in (np.zeros((2, 3)), q[:1], np.full((2, 2), np.nan)):
         with pytest.raises(InvalidInputError, match="q"):
             mech.velocity(p, bad)
+
+
+@pytest.mark.parametrize("name", ["p2us", "delta"])
+def test_the_single_pose_reports_refuse_a_batch_or_a_wrong_length(name):
+    """pose_ik, pose_fk, pose_jacobians and joint_values take one point / one actuator vector: a
+    (1, 3) row, 2 or 4 values are an InvalidInputError (a numpy ValueError, 'truth value of an
+    array is ambiguous' or 'cannot reshape', before)."""
+    from kinematics.errors import InvalidInputError
+
+    mech = mechanism_of(load_robot(name))
+    p, branch = mech.reference_pose()
+    q = mech.ik(p[None]).q[0, mech.branches.index(branch)]
+    assert mech.pose_fk(q).exists and mech.pose_ik(p).reachable.any()  # the single ones work
+    for bad in (p[None], p[:2], np.append(p, 0.0)):
+        for call, args in ((mech.pose_ik, (bad,)), (mech.pose_jacobians, (bad, q)), (mech.joint_values, (bad, branch))):
+            with pytest.raises(InvalidInputError, match="position"):
+                call(*args)
+    for bad in (q[None], q[:2], np.append(q, 0.0)):
+        for call, args in ((mech.pose_fk, (bad,)), (mech.pose_jacobians, (p, bad))):
+            with pytest.raises(InvalidInputError, match="q"):
+                call(*args)
