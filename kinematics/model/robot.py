@@ -276,7 +276,10 @@ def apply_ranges(model: pin.Model, missing: dict[str, tuple[bool, bool]],
     for name, pair in (ranges or {}).items():
         if name not in index:
             raise UnknownJointError(name, list(index))
-        a, b = (float(v) for v in pair)
+        try:
+            a, b = (float(v) for v in pair)
+        except (TypeError, ValueError):  # not a pair of numbers: a number, a triple, text
+            raise InvalidInputError(f"range of {name}", f"expected a pair (LO, HI) of numbers [rad or m], got {pair!r}") from None
         if not (np.isfinite(a) and np.isfinite(b) and a < b):
             raise InvalidInputError(f"range of {name}", f"expected finite LO < HI, got [{a}, {b}]")
         lo[index[name]], hi[index[name]] = a, b
