@@ -200,4 +200,4 @@ def test_a_sample_count_below_16_or_nan_is_refused(scara, samples):
     from kinematics.errors import InvalidInputError
 
     with pytest.raises(InvalidInputError, match="samples"):
-        dexterity(mechanism_of(scara), samples=samples, replicates=2)
+        dexterity(scara, samples=samples, replicates=2)
