@@ -51,6 +51,21 @@ def test_bad_branches_and_limits_name_the_valid_choices():
         scara.margin(limits="actuators")
 
 
+def test_one_branch_name_given_alone_is_that_branch():
+    """branches="---" is the one working mode, not the modes "-", "-", "-": the Delta refused it
+    as "unknown mode '-'" (and Gepetto's five-bar, whose branches are '+' and '-', took "+-" as
+    both of them)."""
+    delta = mechanism_of(load_robot("delta"))
+    assert delta.check_branches("---") == ("---",)
+    p = np.array([[0.0, 0.0, -0.8]])
+    np.testing.assert_array_equal(delta.margin("---")(p), delta.margin(["---"])(p))
+    with pytest.raises(UnknownModeError, match="'--'"):
+        delta.check_branches("--")
+    five = mechanism_of(load_robot(str(MODELS / "fivebar_gepetto" / "robot.urdf")))
+    assert five.branches == ("++", "+-", "-+", "--")
+    assert five.check_branches("+-") == ("+-",)
+
+
 CLOSED_FORMS = ["scara", "p2us", "p2us-results", "delta"]
 
 

@@ -270,9 +270,12 @@ class Mechanism(ABC):
         return limits
 
     def check_branches(self, branches: Sequence[str] | None) -> tuple[str, ...]:
-        """The branches asked for (all when None), deduplicated; raises UnknownModeError."""
+        """The branches asked for (all when None; one name alone is that branch), deduplicated;
+        raises UnknownModeError."""
         if branches is None:
             return self.branches
+        if isinstance(branches, str):  # "+-" is one label, not the labels "+" and "-"
+            branches = [branches]
         for b in branches:
             if b not in self.branches:
                 raise UnknownModeError(b, self.branches, self.name)
