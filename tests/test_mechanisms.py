@@ -38,6 +38,11 @@ def test_a_missing_capability_names_what_is_missing_and_what_exists():
     loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
     with pytest.raises(MissingCapabilityError, match="pose_ik"):
         loop.pose_ik(np.zeros(1))
+    # what is missing is never among what it provides (a generic loop has joint_values, and its
+    # missing reference pose was said to need joint_values)
+    with pytest.raises(MissingCapabilityError) as err:
+        loop.reference_pose()
+    assert "joint_values" in loop.capabilities and err.value.capability not in err.value.available
 
 
 def test_bad_branches_and_limits_name_the_valid_choices():

@@ -326,7 +326,8 @@ class Mechanism(ABC):
 
     def reference_pose(self) -> tuple[np.ndarray, str]:
         """A task point [m] and branch where the mechanism is assembled within its limits."""
-        raise MissingCapabilityError(self.name, "joint_values", "a reference pose", self.capabilities)
+        # named as itself: a generic closed loop has joint_values but no reference pose
+        raise MissingCapabilityError(self.name, "reference_pose", "a reference pose", self.capabilities)
 
     def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
         """Every URDF joint's value (loops closed) with the task point at `point` [m] in `branch`."""
