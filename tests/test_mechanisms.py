@@ -28,6 +28,18 @@ def test_the_dispatcher_decides_the_family(name, family, task_dim):
     assert mech.closed_loop == (family in ("p2us", "delta", "closed-loop"))
 
 
+def test_the_dispatcher_refuses_what_is_no_robot_or_no_orientation():
+    """mechanism_of("scara") was an AttributeError ('str' object has no attribute 'loops');
+    orientation="rpy 0 0 0" (the command line's text) was kept, and the margin's search failed on
+    it later."""
+    from kinematics.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=r"load_robot\('scara'\)"):
+        mechanism_of("scara")
+    with pytest.raises(InvalidInputError, match="ToolOrientation"):
+        mechanism_of(load_robot("ur5"), orientation="rpy 0 0 0")
+
+
 def test_a_missing_capability_names_what_is_missing_and_what_exists():
     ur5 = mechanism_of(load_robot("ur5"))
     with pytest.raises(MissingCapabilityError) as err:
