@@ -180,6 +180,19 @@ def test_bad_parameters():
             GuidanceParams(**bad)
 
 
+def test_a_start_that_is_no_configuration_is_refused(sp, ur5):
+    """A NaN start ran a whole NaN simulation on the SCARA and ended in numpy's 'eigenvalues did not
+    converge' on the UR5; a short one was an IndexError or Pinocchio's C++ ValueError."""
+    op = StubbornOperator((1.0, 0.0), 5.0)
+    for kin, bad in ((ScaraKinematics(sp), [math.nan, 0.3]), (ScaraKinematics(sp), [0.3]),
+                     (SerialKinematics(ur5), np.full(6, math.nan)), (SerialKinematics(ur5), np.zeros(5)),
+                     (SerialKinematics(ur5), np.zeros((1, 6)))):
+        with pytest.raises(InvalidInputError, match="^q: "):
+            Controller(kin, GuidanceParams(), np.asarray(bad, dtype=float))
+        with pytest.raises(InvalidInputError, match="^q: "):
+            simulate(kin, GuidanceParams(), np.asarray(bad, dtype=float), op, (1.0,) + (0.0,) * (kin.dim - 1), 0.01)
+
+
 def test_any_serial_robot(ur5):
     """The controller on UR5's translational ellipsoid: guided into the stretched singularity."""
     kin = SerialKinematics(ur5)
