@@ -582,3 +582,20 @@ def test_workspace_figures_refuse_a_bad_grid_before_sampling(figure, robot, opti
 
     with pytest.raises(InvalidInputError, match=match):
         getattr(plots, figure)(mechanism_of(load_robot(robot)), **options)
+
+
+def test_a_figure_with_an_unknown_suffix_is_refused(tmp_path):
+    """plots.save(fig, 'x.zz') was matplotlib's ValueError 'Format 'zz' is not supported'; the
+    figure is closed either way."""
+    import matplotlib.pyplot as plt
+
+    from kinematics.errors import InvalidInputError
+    from kinematics.views import plots
+
+    plots.headless()
+    fig = plt.figure()
+    with pytest.raises(InvalidInputError, match="unknown suffix '.zz'"):
+        plots.save(fig, tmp_path / "x.zz")
+    assert not plt.fignum_exists(fig.number) and not list(tmp_path.iterdir())
+    plots.save(plt.figure(), tmp_path / "x.png")
+    assert (tmp_path / "x.png").stat().st_size > 0

@@ -44,12 +44,14 @@ def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: 
 
 
 def save(fig: Any, path: str | os.PathLike[str], option: str = "--plot") -> None:
-    """Write the figure (format from the suffix) atomically (`files.write_atomic`) and close it."""
+    """Write the figure (format from the suffix, one of `files.OUTPUT_SUFFIXES["figure"]`)
+    atomically (`files.write_atomic`) and close it; InvalidInputError naming `option` otherwise."""
     import matplotlib.pyplot as plt
 
-    from kinematics.files import write_atomic
+    from kinematics.files import check_output, write_atomic
 
     try:
+        check_output(os.fspath(path), option, "figure")  # matplotlib's own refusal is a ValueError
         write_atomic(os.fspath(path), lambda tmp: fig.savefig(tmp, dpi=110, bbox_inches="tight"), option)
     finally:
         plt.close(fig)
