@@ -374,3 +374,13 @@ def test_no_branch_change_from_random_starts(sp, rng):
         if np.abs(qs[:, 1]).min() > 0.05:
             assert np.all(np.sign(qs[:, 1]) == np.sign(q0[1]))
         assert np.all(qs >= np.array(sp.lower)) and np.all(qs <= np.array(sp.upper))
+
+
+def test_an_experiment_number_given_as_text_is_refused_plainly(sp):
+    """run_experiment("1", ...) said "unknown choice '1' (did you mean '1'?); valid: 1, 2, 3"."""
+    from kinematics.errors import UnknownChoiceError
+
+    with pytest.raises(InvalidInputError, match=r"is an int \(1, 2, 3\), got '1'"):
+        run_experiment("1", sp)
+    with pytest.raises(UnknownChoiceError, match="valid: 1, 2, 3"):
+        run_experiment(9, sp)
