@@ -74,6 +74,7 @@ def test_one_branch_name_given_alone_is_that_branch():
     both of them)."""
     delta = mechanism_of(load_robot("delta"))
     assert delta.check_branches("---") == ("---",)
+    assert len(delta.branch_velocities(np.array([[0.0, 0.0, -0.8]]), "---")) == 1
     p = np.array([[0.0, 0.0, -0.8]])
     np.testing.assert_array_equal(delta.margin("---")(p), delta.margin(["---"])(p))
     with pytest.raises(UnknownModeError, match="'--'"):

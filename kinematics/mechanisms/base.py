@@ -390,7 +390,7 @@ class Mechanism(ABC):
         every branch (`ik` solves them all at once: `branch_velocity` per branch solves them B times)."""
         self.require("ik", "Jacobians at task points")
         self.require("velocity", "Jacobians at task points")
-        chosen = self.check_branches(list(branches))
+        chosen = self.check_branches(branches if isinstance(branches, str) else list(branches))
         res = self.ik(points, limits)
         points = np.asarray(points, dtype=float)
         n, d, a = len(points), self.task_dim, res.q.shape[-1]
