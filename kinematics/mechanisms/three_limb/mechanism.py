@@ -77,6 +77,11 @@ class ThreeLimbMechanism(Mechanism):
         jac = self.closed_form.jacobians(self.params, points, q)
         return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
 
+    @property
+    def actuator_word(self) -> str:
+        """What the actuator values are, for messages: "angles" (revolute) or "values"."""
+        return "angles" if self.actuator_unit == "rad" else "values"
+
     def urdf_module(self) -> Any:
         """The family's URDF module (`<family package>.urdf`), imported on first use."""
         return importlib.import_module(f"{self.closed_form.__package__}.urdf")
@@ -119,7 +124,7 @@ class ThreeLimbMechanism(Mechanism):
         """Both assembly modes at `q`, with the limits each breaks (its rods from the platform
         position), or why none exists."""
         cf, P = self.closed_form, self.params
-        q = one(actuators(q, "values"), "q")
+        q = one(actuators(q, self.actuator_word), "q")
         res = cf.fk(P, q)
         if not res.exists:
             return PoseFK(res.p, False, (), self.fk_reason(res))
@@ -127,5 +132,5 @@ class ThreeLimbMechanism(Mechanism):
         return PoseFK(res.p, True, found, None)
 
     def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
-        jac = self.closed_form.jacobians(self.params, one(points(point), "position"), one(actuators(q, "values"), "q"))
+        jac = self.closed_form.jacobians(self.params, one(points(point), "position"), one(actuators(q, self.actuator_word), "q"))
         return PoseJacobians(jac.Jx, jac.Jq, jac.J, jac.iota_I, jac.iota_II)
