@@ -79,6 +79,8 @@ def test_warm_start_and_errors(loop, p2us_params):
         loop.solve([0.3, 0.2])
     with pytest.raises(InvalidInputError):
         loop.solve([0.3, np.nan, 0.2])
+    with pytest.raises(InvalidInputError, match="Pinocchio configuration"):  # an IndexError deep inside
+        loop.solve([0.31, 0.25, 0.2], q0=sol.q[:3])
 
 
 def test_type_two_leaves_passive_joints_free(loop, p2us, p2us_params):

@@ -62,6 +62,16 @@ def test_largest_shape_in_a_ball(shape, exact):
     assert res.min_field >= 0 and res.larger_fails
 
 
+@pytest.mark.parametrize("spacing", [0.0, -1.0, math.nan, math.inf])
+def test_largest_shape_refuses_a_spacing_that_is_no_length(spacing):
+    """spacing 0 was a ZeroDivisionError, NaN numpy's 'cannot convert float NaN to integer', and -1
+    a result tested on 32 samples and reported with spacing -1."""
+    from kinematics.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="spacing"):
+        largest_shape(ball, *BOX, "cube", step=0.05, spacing=spacing)
+
+
 def test_inverse_condition_is_numpys_condition_number_where_finite():
     """1/kappa of each finite Jacobian against numpy.linalg.cond (the 2-norm condition number, by
     its own SVD call per matrix: relative rounding ~1e-15 on these well-scaled 3 x 3 matrices,

@@ -192,3 +192,12 @@ def test_cli_failing_map_leaves_no_cells_file(capsys, tmp_path):
                        "--cells-out", str(cells), "--plot", str(png), "--step", "1e-7")
     assert code == 2 and "step" in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("samples", [math.nan, 0, 15.5])
+def test_a_sample_count_below_16_or_nan_is_refused(scara, samples):
+    """NaN passed the `samples < 16` test and failed in math.ceil (a ValueError)."""
+    from kinematics.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="samples"):
+        dexterity(scara, samples=samples, replicates=2)

@@ -180,6 +180,19 @@ def test_bad_parameters():
             GuidanceParams(**bad)
 
 
+def test_a_start_that_is_no_configuration_is_refused(sp, ur5):
+    """A NaN start ran a whole NaN simulation on the SCARA and ended in numpy's 'eigenvalues did not
+    converge' on the UR5; a short one was an IndexError or Pinocchio's C++ ValueError."""
+    op = StubbornOperator((1.0, 0.0), 5.0)
+    for kin, bad in ((ScaraKinematics(sp), [math.nan, 0.3]), (ScaraKinematics(sp), [0.3]),
+                     (SerialKinematics(ur5), np.full(6, math.nan)), (SerialKinematics(ur5), np.zeros(5)),
+                     (SerialKinematics(ur5), np.zeros((1, 6)))):
+        with pytest.raises(InvalidInputError, match="^q: "):
+            Controller(kin, GuidanceParams(), np.asarray(bad, dtype=float))
+        with pytest.raises(InvalidInputError, match="^q: "):
+            simulate(kin, GuidanceParams(), np.asarray(bad, dtype=float), op, (1.0,) + (0.0,) * (kin.dim - 1), 0.01)
+
+
 def test_any_serial_robot(ur5):
     """The controller on UR5's translational ellipsoid: guided into the stretched singularity."""
     kin = SerialKinematics(ur5)
@@ -361,3 +374,13 @@ def test_no_branch_change_from_random_starts(sp, rng):
         if np.abs(qs[:, 1]).min() > 0.05:
             assert np.all(np.sign(qs[:, 1]) == np.sign(q0[1]))
         assert np.all(qs >= np.array(sp.lower)) and np.all(qs <= np.array(sp.upper))
+
+
+def test_an_experiment_number_given_as_text_is_refused_plainly(sp):
+    """run_experiment("1", ...) said "unknown choice '1' (did you mean '1'?); valid: 1, 2, 3"."""
+    from kinematics.errors import UnknownChoiceError
+
+    with pytest.raises(InvalidInputError, match=r"is an int \(1, 2, 3\), got '1'"):
+        run_experiment("1", sp)
+    with pytest.raises(UnknownChoiceError, match="valid: 1, 2, 3"):
+        run_experiment(9, sp)

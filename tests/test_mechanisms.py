@@ -28,6 +28,18 @@ def test_the_dispatcher_decides_the_family(name, family, task_dim):
     assert mech.closed_loop == (family in ("p2us", "delta", "closed-loop"))
 
 
+def test_the_dispatcher_refuses_what_is_no_robot_or_no_orientation():
+    """mechanism_of("scara") was an AttributeError ('str' object has no attribute 'loops');
+    orientation="rpy 0 0 0" (the command line's text) was kept, and the margin's search failed on
+    it later."""
+    from kinematics.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=r"load_robot\('scara'\)"):
+        mechanism_of("scara")
+    with pytest.raises(InvalidInputError, match="ToolOrientation"):
+        mechanism_of(load_robot("ur5"), orientation="rpy 0 0 0")
+
+
 def test_a_missing_capability_names_what_is_missing_and_what_exists():
     ur5 = mechanism_of(load_robot("ur5"))
     with pytest.raises(MissingCapabilityError) as err:
@@ -38,6 +50,11 @@ def test_a_missing_capability_names_what_is_missing_and_what_exists():
     loop = mechanism_of(load_robot(str(MODELS / "rssr.urdf")))
     with pytest.raises(MissingCapabilityError, match="pose_ik"):
         loop.pose_ik(np.zeros(1))
+    # what is missing is never among what it provides (a generic loop has joint_values, and its
+    # missing reference pose was said to need joint_values)
+    with pytest.raises(MissingCapabilityError) as err:
+        loop.reference_pose()
+    assert "joint_values" in loop.capabilities and err.value.capability not in err.value.available
 
 
 def test_bad_branches_and_limits_name_the_valid_choices():
@@ -49,6 +66,22 @@ def test_bad_branches_and_limits_name_the_valid_choices():
     scara = mechanism_of(load_robot("scara"))
     with pytest.raises(UnknownChoiceError):
         scara.margin(limits="actuators")
+
+
+def test_one_branch_name_given_alone_is_that_branch():
+    """branches="---" is the one working mode, not the modes "-", "-", "-": the Delta refused it
+    as "unknown mode '-'" (and Gepetto's five-bar, whose branches are '+' and '-', took "+-" as
+    both of them)."""
+    delta = mechanism_of(load_robot("delta"))
+    assert delta.check_branches("---") == ("---",)
+    assert len(delta.branch_velocities(np.array([[0.0, 0.0, -0.8]]), "---")) == 1
+    p = np.array([[0.0, 0.0, -0.8]])
+    np.testing.assert_array_equal(delta.margin("---")(p), delta.margin(["---"])(p))
+    with pytest.raises(UnknownModeError, match="'--'"):
+        delta.check_branches("--")
+    five = mechanism_of(load_robot(str(MODELS / "fivebar_gepetto" / "robot.urdf")))
+    assert five.branches == ("++", "+-", "-+", "--")
+    assert five.check_branches("+-") == ("+-",)
 
 
 CLOSED_FORMS = ["scara", "p2us", "p2us-results", "delta"]
@@ -205,3 +238,56 @@ def test_the_serial_arm_jacobian_is_pinocchios():
         assert np.allclose(v.J[k], J, atol=1e-12)
         s = np.linalg.svd(J, compute_uv=False)
         assert np.isclose(v.iota_I[k], s[-1] / s[0], rtol=1e-9)
+
+
+def test_a_generic_loops_fk_and_velocity_take_and_give_its_task_coordinates():
+    """The generic closed loop's fk returns points in the task coordinates its ik takes (the
+    five-bar's plane: 2, not the world position's 3), so ik then fk returns the point on a branch
+    the continuation from the reference reaches; bad actuator values are refused, not NaN, and an
+    empty batch is an empty answer. Tolerance: the batched IK and the continuation each close the
+    loops to ~1e-12 m; 1e-9 m leaves the same margin as tests/test_loop_batch.py."""
+    from kinematics.errors import InvalidInputError
+
+    mech = mechanism_of(load_robot(str(MODELS / "fivebar_gepetto" / "robot.urdf")))
+    assert mech.task_dim == 2
+    p = np.array([[0.1, 0.3], [0.05, 0.35]])
+    res = mech.ik(p)
+    assert res.reachable.all(axis=0).any()
+    errors = []
+    for b in np.flatnonzero(res.reachable.all(axis=0)):
+        asm = mech.fk(res.q[:, b])
+        assert asm.p.shape == (2, 1, 2)
+        errors.append(np.linalg.norm(asm.p[:, 0] - p, axis=-1))
+    assert np.nanmin(errors, axis=0).max() <= 1e-9
+    for bad in (np.zeros((1, 3)), np.zeros((1, 1)), np.array([[np.nan, 0.0]]), 0.3):
+        with pytest.raises(InvalidInputError, match="q"):
+            mech.fk(bad)
+    q = res.q[:, np.flatnonzero(res.reachable.all(axis=0))[0]]
+    assert mech.velocity(p, q).J.shape == (2, 2, 2)
+    empty = mech.velocity(np.zeros((0, 2)), np.zeros((0, 2)))
+    assert empty.J.shape == (0, 2, 2) and empty.iota_I.shape == (0,)
+    for bad in (np.zeros((2, 3)), q[:1], np.full((2, 2), np.nan)):
+        with pytest.raises(InvalidInputError, match="q"):
+            mech.velocity(p, bad)
+
+
+@pytest.mark.parametrize("name", ["p2us", "delta"])
+def test_the_single_pose_reports_refuse_a_batch_or_a_wrong_length(name):
+    """pose_ik, pose_fk, pose_jacobians and joint_values take one point / one actuator vector: a
+    (1, 3) row, 2 or 4 values are an InvalidInputError (a numpy ValueError, 'truth value of an
+    array is ambiguous' or 'cannot reshape', before)."""
+    from kinematics.errors import InvalidInputError
+
+    mech = mechanism_of(load_robot(name))
+    p, branch = mech.reference_pose()
+    q = mech.ik(p[None]).q[0, mech.branches.index(branch)]
+    assert mech.pose_fk(q).exists and mech.pose_ik(p).reachable.any()  # the single ones work
+    for bad in (p[None], p[:2], np.append(p, 0.0)):
+        for call, args in ((mech.pose_ik, (bad,)), (mech.pose_jacobians, (bad, q)), (mech.joint_values, (bad, branch))):
+            with pytest.raises(InvalidInputError, match="position"):
+                call(*args)
+    word = "angles" if name == "delta" else "values"  # the family's closed forms say the same
+    for bad in (q[None], q[:2], np.append(q, 0.0)):
+        for call, args in ((mech.pose_fk, (bad,)), (mech.pose_jacobians, (p, bad))):
+            with pytest.raises(InvalidInputError, match=f"q: .*{word}|q: expected one 3-vector"):
+                call(*args)

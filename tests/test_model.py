@@ -89,6 +89,14 @@ def test_non_finite_joint_values(scara, bad):
         scara.configuration([0.1, bad])
 
 
+@pytest.mark.parametrize("pair", [1.0, (0.0, 1.0, 2.0), ("a", "b"), None, (1.0, 0.0), (math.nan, 1.0)])
+def test_a_range_that_is_no_pair_of_numbers_is_refused(pair):
+    """load_robot(ranges=...) names the joint and the pair for anything but finite LO < HI (a
+    number, a triple or text was a TypeError or ValueError from the unpacking)."""
+    with pytest.raises(InvalidInputError, match="range of joint1"):
+        load_robot("scara", ranges={"joint1": pair})
+
+
 def test_errors_share_one_root():
     for cls in (InvalidInputError, ModelFileError, UnknownFrameError, UnknownRobotError):
         assert issubclass(cls, KinematicsError)

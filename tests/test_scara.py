@@ -132,6 +132,20 @@ def test_ik_rejects_bad_input(params):
         sc.fk(params, np.zeros(3))
 
 
+@pytest.mark.parametrize("q", [[np.nan, 0.3], [np.inf, 0.3], [0.2, -np.inf]])
+def test_fk_and_jacobians_refuse_non_finite_angles(q):
+    """A NaN or inf joint angle is refused by the mechanism's fk and velocity as the IK refuses a
+    NaN point (it came back as a NaN position flagged as existing, and NaN Jacobians)."""
+    from kinematics.mechanisms import mechanism_of
+
+    m = mechanism_of(load_robot("scara"))
+    q = np.array([q])
+    with pytest.raises(InvalidInputError, match="finite"):
+        m.fk(q)
+    with pytest.raises(InvalidInputError, match="finite"):
+        m.velocity(np.zeros((1, 2)), q)
+
+
 def test_fk_then_ik_on_a_joint_limit_stays_within():
     # a joint on its limit: the IK gives it back a few ulp beyond (atan2 round-off), which must
     # still count as within the limits (sampled poses with one joint on an end, both elbows)

@@ -88,3 +88,23 @@ def test_one_dof_robot(capsys):
     np.testing.assert_allclose(d["jacobian"], [[-0.5 * np.sin(q)], [0.5 * np.cos(q)]], atol=1e-15)
     code, d, _ = run_json(capsys, "mobility", str(path))
     assert code == 0 and d["grubler"]["mobility"] == 1 and d["numeric"]["mobility"] == 1
+
+
+@pytest.mark.parametrize("q", [[0.1], [0.1, 0.2, 0.3], [[0.1, 0.2], [0.3, 0.4]], [np.nan, 0.2], [0.1, np.inf],
+                               "0.1 0.2", 0.1])
+def test_a_malformed_configuration_is_refused(scara, q):
+    """A configuration of the wrong size, a NaN/inf or something not numbers is an InvalidInputError
+    naming q (Pinocchio's C++ ValueError, a Boost ArgumentError or a NaN pose before)."""
+    from kinematics.analyses.mobility import analyse
+
+    for f in (forward_kinematics, frame_jacobian, task_jacobian, analyse):
+        with pytest.raises(InvalidInputError, match="^q: "):
+            f(scara, q)
+
+
+def test_a_configuration_given_as_a_list_or_a_row_is_one_configuration(scara):
+    q = np.array([0.3, -0.4])
+    want = forward_kinematics(scara, q).position
+    for given in ([0.3, -0.4], q[None]):
+        np.testing.assert_array_equal(forward_kinematics(scara, given).position, want)
+        np.testing.assert_array_equal(frame_jacobian(scara, given), frame_jacobian(scara, q))

@@ -251,6 +251,21 @@ def test_reach_margin_sign_is_membership(rng):
     np.testing.assert_array_equal(wedge.margin(p)[:, 0] >= 0, inside)
 
 
+@pytest.mark.parametrize("bad", [np.zeros(3), np.zeros((1, 4)), np.zeros((1, 2)), np.array([[np.nan, 0.0, 0.3]])])
+def test_a_serial_arms_margin_refuses_malformed_points(bad):
+    """mechanism.margin()(points) on a serial arm checks the points before its search (numpy's
+    AxisError, a broadcast ValueError or scipy's 'x must be finite' from the k-d tree, before);
+    the profile margin of a solid of revolution takes (rho, z) pairs."""
+    from kinematics.mechanisms import mechanism_of
+
+    margin = mechanism_of(load_robot(MODELS / "arm3r_revolved.urdf", tool_frame="tip")).margin()
+    with pytest.raises(InvalidInputError, match="points"):
+        margin(bad)
+    assert margin.profile is not None
+    with pytest.raises(InvalidInputError, match=r"\(N, 2\)"):
+        margin.profile.margin(np.zeros((1, 3)))
+
+
 @pytest.fixture(scope="module")
 def revolved_ws():
     from kinematics.analyses.workspace import measure_workspace

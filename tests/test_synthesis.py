@@ -148,3 +148,18 @@ def test_cli_synthesize(capsys, tmp_path):
     lines = out.read_text().splitlines()
     assert lines[0] == "la,lb,cube_edge_m,gci,footprint_m,gci_error" and len(lines) == len(d["pareto_front"]) + 1
     assert png.stat().st_size > 10_000 and {"cube_edge_m", "gci", "gap"} <= set(d["reference"])
+
+
+@pytest.mark.parametrize(("bound", "error", "match"), [
+    (Bound("zz", 0.1, 0.2), "UnknownParameterError", "valid: b, d, L"),
+    (Bound("b", 0.3, 0.2), "InvalidInputError", "LOWER < UPPER"),
+    (Bound("b", float("nan"), 0.3), "InvalidInputError", "LOWER < UPPER"),
+])
+def test_a_bound_is_checked_before_the_workers_start(p2us, client, bound, error, match):
+    """A Bound built in Python skips Bound.parse: an unknown name failed on a worker as "a design
+    failed: TypeError: P2USParams.__init__() got an unexpected keyword argument", a reversed or NaN
+    range in pymoo's sampling on an `assert`."""
+    import kinematics.errors as errors
+
+    with pytest.raises(getattr(errors, error), match=match):
+        synthesize(p2us, [bound], population=4, generations=1, settings=TINY, client=client)

@@ -562,3 +562,40 @@ def test_unreachable_actuators_are_reported_in_their_unit(tmp_path, capsys):
         assert main([*argv, "--q", "-0.5", "-0.5", "-0.5"]) == 1
         out = capsys.readouterr().out
         assert out.startswith("actuators at [-0.5, -0.5, -0.5] rad is NOT reachable"), out
+
+
+@pytest.mark.parametrize(("figure", "robot", "options", "match"), [
+    ("planar_workspace", "scara", {"step": 0}, "step"),
+    ("planar_workspace", "scara", {"step": -1}, "step"),
+    ("planar_workspace", "scara", {"step": 1e-7}, "step"),
+    ("spatial_workspace", "delta", {"step": 0.05, "slices_z": 0}, "slices_z"),
+    ("spatial_workspace", "delta", {"step": 0.05, "slices_z": -1}, "slices_z"),
+    ("conditioning_map", "delta", {"branch": "---", "step": 0.05, "slices_z": 0}, "slices_z"),
+])
+def test_workspace_figures_refuse_a_bad_grid_before_sampling(figure, robot, options, match):
+    """step 0 was numpy's 'Maximum allowed size exceeded', -1 matplotlib's shape error, 1e-7 a grid
+    of 1.96e14 points asked for; slices_z = 0 an UnboundLocalError, -1 numpy's 'Number of samples'."""
+    from kinematics.errors import InvalidInputError
+    from kinematics.mechanisms import mechanism_of
+    from kinematics.model.robot import load_robot
+    from kinematics.views import plots
+
+    with pytest.raises(InvalidInputError, match=match):
+        getattr(plots, figure)(mechanism_of(load_robot(robot)), **options)
+
+
+def test_a_figure_with_an_unknown_suffix_is_refused(tmp_path):
+    """plots.save(fig, 'x.zz') was matplotlib's ValueError 'Format 'zz' is not supported'; the
+    figure is closed either way."""
+    import matplotlib.pyplot as plt
+
+    from kinematics.errors import InvalidInputError
+    from kinematics.views import plots
+
+    plots.headless()
+    fig = plt.figure()
+    with pytest.raises(InvalidInputError, match="unknown suffix '.zz'"):
+        plots.save(fig, tmp_path / "x.zz")
+    assert not plt.fignum_exists(fig.number) and not list(tmp_path.iterdir())
+    plots.save(plt.figure(), tmp_path / "x.png")
+    assert (tmp_path / "x.png").stat().st_size > 0

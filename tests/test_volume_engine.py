@@ -358,6 +358,27 @@ def test_column_volume_validates():
         column_volume(lambda p: np.full(len(p), np.nan), -np.ones(2), np.ones(2))
 
 
+def _disc(p: np.ndarray) -> np.ndarray:
+    return 1.0 - np.sum(p * p, axis=1)
+
+
+@pytest.mark.parametrize(("option", "value"), [("order", 0), ("order", -3), ("order", 2.5), ("pieces", -1),
+                                               ("axis", 5), ("axis", -3), ("axis", 1.0)])
+def test_column_volume_refuses_a_bad_quadrature_setting(option, value):
+    """order < 1 was numpy's 'deg must be a positive integer', pieces < 0 its 'negative dimensions';
+    an axis beyond the box's was taken modulo d, another axis than asked for."""
+    with pytest.raises(InvalidInputError, match=option):
+        column_volume(_disc, -1.5 * np.ones(2), 1.5 * np.ones(2), step=0.1, **{option: value})
+
+
+@pytest.mark.parametrize("weight", [lambda b: np.full(len(b), np.nan), lambda b: np.ones((len(b), 3))])
+def test_column_volume_refuses_a_weight_that_is_no_factor_per_column(weight):
+    """A NaN weight gave a NaN volume after the whole run (26 s here), a wrong shape a broadcast
+    ValueError; the margin's output is checked the same way (check_margin)."""
+    with pytest.raises(InvalidInputError, match="weight"):
+        column_volume(_disc, -1.5 * np.ones(2), 1.5 * np.ones(2), step=0.1, weight=weight)
+
+
 def test_p2us_box_contains_the_workspace():
     P = P2USParams()
     lo, hi = bounding_box(P)

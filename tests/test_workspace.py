@@ -244,3 +244,11 @@ def test_scara_converges_at_1e5_against_its_exact_areas():
     assert r.converged and r.step < 0.005
     for got, err, want in zip(r.estimate, r.error, (elbow, elbow, scara_area_closed_form(sp)), strict=True):
         assert abs(got - want) <= err <= 1e-5 * want, (got, err, want)
+
+
+@pytest.mark.parametrize("n", [0, -5, 1.5, 10**12, True])
+def test_monte_carlo_refuses_a_sample_count_that_is_no_positive_whole_number(scara, n):
+    """n = 0 was a ZeroDivisionError, -5 numpy's 'negative dimensions', 1.5 a TypeError, 1e12 an
+    allocation of terabytes; each is an InvalidInputError naming n."""
+    with pytest.raises(InvalidInputError, match="^n: "):
+        volume_monte_carlo(Scara(ScaraParams.from_robot(scara)), n, np.random.default_rng(0))

@@ -266,7 +266,7 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
     chosen = mech.check_branches(branches) if mech.branches or branches else ()
     if not (isinstance(replicates, int) and replicates >= 2):
         raise InvalidInputError("replicates", f"need at least 2 independent replicates for an error bar, got {replicates}")
-    if samples < 16:
+    if not samples >= 16:  # NaN too
         raise InvalidInputError("samples", f"need at least 16 points per replicate, got {samples}")
     if not (isinstance(seed, int) and seed >= 0):  # numpy's SeedSequence takes no negative entropy
         raise InvalidInputError("seed", f"must be a whole number >= 0, got {seed}")

@@ -39,7 +39,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from kinematics.errors import InvalidInputError, KinematicsError, SweepError, UnsupportedRobotError
+from kinematics.errors import (
+    InvalidInputError,
+    KinematicsError,
+    SweepError,
+    UnknownParameterError,
+    UnsupportedRobotError,
+)
 
 if TYPE_CHECKING:
     from kinematics.mechanisms.base import Mechanism
@@ -288,6 +294,11 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
     names = tuple(b.name for b in bounds)
     if len(set(names)) != len(names):
         raise InvalidInputError("--param", f"a variable is given twice: {list(names)}")
+    for b in bounds:  # as Bound.parse checks the command line's: before any worker starts
+        if b.name not in VARIABLES[family]:
+            raise UnknownParameterError(b.name, VARIABLES[family])
+        if not (math.isfinite(b.lower) and math.isfinite(b.upper) and b.lower < b.upper):
+            raise InvalidInputError("--param", f"need finite LOWER < UPPER, got {b.name}={b.lower}:{b.upper}")
     if population < 4 or generations < 1:
         raise InvalidInputError("population", f"need a population >= 4 and generations >= 1, got {population}, "
                                 f"{generations}")

@@ -309,6 +309,8 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     if levels < 1 or starts < 1:
         raise InvalidInputError("levels" if levels < 1 else "starts", "must be at least 1")
     spacing = step / 2 if spacing is None else spacing
+    if not (spacing > 0 and math.isfinite(spacing)):
+        raise InvalidInputError("spacing", f"must be a positive number of metres, got {spacing!r}")
     lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
     check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
     n = tuple(len(np.arange(a, b + step / 2, step)) for a, b in zip(lo_, hi_, strict=True))

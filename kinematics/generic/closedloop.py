@@ -210,7 +210,7 @@ class ClosedLoop:
             raise InvalidInputError("actuated values", "must be finite")
         total = 0
         if q0 is not None:
-            q, err, it = self.newton(self._with_actuated(np.asarray(q0, float), target), tol, max_iter)
+            q, err, it = self.newton(self._with_actuated(self.robot.check_configuration(q0), target), tol, max_iter)
             total += it
             if err <= tol:
                 return self._solution(q, err, total)

@@ -81,18 +81,21 @@ def task_rows(robot: Robot, task: Task = "auto") -> tuple[int, ...]:
 
 
 def forward_kinematics(robot: Robot, q: np.ndarray, frame: str | None = None) -> Pose:
-    """World placement of `frame` (default: the tool) at Pinocchio configuration `q`."""
+    """World placement of `frame` (default: the tool) at Pinocchio configuration `q` (nq,)
+    (InvalidInputError unless nq finite values: `Robot.check_configuration`)."""
     fid = robot.frame_id(frame)
     data = robot.data
-    pin.framesForwardKinematics(robot.model, data, q)
+    pin.framesForwardKinematics(robot.model, data, robot.check_configuration(q))
     M = data.oMf[fid]
     return Pose(M.translation.copy(), M.rotation.copy())
 
 
 def frame_jacobian(robot: Robot, q: np.ndarray, frame: str | None = None) -> np.ndarray:
     """6 x nv Jacobian of `frame`, LOCAL_WORLD_ALIGNED: [v; w] = J q_dot, v the frame origin's
-    velocity [m/s] and w the angular velocity [rad/s], both in world axes."""
+    velocity [m/s] and w the angular velocity [rad/s], both in world axes, at Pinocchio
+    configuration `q` (nq,) (checked as in `forward_kinematics`)."""
     fid = robot.frame_id(frame)
+    q = robot.check_configuration(q)
     return matrix(pin.computeFrameJacobian(robot.model, robot.data, q, fid, pin.LOCAL_WORLD_ALIGNED), robot.nv).copy()
 
 

@@ -119,6 +119,8 @@ class ScaraKinematics:
     """
 
     dim = 2
+    nq = 2
+    """Joint values the controller's q holds (theta1, theta2) [rad]."""
 
     def __init__(self, sp: ScaraParams) -> None:
         self.sp = sp
@@ -195,6 +197,7 @@ class SerialKinematics:
         self.model = robot.model
         self.data = self.model.createData()
         self.fid = robot.frame_id(frame)
+        self.nq = self.model.nq  # q is a Pinocchio configuration
         # configuration-space indices and bounds of the joints that have finite limits
         bounded = [d for d in robot.dofs if np.isfinite(d.lower) and np.isfinite(d.upper)]
         self.bounded_q = np.array([d.idx_q for d in bounded], dtype=int)
@@ -266,7 +269,12 @@ class Controller:
     rest: np.ndarray | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
-        self.q = np.asarray(self.q, dtype=float).copy()
+        q = np.array(self.q, dtype=float)
+        n = getattr(self.kin, "nq", None)  # a Kinematics of one's own may not say
+        if q.ndim != 1 or (n is not None and q.size != n) or not np.all(np.isfinite(q)):
+            raise InvalidInputError("q", f"need {n if n is not None else 'the robot'}'s finite joint values (one "
+                                         f"configuration), got {np.asarray(self.q).tolist()}")
+        self.q = q
         self.x = self.kin.fk(self.q)
         self.v = np.zeros(self.kin.dim)
 

@@ -282,6 +282,9 @@ def run_experiment(number: int, sp: Any, params: GuidanceParams | None = None, f
     from kinematics.errors import UnknownChoiceError
     from kinematics.mechanisms.scara.closed_form import ik
 
+    if isinstance(number, bool) or not isinstance(number, int):  # "1" would be told "did you mean '1'?"
+        raise InvalidInputError("number", f"an experiment number is an int ({', '.join(map(str, EXPERIMENTS))}), "
+                                          f"got {number!r}")
     if number not in EXPERIMENTS:
         raise UnknownChoiceError(str(number), [str(k) for k in EXPERIMENTS])
     ex = EXPERIMENTS[number]

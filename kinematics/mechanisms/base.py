@@ -270,9 +270,12 @@ class Mechanism(ABC):
         return limits
 
     def check_branches(self, branches: Sequence[str] | None) -> tuple[str, ...]:
-        """The branches asked for (all when None), deduplicated; raises UnknownModeError."""
+        """The branches asked for (all when None; one name alone is that branch), deduplicated;
+        raises UnknownModeError."""
         if branches is None:
             return self.branches
+        if isinstance(branches, str):  # "+-" is one label, not the labels "+" and "-"
+            branches = [branches]
         for b in branches:
             if b not in self.branches:
                 raise UnknownModeError(b, self.branches, self.name)
@@ -323,7 +326,8 @@ class Mechanism(ABC):
 
     def reference_pose(self) -> tuple[np.ndarray, str]:
         """A task point [m] and branch where the mechanism is assembled within its limits."""
-        raise MissingCapabilityError(self.name, "joint_values", "a reference pose", self.capabilities)
+        # named as itself: a generic closed loop has joint_values but no reference pose
+        raise MissingCapabilityError(self.name, "reference_pose", "a reference pose", self.capabilities)
 
     def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
         """Every URDF joint's value (loops closed) with the task point at `point` [m] in `branch`."""
@@ -386,7 +390,7 @@ class Mechanism(ABC):
         every branch (`ik` solves them all at once: `branch_velocity` per branch solves them B times)."""
         self.require("ik", "Jacobians at task points")
         self.require("velocity", "Jacobians at task points")
-        chosen = self.check_branches(list(branches))
+        chosen = self.check_branches(branches if isinstance(branches, str) else list(branches))
         res = self.ik(points, limits)
         points = np.asarray(points, dtype=float)
         n, d, a = len(points), self.task_dim, res.q.shape[-1]

@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from kinematics.errors import UnsupportedRobotError
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.mechanisms.base import Mechanism
 from kinematics.model.robot import Robot
 
@@ -55,8 +55,21 @@ def families() -> dict[str, Callable[[Robot], Mechanism]]:
 
 def mechanism_of(robot: Robot, orientation: ToolOrientation | None = None) -> Mechanism:
     """The robot as a `Mechanism` (see the module docstring); with `orientation`, its reachable set
-    for that tool orientation (open chains only: UnsupportedRobotError otherwise)."""
+    for that tool orientation (open chains only: UnsupportedRobotError otherwise).
+
+    Raises:
+        InvalidInputError: `robot` is not a `Robot` (a name: load it with `load_robot` first), or
+            `orientation` not a `ToolOrientation`.
+    """
+    if not isinstance(robot, Robot):
+        hint = f"; load it first: mechanism_of(load_robot({robot!r}))" if isinstance(robot, str) else ""
+        raise InvalidInputError("robot", f"expected a Robot (from load_robot), got {type(robot).__name__}{hint}")
     if orientation is not None:
+        from kinematics.mechanisms.serial.orientation import ToolOrientation
+
+        if not isinstance(orientation, ToolOrientation):
+            raise InvalidInputError("orientation", "expected a ToolOrientation (ToolOrientation.parse('rpy R P Y') "
+                                                   f"or ToolOrientation.axis(d)), got {orientation!r}")
         from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
         return with_fixed_orientation(robot, orientation)

@@ -205,6 +205,22 @@ class Robot:
                 q[d.idx_q] = x
         return q
 
+    def check_configuration(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
+        """One Pinocchio configuration as a float array (nq,) (a (1, nq) row is accepted): raises
+        InvalidInputError unless it has nq finite values (nq: one per degree of freedom, two
+        (cos, sin) per continuous joint; `configuration` builds one from joint values)."""
+        try:
+            a = np.array(q, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInputError("q", f"expected {self.model.nq} numbers, got {q!r}") from None
+        if a.ndim > 2 or a.size != self.model.nq or (a.ndim == 2 and len(a) != 1):
+            raise InvalidInputError("q", f"{self.name} takes a Pinocchio configuration of {self.model.nq} values "
+                                         f"(nq; joint values give one with configuration()), got shape {a.shape}")
+        a = a.reshape(-1)
+        if not np.isfinite(a).all():
+            raise InvalidInputError("q", f"must be finite; got {a.tolist()}")
+        return a
+
     def values_from_configuration(self, q: np.ndarray) -> np.ndarray:
         """Inverse of `configuration`: one value per degree of freedom."""
         out = np.empty(self.nv)
@@ -260,7 +276,10 @@ def apply_ranges(model: pin.Model, missing: dict[str, tuple[bool, bool]],
     for name, pair in (ranges or {}).items():
         if name not in index:
             raise UnknownJointError(name, list(index))
-        a, b = (float(v) for v in pair)
+        try:
+            a, b = (float(v) for v in pair)
+        except (TypeError, ValueError):  # not a pair of numbers: a number, a triple, text
+            raise InvalidInputError(f"range of {name}", f"expected a pair (LO, HI) of numbers [rad or m], got {pair!r}") from None
         if not (np.isfinite(a) and np.isfinite(b) and a < b):
             raise InvalidInputError(f"range of {name}", f"expected finite LO < HI, got [{a}, {b}]")
         lo[index[name]], hi[index[name]] = a, b

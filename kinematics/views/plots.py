@@ -6,11 +6,15 @@ The figures use whatever backend is active (inline in Jupyter); the CLI calls `h
 
 from __future__ import annotations
 
+import numbers
 import os
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+from kinematics.errors import InvalidInputError
+from kinematics.sizes import check_points, grid_points
 
 SINGULAR_STYLE = {1: ("tab:blue", "o", "type I"), 2: ("tab:red", "^", "type II"), 3: ("black", "s", "type III")}
 """Singularity type -> (colour, marker, label), shared by every plot and the Meshcat views."""
@@ -40,15 +44,28 @@ def _figure(ncols: int = 1, size: tuple[float, float] = (6.0, 5.0), projection: 
 
 
 def save(fig: Any, path: str | os.PathLike[str], option: str = "--plot") -> None:
-    """Write the figure (format from the suffix) atomically (`files.write_atomic`) and close it."""
+    """Write the figure (format from the suffix, one of `files.OUTPUT_SUFFIXES["figure"]`)
+    atomically (`files.write_atomic`) and close it; InvalidInputError naming `option` otherwise."""
     import matplotlib.pyplot as plt
 
-    from kinematics.files import write_atomic
+    from kinematics.files import check_output, write_atomic
 
     try:
+        check_output(os.fspath(path), option, "figure")  # matplotlib's own refusal is a ValueError
         write_atomic(os.fspath(path), lambda tmp: fig.savefig(tmp, dpi=110, bbox_inches="tight"), option)
     finally:
         plt.close(fig)
+
+
+def _check_grid(lo: np.ndarray, hi: np.ndarray, step: float, slices_z: int = 1) -> None:
+    """The sampled grid's step (a positive length, `analyses.cells.check_step`), its size (the
+    points budget) and the number of slices (a whole number >= 1), before anything is sampled."""
+    from kinematics.analyses.cells import check_step
+
+    check_step(step)
+    if isinstance(slices_z, bool) or not isinstance(slices_z, numbers.Integral) or slices_z < 1:
+        raise InvalidInputError("slices_z", f"must be a whole number of slices >= 1, got {slices_z!r}")
+    check_points("step", grid_points(lo, hi, step), hint="use a larger step")
 
 
 def p2us_workspace(params: Any, limits: str = "all", step: float = 0.01, slices_z: int = 3,
@@ -71,6 +88,7 @@ def spatial_workspace(mech: Any, limits: str = "all", step: float = 0.01, slices
     if mech.task_dim == 2:
         return planar_workspace(mech, limits, step / 2, singular, branch_margin, what, branches)
     lo, hi = mech.bounding_box(limits)
+    _check_grid(lo, hi, step, slices_z)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(3)]
     X, Y = np.meshgrid(axes[0], axes[1], indexing="ij")
     pts3 = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
@@ -108,6 +126,7 @@ def planar_workspace(mech: Any, limits: str = "all", step: float = 0.005, singul
     branches (e.g. working modes) within limits, with the singular points in (type II / III) or on
     (type I) it when given; `branch_margin`, `what` and `branches` as `spatial_workspace`'s."""
     lo, hi = mech.bounding_box(limits)
+    _check_grid(lo, hi, step)
     axes = [np.arange(lo[k], hi[k] + step / 2, step) for k in range(2)]
     X, Y = np.meshgrid(*axes, indexing="ij")
     margin = _branch_margins(mech, limits, branch_margin, np.stack([X.ravel(), Y.ravel()], axis=1), branches)
@@ -324,6 +343,8 @@ def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float | 
     the workspace (spatial mechanisms), blank outside it (`analyses.dexterity.conditioning_grid`)."""
     from kinematics.analyses.dexterity import conditioning_grid
 
+    if isinstance(slices_z, bool) or not isinstance(slices_z, numbers.Integral) or slices_z < 1:
+        raise InvalidInputError("slices_z", f"must be a whole number of slices >= 1, got {slices_z!r}")
     axes, g = conditioning_grid(mech, branch, limits=limits, step=step)
     if len(axes) == 2:
         fig, ax = _figure(1, (6.0, 5.0))

@@ -4,6 +4,7 @@ check runs at halved steps (see the package docstring)."""
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -182,6 +183,12 @@ def column_volume(
     if rtol < RTOL_FLOOR:
         raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
                                         f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
+    if isinstance(order, bool) or not isinstance(order, numbers.Integral) or order < 1:
+        raise InvalidInputError("order", f"must be a whole number of Gauss-Legendre nodes >= 1, got {order!r}")
+    if pieces is not None and (isinstance(pieces, bool) or not isinstance(pieces, numbers.Integral) or pieces < 0):
+        raise InvalidInputError("pieces", f"must be a whole number >= 0 (0 or None: from the step), got {pieces!r}")
+    if axis is not None and not (isinstance(axis, numbers.Integral) and -d <= axis < d):
+        raise InvalidInputError("axis", f"must be one of the box's axes 0..{d - 1} (or -{d}..-1), got {axis!r}")
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
     start = start_cost(step, hi - lo, ax, order, 8 * step, pieces)
     if start > max_points:
@@ -358,7 +365,11 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
     def columns(base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ell, err, ends = column_lengths(margin, base, lo[ax], hi[ax], step, ax, counter, root_tol)
         if weight is not None:
-            w = np.asarray(weight(base), dtype=float)[:, None]
+            w = np.asarray(weight(base), dtype=float)
+            if w.shape != (len(base),) or not np.all(np.isfinite(w)):  # as check_margin for the margin
+                raise InvalidInputError("weight", f"must return {len(base)} finite factors (one per column), got "
+                                                  f"shape {w.shape}{'' if np.all(np.isfinite(w)) else ' with NaN or inf'}")
+            w = w[:, None]
             ell, err = ell * w, err * w
         if bar is not None:
             bar.update(len(base))

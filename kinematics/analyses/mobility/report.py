@@ -29,7 +29,9 @@ class MobilityReport:
 
 
 def analyse(robot: Robot, q: np.ndarray) -> MobilityReport:
-    """Grübler–Kutzbach, numeric and screw mobility at q, with notes wherever they disagree."""
+    """Grübler–Kutzbach, numeric and screw mobility at Pinocchio configuration q (nq,), with notes
+    wherever they disagree (InvalidInputError unless q is nq finite values)."""
+    q = robot.check_configuration(q)
     g = grubler(robot, q)
     n = numeric_mobility(robot, q)
     s = screw_analysis(robot, q)

@@ -267,7 +267,7 @@ class BlockSolver(LoopAtlas, LoopMargins, WarmStarts):
         # level from the nearest point of the levels before; the points are taken level by level
         # (order) so that each level's slots are one contiguous slice of the arrays
         # (a batch whose points mostly have a cached neighbour, such as a root refinement step, in one go)
-        strides = (1,) if np.isfinite(best).mean() >= 0.9 else (64, 8, 1)
+        strides = (1,) if np.count_nonzero(np.isfinite(best)) >= 0.9 * N else (64, 8, 1)  # N = 0: no mean of nothing
         levels, taken = [], np.zeros(N, dtype=bool)
         for stride in strides:
             level = np.flatnonzero(~taken & (np.arange(N) % stride == 0))

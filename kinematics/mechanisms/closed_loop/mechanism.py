@@ -241,11 +241,19 @@ class GenericClosedLoop(Mechanism):
         return np.where(sol.found[:, b, None], sol.x[:, b], np.nan)
 
     def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
-        """At each point, the branch whose actuator values are nearest `q` (N, a)."""
+        """At each point (N, d), the branch whose actuator values are nearest `q` (N, a).
+
+        Raises:
+            InvalidInputError: points or q of the wrong shape, or not finite.
+        """
         p = np.atleast_2d(np.asarray(points, dtype=float))
         sol = self.batch.ik(p)
+        q = self._actuator_rows(q, len(p))
+        d, a = self.task_dim, q.shape[1]
+        if not len(p):
+            return Velocity(np.zeros((0, d, a)), np.zeros((0, a, d)), np.zeros(0), np.zeros(0))
         qa = sol.x[..., self.batch.actuated]  # (N, B, a)
-        dist = np.where(sol.found, np.linalg.norm(qa - np.asarray(q, dtype=float)[:, None, :], axis=-1), np.inf)
+        dist = np.where(sol.found, np.linalg.norm(qa - q[:, None, :], axis=-1), np.inf)
         pick = np.argmin(dist, axis=1)
         rows = np.arange(len(p))
         x = np.where(np.isfinite(dist[rows, pick])[:, None], sol.x[rows, pick], np.nan)
@@ -262,16 +270,41 @@ class GenericClosedLoop(Mechanism):
         return SingularFields(f.margin, f.limb, f.det)
 
     def fk(self, q: np.ndarray) -> Assemblies:
+        """The end effector's task point (N, 1, d) [m] at actuator values q (N, a) (one (a,) row
+        is N = 1), on the assembly the continuation from the reference reaches; NaN where it finds
+        none. d is `task_axes` (the coordinates `ik` and `margin` take) for a robot with at most
+        MAX_TASK_DIM actuators, else the position's three.
+
+        Raises:
+            InvalidInputError: q is not (N, a) finite values.
+        """
         from kinematics.errors import KinematicsError
         from kinematics.generic.closedloop import ClosedLoop
 
         loop = ClosedLoop(self.robot)
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        p = np.full((len(q), 1, 3), np.nan)
+        q = self._actuator_rows(q, None)
+        loops = self.robot.loops
+        axes = list(self.batch.task_axes) if loops is not None and len(loops.actuated) <= MAX_TASK_DIM else [0, 1, 2]
+        p = np.full((len(q), 1, len(axes)), np.nan)
         for k, row in enumerate(q):
             try:
                 sol = loop.solve(row)
-            except KinematicsError:
+            except KinematicsError:  # the inputs are checked: no assembly reached there
                 continue
-            p[k, 0] = sol.pose.translation
+            p[k, 0] = sol.pose.translation[axes]
         return Assemblies(p, np.isfinite(p).all(axis=-1), self.assembly_modes)
+
+    def _actuator_rows(self, q: np.ndarray, n: int | None) -> np.ndarray:
+        """q as (N, a) finite actuator values (one (a,) row is N = 1; N = n when given)."""
+        from kinematics.errors import InvalidInputError
+
+        names = self.robot.loops.actuated if self.robot.loops else ()
+        a = np.asarray(q, dtype=float)
+        a = a.reshape(1, -1) if a.ndim <= 1 else a
+        rows = "N" if n is None else str(n)
+        if a.ndim != 2 or a.shape[1] != len(names) or (n is not None and len(a) != n):
+            raise InvalidInputError("q", f"expected shape ({rows}, {len(names)}) actuator values "
+                                         f"({', '.join(names)}), got {np.shape(q)}")
+        if not np.isfinite(a).all():
+            raise InvalidInputError("q", "must be finite")
+        return a

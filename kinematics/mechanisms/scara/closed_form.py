@@ -108,6 +108,8 @@ def _angles(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(q, dtype=float)
     if q.shape[-1:] != (2,):
         raise InvalidInputError("q", f"expected shape (..., 2), got {q.shape}")
+    if not np.all(np.isfinite(q)):  # NaN in is NaN out, a position and Jacobian said to exist
+        raise InvalidInputError("q", "must be finite")
     return q[..., 0], q[..., 1]
 
 

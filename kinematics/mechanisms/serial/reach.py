@@ -464,7 +464,17 @@ class ReachMargin:
                                    reach.origin, reach.basis[2], turn)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        return self.reach.profile_margin(points) if self.on_profile else self.reach.margin(points)
+        from kinematics.errors import InvalidInputError
+
+        # a user's call lands here (mechanism.margin()(points)): say what is wrong before the search
+        s = self.reach.setup
+        d = 2 if self.on_profile else len(s.rows) if s.mode == "planar" else 3
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != d:
+            raise InvalidInputError("points", f"expected shape (N, {d}), got {np.shape(points)}")
+        if not np.isfinite(pts).all():
+            raise InvalidInputError("points", "must be finite")
+        return self.reach.profile_margin(pts) if self.on_profile else self.reach.margin(pts)
 
     def for_check(self) -> ReachMargin:
         return ReachMargin(self.reach.checker, self.on_profile)

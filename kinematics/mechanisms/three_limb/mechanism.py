@@ -22,7 +22,7 @@ from kinematics.mechanisms.base import (
     parallel_forward,
 )
 from kinematics.mechanisms.three_limb.closed_form import ASSEMBLY_MODES, MODES
-from kinematics.mechanisms.three_limb.modes import LIMITS, check_limits
+from kinematics.mechanisms.three_limb.modes import LIMITS, actuators, check_limits, one, points
 
 
 class ThreeLimbMechanism(Mechanism):
@@ -77,6 +77,11 @@ class ThreeLimbMechanism(Mechanism):
         jac = self.closed_form.jacobians(self.params, points, q)
         return Velocity(parallel_forward(jac.Jx, jac.Jq, jac.iota_II), jac.J, jac.iota_I, jac.iota_II)
 
+    @property
+    def actuator_word(self) -> str:
+        """What the actuator values are, for messages: "angles" (revolute) or "values"."""
+        return "angles" if self.actuator_unit == "rad" else "values"
+
     def urdf_module(self) -> Any:
         """The family's URDF module (`<family package>.urdf`), imported on first use."""
         return importlib.import_module(f"{self.closed_form.__package__}.urdf")
@@ -86,6 +91,7 @@ class ThreeLimbMechanism(Mechanism):
         return pose
 
     def joint_values(self, point: np.ndarray, branch: str) -> dict[str, float]:
+        point = one(points(point), "position")
         values: dict[str, float] = self.urdf_module().joint_values_at(self.params, point,
                                                                        self.check_branches([branch])[0])
         return values
@@ -105,7 +111,7 @@ class ThreeLimbMechanism(Mechanism):
         """Every working mode at `point`, with the limits each assembling mode breaks (its rods
         from the IK's per-limb roots)."""
         cf, P = self.closed_form, self.params
-        res = cf.ik(P, point)
+        res = cf.ik(P, one(points(point), "position"))
         found: list[tuple[str, ...]] = []
         for m, mode in enumerate(MODES):
             roots = [0 if c == "+" else 1 for c in mode]
@@ -118,6 +124,7 @@ class ThreeLimbMechanism(Mechanism):
         """Both assembly modes at `q`, with the limits each breaks (its rods from the platform
         position), or why none exists."""
         cf, P = self.closed_form, self.params
+        q = one(actuators(q, self.actuator_word), "q")
         res = cf.fk(P, q)
         if not res.exists:
             return PoseFK(res.p, False, (), self.fk_reason(res))
@@ -125,5 +132,5 @@ class ThreeLimbMechanism(Mechanism):
         return PoseFK(res.p, True, found, None)
 
     def pose_jacobians(self, point: np.ndarray, q: np.ndarray) -> PoseJacobians:
-        jac = self.closed_form.jacobians(self.params, point, q)
+        jac = self.closed_form.jacobians(self.params, one(points(point), "position"), one(actuators(q, self.actuator_word), "q"))
         return PoseJacobians(jac.Jx, jac.Jq, jac.J, jac.iota_I, jac.iota_II)

@@ -39,6 +39,14 @@ def points(p: np.ndarray, name: str = "position") -> np.ndarray:
     return p
 
 
+def one(v: np.ndarray, name: str) -> np.ndarray:
+    """`v` (from `points` or `actuators`) if it is a single 3-vector, for a single-pose report;
+    InvalidInputError for a batch (the batched maps take those)."""
+    if v.shape != (3,):
+        raise InvalidInputError(name, f"expected one 3-vector, got shape {v.shape} (a batch goes to the batched maps)")
+    return v
+
+
 def actuators(q: np.ndarray, what: str) -> np.ndarray:
     """Actuator values (`what`: "values", "angles") as floats of shape S + (3,); raises if not."""
     q = np.asarray(q, dtype=float)
