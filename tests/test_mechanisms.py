@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinematics.errors import MissingCapabilityError, UnknownChoiceError, UnknownModeError
+from kinematics.errors import InvalidInputError, MissingCapabilityError, UnknownChoiceError, UnknownModeError
 from kinematics.mechanisms import CAPABILITIES, Mechanism, mechanism_of
 from kinematics.model import load_robot
 
@@ -291,3 +291,45 @@ def test_the_single_pose_reports_refuse_a_batch_or_a_wrong_length(name):
         for call, args in ((mech.pose_fk, (bad,)), (mech.pose_jacobians, (p, bad))):
             with pytest.raises(InvalidInputError, match=f"q: .*{word}|q: expected one 3-vector"):
                 call(*args)
+
+
+def _analyses_given(robot):
+    from kinematics.analyses import (
+        dexterity,
+        measure_workspace,
+        singular_loci,
+        synthesize,
+        usable,
+        volume_monte_carlo,
+        workspace_mesh,
+    )
+    from kinematics.analyses.collision_volume import measure_collision_workspace
+
+    return {"measure_workspace": lambda: measure_workspace(robot),
+            "volume_monte_carlo": lambda: volume_monte_carlo(robot, 10, np.random.default_rng(0)),
+            "singular_loci": lambda: singular_loci(robot), "usable": lambda: usable(robot, "cube"),
+            "dexterity": lambda: dexterity(robot), "synthesize": lambda: synthesize(robot, []),
+            "workspace_mesh": lambda: workspace_mesh(robot),
+            "measure_collision_workspace": lambda: measure_collision_workspace(robot, robot)}
+
+
+@pytest.mark.parametrize("analysis", sorted(_analyses_given(None)))
+def test_an_analysis_given_a_robot_says_how_to_get_its_mechanism(analysis):
+    # a Robot where a Mechanism belongs (the usual slip in a notebook) raised AttributeError
+    # ('Robot' object has no attribute 'require') from inside each analysis
+    with pytest.raises(InvalidInputError, match=rf"{analysis} takes a Mechanism .*a Robot: pass mechanism_of\(robot\)"):
+        _analyses_given(load_robot("p2us"))[analysis]()
+    with pytest.raises(InvalidInputError, match=rf"{analysis} takes a Mechanism .*got str"):
+        _analyses_given("p2us")[analysis]()
+
+
+def test_workspace_mesh_by_default_meshes_the_union_of_a_serial_arm():
+    # the default branch was "---", which a serial arm (its union only) refused: now its union, a
+    # closed surface within the bounding box (a coarse grid: only the refusal's absence is at stake)
+    from kinematics.analyses import workspace_mesh
+
+    mech = mechanism_of(load_robot("ur5"))
+    mesh = workspace_mesh(mech, step=0.25).mesh
+    lo, hi = mech.bounding_box("all")
+    assert mesh.is_watertight and 0 < mesh.volume < np.prod(hi - lo)
+    assert np.all(mesh.vertices >= lo - 0.25) and np.all(mesh.vertices <= hi + 0.25)

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinematics.errors import InvalidInputError
-from kinematics.mechanisms.base import Mechanism
+from kinematics.mechanisms.base import Mechanism, check_mechanism
 from kinematics.sizes import check_points, grid_points
 
 MESH_SUFFIXES = (".stl", ".ply", ".glb")
@@ -96,15 +96,22 @@ def margin_mesh(margin: Callable[[np.ndarray], np.ndarray], lo: ArrayLike, hi: A
     return BoundaryMesh(mesh, step, boundary)
 
 
-def workspace_mesh(mech: Mechanism, branch: str = "---", step: float = 0.01, limits: str = "all") -> BoundaryMesh:
-    """The boundary of a branch's workspace ("union": of every branch) of a 3-D mechanism with a
-    margin (`Mechanism.margin`), over its bounding box at grid step `step` [m]."""
+def workspace_mesh(mech: Mechanism, branch: str | None = None, step: float = 0.01, limits: str = "all"
+                   ) -> BoundaryMesh:
+    """The boundary of a branch's workspace ("union": of every branch; None: "---" where the
+    mechanism has it, else its first branch, or the union of a serial arm) of a 3-D mechanism
+    with a margin (`Mechanism.margin`), over its bounding box at grid step `step` [m]."""
+    check_mechanism(mech, "workspace_mesh")
     mech.require("margin", "a workspace boundary mesh")
     if mech.task_dim != 3:
         from kinematics.errors import UnsupportedRobotError
 
         raise UnsupportedRobotError(mech.name, "a boundary mesh needs a spatial task space; this mechanism's is "
                                     f"{mech.task_dim}-dimensional")
+    if branch is None:
+        from kinematics.analyses.usable import default_branch
+
+        branch = default_branch(mech)
     chosen = mech.check_target(branch)
     field = mech.margin(chosen, limits)
     lo, hi = mech.bounding_box(limits)

@@ -43,7 +43,7 @@ from kinematics.analyses.workspace import (
 from kinematics.generic.capsules import AnalyticDistances
 from kinematics.generic.collision import CollisionModel
 from kinematics.generic.obstacles import Obstacles
-from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.mechanisms.base import UNION, Mechanism, check_mechanism
 from kinematics.sizes import MAX_POINTS
 
 if TYPE_CHECKING:
@@ -180,6 +180,7 @@ def measure_collision_workspace(mech: Mechanism, robot: Any, *, step: float = 0.
             measures in 3-D instead. "envelope" keeps the bracket (then not converged), "spatial"
             measures in 3-D.
     """
+    check_mechanism(mech, "measure_collision_workspace")
     require_volume_task(mech)
     chosen = mech.check_branches(branches)
     mech.check_limits(limits)

@@ -254,6 +254,9 @@ def dexterity(mech: Mechanism, branches: Sequence[str] | None = None, *, limits:
         seed: seeds the scramblings: the same seed gives the same numbers.
         cells: steps of the per-cell grid along the bounding box's longest side (None: no table).
     """
+    from kinematics.mechanisms.base import check_mechanism
+
+    check_mechanism(mech, "dexterity")
     from scipy.stats import qmc
     from scipy.stats import t as student
 

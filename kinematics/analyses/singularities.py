@@ -32,7 +32,7 @@ import numpy as np
 
 from kinematics.analyses.cells import check_step
 from kinematics.analyses.singular_edges import edge_crossings
-from kinematics.mechanisms.base import Mechanism
+from kinematics.mechanisms.base import Mechanism, check_mechanism
 from kinematics.mechanisms.three_limb.closed_form import MODES
 from kinematics.sizes import check_points, grid_points
 
@@ -125,6 +125,7 @@ def singular_loci(mech: Mechanism, *, step: float = 0.01, limits: str = "all",
     """Type I / II / III loci of any mechanism with `singular_fields` over a grid of step `step`
     [m] on its bounding box (see the module docstring; for the 3-[P2(US)] the fields come from
     the fused scan kernel)."""
+    check_mechanism(mech, "singular_loci")
     mech.require("singular_fields", "a singular-locus scan")
     if mech.task_dim not in (2, 3):
         from kinematics.errors import UnsupportedRobotError

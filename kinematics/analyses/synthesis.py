@@ -276,6 +276,9 @@ def synthesize(mech: Mechanism, bounds: Sequence[Bound], *, population: int = 16
                workers: int | None = None, client: Any = None, progress: bool = False) -> Synthesis:
     """NSGA-II over the given bounds around `mech`'s design; evaluations on Dask (`sweep.connect`:
     an embedded LocalCluster by default, `scheduler` for a running one, or a given `client`)."""
+    from kinematics.mechanisms.base import check_mechanism
+
+    check_mechanism(mech, "synthesize")
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
     from pymoo.optimize import minimize

@@ -481,6 +481,9 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
         levels: grids of the global search (step, step/2, ...; `largest_shape`).
         margin_of: the branches' margin instead of the mechanism's (`usable_field`).
     """
+    from kinematics.mechanisms.base import check_mechanism
+
+    check_mechanism(mech, "usable")
     from kinematics.errors import UnsupportedRobotError
 
     _check_shape(shape)

@@ -29,7 +29,7 @@ import numpy as np
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
 from kinematics.analyses.columns import ROOT_TOL, ColumnVolume, column_volume
 from kinematics.errors import InvalidInputError
-from kinematics.mechanisms.base import UNION, Mechanism
+from kinematics.mechanisms.base import UNION, Mechanism, check_mechanism
 from kinematics.sizes import MAX_POINTS, check_points
 
 
@@ -197,6 +197,7 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     tolerance `rtol` on its error estimate; "cells": the cell-refinement estimator with grid step
     `step`. check: rerun at half the step and compare (columns only).
     """
+    check_mechanism(mech, "measure_workspace")
     require_volume_task(mech)
     chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
@@ -274,6 +275,7 @@ def volume_monte_carlo(mech: Mechanism, n: int, rng: np.random.Generator,
     uniform sampling of the bounding box through the mechanism's inverse kinematics
     (`Mechanism.ik`: for the closed-form families, the NumPy closed forms), independent of its
     margin and of the volume engine."""
+    check_mechanism(mech, "volume_monte_carlo")
     mech.require("ik", "a Monte-Carlo volume")
     mech.check_limits(limits)
     if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:

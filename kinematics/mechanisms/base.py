@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from kinematics.errors import MissingCapabilityError, UnknownChoiceError, UnknownModeError
+from kinematics.errors import InvalidInputError, MissingCapabilityError, UnknownChoiceError, UnknownModeError
 from kinematics.generic.singularity import SINGULAR_TOL as SINGULAR_TOL
 from kinematics.generic.singularity import SINGULARITY_TYPES as SINGULARITY_TYPES
 from kinematics.generic.singularity import classify as classify
@@ -192,6 +192,17 @@ class PoseJacobians:
     J: np.ndarray
     iota_I: np.ndarray
     iota_II: np.ndarray
+
+
+def check_mechanism(mech: object, purpose: str) -> None:
+    """Raise InvalidInputError unless `mech` is a `Mechanism` (what every analysis takes); a
+    `Robot`, the usual slip, is told how to get one (`mechanism_of`)."""
+    if isinstance(mech, Mechanism):
+        return
+    from kinematics.model.robot import Robot
+
+    got = "a Robot: pass mechanism_of(robot)" if isinstance(mech, Robot) else f"got {type(mech).__name__}"
+    raise InvalidInputError("mech", f"{purpose} takes a Mechanism (kinematics.mechanism_of(load_robot(...))); {got}")
 
 
 class Mechanism(ABC):
