@@ -272,3 +272,13 @@ def test_rtol_zero_in_any_spelling_is_the_default_tolerance(capsys, zero):
     # --rtol's help: "0: 1e-2"; a zero is a zero however written, not "must be positive"
     code, d, err = run_json(capsys, "workspace-volume", "scara", "--step", "0.05", "--rtol", zero)
     assert code == 0 and d["rtol"] == 1e-2, err
+
+
+def test_a_step_too_coarse_to_see_anything_is_told_to_get_finer(capsys):
+    # a 10 m step over the ur5's 2.5 m reach finds no inside point: the warning told the user to
+    # try a *larger* step
+    from kinematics.cli import main
+
+    assert main(["workspace-volume", "ur5", "--step", "10"]) == 0
+    err = capsys.readouterr().err
+    assert "nothing was found inside" in err and "try a smaller --step" in err and "larger" not in err

@@ -277,8 +277,10 @@ def _not_converged(ws: Any) -> str:
     """Why a measurement did not converge, naming the targets whose own estimate failed."""
     failed = ws.unconverged()
     if not failed:
-        return ("the volume did not converge (the evaluation budget ran out, or nothing was found inside); "
-                "try a larger --step or check the limits")
+        if not ws.total > 0:  # a coarser grid can only see less
+            return ("nothing was found inside: the workspace is empty within the limits, or thinner than --step "
+                    "can see; try a smaller --step or check the limits")
+        return "the volume did not converge (the evaluation budget ran out); try a larger --step or --rtol"
     by_reason: dict[str, list[str]] = {}
     for name, why in failed.items():
         by_reason.setdefault(why, []).append(name)
