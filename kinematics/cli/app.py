@@ -221,8 +221,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 _INTERRUPTED: list[BaseException] = []
 """The interrupts `main` reported, kept: freeing their tracebacks frees what the interrupted work
 left half-built, and LLVM's modules from an interrupted Numba compilation can crash the process
-when freed (a segfault in llvmlite's module disposal, twice in about 70 interrupts of compilation). `run` then
-exits without freeing anything."""
+when freed (a segfault in llvmlite's module disposal, twice in about 70 interrupts of
+compilation). `run` then exits without freeing anything."""
 
 
 def run() -> NoReturn:
