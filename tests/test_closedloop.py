@@ -150,3 +150,38 @@ def test_idle_freedom_is_not_a_singularity(capsys):
         np.testing.assert_allclose(G[3:, 0], w, atol=1e-5)
     code, out, err = run(capsys, "jacobian", str(MODELS / "rssr.urdf"), "--q", "0.6")
     assert code == 0 and err == "" and "twist" in out
+
+
+@pytest.mark.parametrize("name", ["p2us", "delta"])
+def test_every_working_modes_joint_values_and_velocity_hold_in_pinocchio(name):
+    """Through the `Mechanism` interface, in every working mode met (the tests above follow the
+    continuation from the reference, mode '---' only): `joint_values` (closed forms) close
+    every loop of the URDF in Pinocchio, and Pinocchio's constrained Jacobian there (platform
+    twist per actuator rate) is the closed-form forward Jacobian `velocity(...).J`, with no
+    angular velocity.
+
+    Tolerances: the joint values are closed-form angles of O(1) rad on O(1) m links, so the loop
+    residual is rounding, ~1e-15 m (measured worst 9e-16): 1e-12 as in the tests above. Both
+    Jacobians are exact up to rounding amplified by the conditioning, bounded by keeping iota_I,
+    iota_II >= 1e-3: 1e-9 relative as above (measured worst 6e-14; angular rows 2e-11)."""
+    from kinematics.mechanisms import mechanism_of
+
+    robot = load_robot(name)
+    mech = mechanism_of(robot)
+    loop = ClosedLoop(robot)
+    lo, hi = mech.bounding_box("actuators")
+    p = lo + (hi - lo) * np.random.default_rng(17).random((300, 3))
+    res = mech.ik(p, "actuators")
+    modes = set()
+    for i, b in np.argwhere(res.within_limits):
+        values = mech.joint_values(p[i], mech.branches[b])
+        q = robot.configuration([values[n] for n in robot.joint_names])
+        assert np.abs(loop.residual(q)[0]).max() <= 1e-12, (p[i], mech.branches[b])
+        v = mech.velocity(p[i][None], res.q[i, b][None])
+        if min(v.iota_I[0], v.iota_II[0]) < 1e-3:
+            continue
+        G = loop.constrained_jacobian(q)
+        assert np.abs(G[:3] - v.J[0]).max() <= 1e-9 * np.abs(v.J[0]).max(), (p[i], mech.branches[b])
+        assert np.abs(G[3:]).max() <= 1e-9
+        modes.add(mech.branches[b])
+    assert len(modes) >= (8 if name == "p2us" else 2), modes  # the modes the sample meets within the actuator ranges

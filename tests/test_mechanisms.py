@@ -119,6 +119,41 @@ def test_the_bounding_box_holds_the_whole_workspace(name):
     assert np.all((p[inside] >= lo) & (p[inside] <= hi))
 
 
+def _actuator_box(mech: Mechanism) -> np.ndarray:
+    """(a, 2) every actuator's range [m or rad], from the family's design."""
+    P = mech.params
+    if mech.family == "scara":
+        return np.array([P.lower, P.upper]).T
+    return np.array([P.stroke if mech.family == "p2us" else P.theta_limits] * 3)
+
+
+@pytest.mark.parametrize("name", CLOSED_FORMS)
+def test_the_bounding_box_holds_forward_kinematics_over_the_actuator_ranges(name):
+    """The box against the other path to the workspace: FK of actuator values drawn over their
+    ranges (the test above samples task space through the IK). Every assembly of such values is
+    reachable with the actuators' limits; with every limit, those whose own working mode (the one
+    the IK gives these actuators back in, to 1e-8) is within limits. Containment is exact: the box
+    is proved (closed forms), and a point FK puts outside it is outside by the design's size, not
+    by rounding (measured: never outside, 3000 draws). The boxes are supersets: the draws come
+    within 0.01-7 % of the box's size of each face, so a face misplaced by more (a sign, an axis,
+    a wrong length) fails."""
+    mech = mechanism_of(load_robot(name))
+    box = _actuator_box(mech)
+    q = box[:, 0] + (box[:, 1] - box[:, 0]) * np.random.default_rng(9).random((3000, len(box)))
+    asm = mech.fk(q)
+    k, m = np.nonzero(asm.exists)
+    p, q = asm.p[k, m], q[k]
+    for limits in mech.limit_sets:
+        keep = np.ones(len(p), dtype=bool)
+        if limits != "actuators" and mech.family != "scara":  # scara's one set is its actuators'
+            res = mech.ik(p, limits)
+            own = np.all(np.abs(res.q - q[:, None]) < 1e-8, axis=-1)
+            keep = (own & res.within_limits).any(axis=1)
+        lo, hi = mech.bounding_box(limits)
+        assert keep.sum() > 300, "the sample must see the workspace"
+        assert np.all((p[keep] >= lo) & (p[keep] <= hi)), (limits, p[keep][((p[keep] < lo) | (p[keep] > hi)).any(1)][:3])
+
+
 @pytest.mark.parametrize("name", CLOSED_FORMS)
 def test_forward_kinematics_returns_the_point_of_every_branch(name):
     mech = mechanism_of(load_robot(name))
@@ -333,3 +368,135 @@ def test_workspace_mesh_by_default_meshes_the_union_of_a_serial_arm():
     lo, hi = mech.bounding_box("all")
     assert mesh.is_watertight and 0 < mesh.volume < np.prod(hi - lo)
     assert np.all(mesh.vertices >= lo - 0.25) and np.all(mesh.vertices <= hi + 0.25)
+
+
+def _bisect_sign_change(f, a: np.ndarray, b: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows a, b (N, d) where f: (N, d) -> (N,) has opposite signs, narrowed to 2^-iterations of
+    their distance, a keeping f(a)'s sign."""
+    fa = f(a)
+    for _ in range(iterations):
+        m = (a + b) / 2
+        same = (np.sign(f(m)) == np.sign(fa))[:, None]
+        a, b = np.where(same, m, a), np.where(same, b, m)
+    return a, b
+
+
+@pytest.mark.parametrize("name", ["p2us", "delta"])
+def test_the_singular_fields_vanish_where_the_velocitys_measures_do(name):
+    """`singular_fields` (signed fields for scans) against `velocity`'s iota_I / iota_II, two
+    paths to the same loci: where a branch's det changes sign between neighbours on random
+    segments (the branch existing at both), bisected to 2^-40 of the step (< 1e-13 m), iota_II
+    vanishes; where a limb's field (its IK discriminant) changes sign, iota_I of every branch at
+    the reaching end vanishes.
+
+    Tolerances: det is smooth with a simple zero, so iota_II (a normalised |det|) at 1e-13 m from
+    it is ~1e-13 x its gradient (O(10) per metre): 1e-9 holds (measured worst 1e-14). The
+    discriminant Delta [m^2] is linear across its zero, and iota_I = min |n.w| ~ sqrt(Delta) / L
+    (the two IK roots meet): at 1e-13 m, sqrt(1e-13 m x O(1) m) / 0.3 m ~ 1e-6; 1e-5 holds
+    (measured worst 1e-7). A field whose zero set is not the measure's is off by O(step) ~ 1e-2."""
+    mech = mechanism_of(load_robot(name))
+    limits = "actuators"
+    lo, hi = mech.bounding_box(limits)
+    rng = np.random.default_rng(3)
+    nseg, steps = 60, 40
+    a, b = lo + (hi - lo) * rng.random((2, nseg, 3))
+    seg = (a[:, None] + np.linspace(0, 1, steps)[None, :, None] * (b - a)[:, None])
+    pts = seg.reshape(-1, 3)
+    f = mech.singular_fields(pts, limits)
+    reach = mech.ik(pts, limits).reachable.reshape(nseg, steps, -1)
+
+    def crossings(field: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(segment, step, column) of every sign change of field (N, c) between neighbours."""
+        v = field.reshape(nseg, steps, -1)
+        return np.nonzero((v[:, 1:] * v[:, :-1] < 0) & where)
+
+    # type II: one bisection for every crossing of every branch's det (its column per row)
+    s, j, k = crossings(f.det, reach[:, 1:] & reach[:, :-1])
+    rows = np.arange(len(s))
+    near, _ = _bisect_sign_change(lambda x: mech.singular_fields(x, limits).det[rows, k], seg[s, j], seg[s, j + 1], 40)
+    res = mech.ik(near, limits)
+    ok = res.reachable[rows, k]
+    iota_II = mech.velocity(near[ok], res.q[rows, k][ok]).iota_II
+    assert np.all(iota_II <= 1e-9), float(iota_II.max())
+    # type I: every crossing of every limb's field; iota_I of each branch at the reaching end
+    s, j, limb = crossings(f.limb, True)
+    rows = np.arange(len(s))
+
+    def field(x: np.ndarray) -> np.ndarray:
+        return mech.singular_fields(x, limits).limb[rows, limb]
+
+    x, y = _bisect_sign_change(field, seg[s, j], seg[s, j + 1], 40)
+    reaching = np.where((field(x) >= 0)[:, None], x, y)
+    res = mech.ik(reaching, limits)
+    seen = [0, int(ok.sum())]
+    for k in range(len(mech.branches)):
+        ok = res.reachable[:, k]
+        if ok.any():
+            iota_I = mech.velocity(reaching[ok], res.q[ok, k]).iota_I
+            assert np.all(iota_I <= 1e-5), (mech.branches[k], float(iota_I.max()))
+            seen[0] += int(ok.sum())
+    assert min(seen) >= 20, seen  # both loci were met
+
+
+def test_a_generic_loops_velocity_is_the_derivative_of_its_fk_and_ik():
+    """The generic closed loop's `velocity` (Jacobians of the batched solver's joint values, from
+    the constraint matrices) against central differences of its own `fk` (Pinocchio's loop
+    closure by `ClosedLoop.solve`) and `ik` (the batched solver), at seeded points of Gepetto's
+    five-bar (tests/models), every branch, clear of singularities (iota_I, iota_II > 0.1); and
+    `joint_values` there closes the loops in Pinocchio (`ClosedLoop.residual`).
+
+    Tolerances: both solvers stop at residual rows <= 1e-12 m, so a central difference with
+    h = 1e-5 carries ~1e-12 / 1e-5 = 1e-7 of solver noise, and truncation h^2 |f'''| / 6 ~
+    h^2 / (6 rho^2) |J| ~ 2e-8 |J| at rho >= 3 cm from a singularity: 1e-5 |J| holds (measured
+    worst 1.4e-9 relative over the 18 regular branches checked). A wrong sign, column or
+    transposition is an O(1) error. The joint values are the batched solver's roots: their
+    residual is <= 1e-12 per row (measured 2.5e-13), 1e-11 leaves rounding room for the tree's
+    forward kinematics."""
+    from kinematics.generic.closedloop import ClosedLoop
+
+    robot = load_robot(str(MODELS / "fivebar_gepetto" / "robot.urdf"))
+    mech = mechanism_of(robot)
+    loop = ClosedLoop(robot)
+    p = np.random.default_rng(21).uniform([-0.05, 0.22], [0.25, 0.45], (6, 2))
+    res = mech.ik(p)
+    h, checked = 1e-5, 0
+    for i, b in np.argwhere(res.within_limits):
+        q = res.q[i, b]
+        v = mech.velocity(p[i][None], q[None])
+        if min(v.iota_I[0], v.iota_II[0]) <= 0.1 or not np.linalg.norm(mech.fk(q).p[0, 0] - p[i]) <= 1e-9:
+            continue  # near a singularity, or fk's continuation from the reference gets stuck or reaches another assembly
+        J = np.stack([(mech.fk(q + h * e).p[0, 0] - mech.fk(q - h * e).p[0, 0]) / (2 * h) for e in np.eye(2)], axis=1)
+        Ji = np.stack([(mech.ik((p[i] + h * e)[None]).q[0, b] - mech.ik((p[i] - h * e)[None]).q[0, b]) / (2 * h)
+                       for e in np.eye(2)], axis=1)
+        assert np.abs(J - v.J[0]).max() <= 1e-5 * np.abs(v.J[0]).max(), (p[i], b, J, v.J[0])
+        assert np.abs(Ji - v.J_inverse[0]).max() <= 1e-5 * np.abs(v.J_inverse[0]).max(), (p[i], b, Ji, v.J_inverse[0])
+        values = mech.joint_values(p[i], mech.branches[b])
+        assert np.abs(loop.residual(robot.configuration([values[n] for n in robot.joint_names]))[0]).max() <= 1e-11
+        checked += 1
+    assert checked >= 12, "the sample must see enough regular branches"
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda", "double_pendulum"])
+def test_a_serial_arms_velocity_and_box_hold_against_its_fk(name):
+    """A serial arm's `velocity` (Pinocchio's batched frame Jacobian, the task rows: y, z for the
+    planar double pendulum) against central differences of its `fk` (batched frame placements),
+    and its `bounding_box` (the reach ball's, from link lengths) around `fk` of configurations drawn
+    over the joint ranges (the pendulum's are given: its URDF has none).
+
+    Tolerance: h = 1e-6 rad, truncation h^2 |p'''| / 6 <= 1e-12 x the arm's size (~1 m) and
+    rounding eps |p| / h ~ 2e-10 m: 1e-8 m/rad holds (measured worst 2e-10). A wrong row, sign or
+    joint column is off by O(link length). Containment is exact: the box is a proved bound (the
+    draws come within 1-19 % of its size of each face: a face misplaced by more fails)."""
+    ranges = {"joint1": (-np.pi, np.pi), "joint2": (-np.pi, np.pi)} if name == "double_pendulum" else None
+    robot = load_robot(name, ranges=ranges)
+    mech = mechanism_of(robot)
+    q = np.random.default_rng(13).uniform(robot.lower, robot.upper, (300, robot.nv))
+    p = mech.fk(q).p[:, 0]
+    lo, hi = mech.bounding_box()
+    assert np.all((p >= lo) & (p <= hi))
+    h = 1e-6
+    v = mech.velocity(p[:40], q[:40])
+    fd = np.stack([(mech.fk(q[:40] + h * e).p[:, 0] - mech.fk(q[:40] - h * e).p[:, 0]) / (2 * h)
+                   for e in np.eye(robot.nv)], axis=-1)
+    assert v.J.shape == (40, mech.task_dim, robot.nv)
+    np.testing.assert_allclose(v.J, fd, rtol=0, atol=1e-8)
