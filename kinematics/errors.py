@@ -116,15 +116,15 @@ class UnsupportedRobotError(KinematicsError):
 class ConvergenceError(KinematicsError, ArithmeticError):
     """An iterative solver stopped without meeting its tolerance."""
 
-    def __init__(self, what: str, iterations: int, residual: float, tolerance: float) -> None:
+    def __init__(self, what: str, iterations: int, residual: float, tolerance: float, why: str | None = None) -> None:
         self.what = what
         self.iterations = iterations
         self.residual = residual
         self.tolerance = tolerance
-        super().__init__(
-            f"{what} did not converge: residual {residual:.3g} > tolerance {tolerance:.3g} "
-            f"after {iterations} iterations"
-        )
+        self.why = why
+        """Why it stopped, where that is not a residual above the tolerance (None: it is)."""
+        reason = why if why is not None else f"residual {residual:.3g} > tolerance {tolerance:.3g}"
+        super().__init__(f"{what} did not converge: {reason} after {iterations} iterations")
 
 
 class SingularConfigurationError(KinematicsError, ArithmeticError):

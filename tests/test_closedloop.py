@@ -185,3 +185,22 @@ def test_every_working_modes_joint_values_and_velocity_hold_in_pinocchio(name):
         assert np.abs(G[3:]).max() <= 1e-9
         modes.add(mech.branches[b])
     assert len(modes) >= (8 if name == "p2us" else 2), modes  # the modes the sample meets within the actuator ranges
+
+
+def test_a_stuck_continuation_says_why_without_contradicting_itself():
+    # Gepetto's five-bar (fixture) at actuated values the continuation from q = 0 cannot reach: it
+    # stops where its last step closed the loops (residual ~1e-14, within the 1e-12 tolerance) but
+    # jumped away from the prediction; the message said "residual 1.66e-14 > tolerance 1e-12"
+    import re
+
+    loop = ClosedLoop(load_robot(MODELS / "fivebar_gepetto" / "robot.urdf"))
+    messages = []
+    for target in ([-2.054303279410923, 1.824190753307169], [-2.0542932794109228, 1.824190753307169]):
+        with pytest.raises(ConvergenceError) as info:
+            loop.solve(np.array(target))
+        messages.append(str(info.value))
+        claim = re.search(r"residual (\S+) > tolerance (\S+) after", str(info.value))
+        assert (claim is None) == (info.value.why is not None)
+        assert claim is None or float(claim.group(1)) > float(claim.group(2))
+    # the first stops on the refused jump, the second on a residual above the tolerance
+    assert "a jump to another assembly, refused" in messages[0] and "> tolerance" in messages[1]

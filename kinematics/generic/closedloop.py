@@ -222,6 +222,7 @@ class ClosedLoop:
         if err > tol:
             raise ConvergenceError(f"closing the loops at {self.assembly.description}", total, err, tol)
         s, ds = 0.0, 0.25
+        why: str | None = None  # the last refused step's reason, where its residual met the tolerance
         while s < 1.0:
             if ds < 1e-6:
                 what = (f"closing the loops at actuated values {target.tolist()} (continuation from "
@@ -230,11 +231,12 @@ class ClosedLoop:
                                                  if fallback else "") + ": no assembly there, or a singularity on "
                         "the way)")
                 if not fallback:
-                    raise ConvergenceError(what, total, err, tol)
+                    raise ConvergenceError(what, total, err, tol, why)
                 return self._assemble_held(target, total, what, err, tol)
             s_next = min(1.0, s + ds)
             step = self._predict(q, (s_next - s) * (target - start))
             if step is None:
+                why = "the passive joints' predicted step stayed above its limit however short (a singularity)"
                 ds *= 0.5
                 continue
             q_pred, moved = step
@@ -245,6 +247,9 @@ class ClosedLoop:
                 q, s = q_try, s_next
                 ds = min(1.0, 2 * ds)
             else:
+                why = None if err > tol else (f"its last step closed the loops (residual {err:.3g}) {drift:.3g} from "
+                                              f"its prediction, over {MAX_DRIFT:g} x the predicted move ({moved:.3g}): "
+                                              "a jump to another assembly, refused")
                 ds *= 0.5
         return self._solution(q, err, total)
 
