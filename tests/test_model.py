@@ -201,3 +201,12 @@ def test_default_tool_frame_of_a_tree_is_moved_by_joints(tmp_path):
         "<joint name='laser_joint' type='fixed'><parent link='base'/>",
         "<joint name='laser_joint' type='fixed'><parent link='b1'/>"))
     assert load_robot(urdf).tool_frame == "laser"
+
+
+@pytest.mark.parametrize("spec", [3, None, b"scara", ["scara"]])
+def test_load_robot_refuses_what_is_no_name_or_path(spec):
+    # each was a TypeError from os.fspath ("expected str, bytes or os.PathLike object, not int")
+    from kinematics.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="expected a name, a URDF path or a model folder"):
+        load_robot(spec)

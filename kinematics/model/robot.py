@@ -370,12 +370,18 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
     replaces ranges, after the sidecar's `ranges:`.
 
     Raises:
+        InvalidInputError: `spec` is neither text nor a path.
         UnknownRobotError: `spec` is no known name and no existing file.
         ModelFileError: the file is missing or malformed.
         UnknownFrameError: `tool_frame` is not in the model.
         UnknownJointError: `ranges` names a joint the model does not have.
     """
+    if not isinstance(spec, (str, os.PathLike)):
+        raise InvalidInputError("robot", f"expected a name, a URDF path or a model folder, got {type(spec).__name__} "
+                                         f"{spec!r}")
     text = os.fspath(spec)
+    if not isinstance(text, str):  # a PathLike of bytes
+        raise InvalidInputError("robot", f"expected a text path, got {text!r}")
     package_dirs: tuple[str, ...] = ()
     if not text.strip():
         raise UnknownRobotError(text, robot_names())
