@@ -122,7 +122,7 @@ def bad_inputs(tmp_path):
         (["fk", "scara", "--q", "0", "0", "--frame", "nope"], "unknown frame"),
         (["ik", "scara", "--position", "0.1", "nan"], "finite"),
         (["ik", "scara", "--position", "0.1"], "give X Y"),
-        (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "closed-form IK"),
+        (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "for closed loops by the batched solver; this one is neither"),
         (["jacobian", "scara"], "needs joint values"),
         (["fk", "scara", "--q", "zero", "1"], "expected a number"),
         (["nosuchcommand"], "invalid choice"),

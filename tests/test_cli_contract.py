@@ -102,7 +102,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["ik", "p2us", "--position", "0", "-0.4"], "X Y Z"),
     (["ik", "p2us", "--position", "1e308", "1e308", "1e308"], FINITE),
     (["ik", "p2us", "--position", "0", "0", "nan"], FINITE),
-    (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "closed-form IK"),
+    (["ik", "ur5", "--position", "0.1", "0.2", "0.3"], "for closed loops by the batched solver; this one is neither"),
     (["ik", "nodir/x.urdf", "--position", "0", "0"], "no such file"),
     # jacobian
     (["jacobian", "scara"], "needs joint values"),

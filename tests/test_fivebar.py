@@ -218,3 +218,32 @@ def test_cli_mobility_says_the_actuator_values_it_used(capsys):
     assert main(["mobility", str(FIXTURE), "--q", "20", "20", "--degrees", "--json"]) == 0
     where = json.loads(capsys.readouterr().out)["configuration"]
     assert where.startswith("actuators at [0.34906585, 0.34906585] rad"), where
+
+
+def test_cli_ik_finds_the_actuator_values_fk_was_given(capsys, robot):
+    # `kinematics ik` of a generic closed loop (the batched solver; it refused every robot without
+    # closed forms): at fk's point of actuator values q, q is among the solutions (to the loops'
+    # closure tolerance, 1e-12 m, over the five-bar's ~0.1 m links: 1e-9 rad leaves margin); a far
+    # point is an answer, exit 1; a range the solutions break is named in their violations
+    import json
+
+    from kinematics.cli import main
+
+    q = [0.3, -0.4]
+    assert main(["fk", str(FIXTURE), "--q", *map(str, q), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    from kinematics.mechanisms import mechanism_of
+
+    axes = [k for k, name in enumerate("xyz") if name in mechanism_of(robot).task_axes]
+    point = [str(d["position"][k]) for k in axes]
+    assert main(["ik", str(FIXTURE), "--position", *point, "--json"]) == 0
+    ik = json.loads(capsys.readouterr().out)
+    assert ik["reachable"] and ik["actuators"] == list(robot.loops.actuated)
+    assert min(np.abs(np.array(s["q"]) - q).max() for s in ik["solutions"]) <= 1e-9
+    assert main(["ik", str(FIXTURE), "--position", "5", "5"]) == 1
+    assert "NOT reachable" in capsys.readouterr().out
+    name = robot.loops.actuated[0]
+    assert main(["ik", str(FIXTURE), "--range", f"{name}=1.0:1.1", "--position", *point, "--json"]) == 1
+    broken = json.loads(capsys.readouterr().out)
+    assert broken["solutions"] and all(not s["within_limits"] and any(v.startswith(f"{name} = ") for v in s["violations"])
+                                       for s in broken["solutions"])

@@ -72,8 +72,11 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     limits each breaks and why none reaches."""
     mech = mechanism_of(robot)
     if "pose_ik" not in mech.capabilities:
-        raise UnsupportedRobotError(robot.name, "closed-form IK is available for planar 2R arms (scara), 3-[P2(US)] "
-                                                f"(p2us) and Delta robots (delta); this one has none ({mech.description})")
+        if mech.family == "closed-loop":
+            return _generic_ik(args, robot, mech, out)
+        raise UnsupportedRobotError(robot.name, "inverse kinematics is available for planar 2R arms (scara), 3-[P2(US)] "
+                                                "(p2us) and Delta robots (delta) in closed form, and for closed loops "
+                                                f"by the batched solver; this one is neither ({mech.description})")
     p = position_arg(args, mech.task_axes)
     res = mech.pose_ik(p)
     label = "elbow" if mech.branch_kind == "elbow" else "mode"
@@ -97,6 +100,58 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
 
     out(args, payload, human)
     return EXIT_OK if reachable else EXIT_NO
+
+
+def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Out) -> int:
+    """`kinematics ik` of a generic closed loop: every working mode the batched solver finds with
+    the end effector at --position (`Mechanism.ik`, the workspace margin's solver: it can miss a
+    mode, docs/closed-loops.md), its actuator values and the joint ranges its joint values break
+    (a revolute angle a whole number of turns from its range counts as within)."""
+    p = position_arg(args, mech.task_axes)
+    res = mech.ik(p[None])
+    solutions = []
+    for b, name in enumerate(mech.branches):
+        if not res.reachable[0, b]:
+            continue
+        values = mech.joint_value_rows(p[None], name)[0]  # type: ignore[attr-defined]
+        violations = [f"{d.name} = {v:.6g} {'m' if d.kind == 'prismatic' else 'rad'} outside "
+                      f"[{d.lower:.6g}, {d.upper:.6g}]" for d, v in zip(robot.dofs, values, strict=True)
+                      if _outside(d, float(v))]
+        within = bool(res.within_limits[0, b])
+        if not within and not violations:  # only a spherical joint's other representation is out of range
+            violations = ["a spherical joint's angles out of their ranges"]
+        solutions.append({"q": res.q[0, b], "mode": name, "within_limits": within,
+                          "violations": [] if within else violations})
+    reachable = any(s["within_limits"] for s in solutions)
+    if reachable:
+        reason = None
+    elif not solutions:
+        reason = (f"the batched solver closes the loops in no working mode with the end effector there "
+                  f"({', '.join(mech.branches)}; it starts from solved neighbours, the atlas and restarts)")
+    else:
+        reason = f"every working mode breaks a joint range ({len(solutions)} assemble; see violations)"
+    actuators = list(robot.loops.actuated) if robot.loops else []
+    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "actuators": actuators}
+
+    def human() -> str:
+        title = (f"position {p.tolist()} m ({', '.join(mech.task_axes)}): "
+                 + ("reachable" if reachable else "NOT reachable"))
+        kinds = {d.name: d.kind for d in robot.dofs}
+        columns = [f"{a} [{'m' if kinds[a] == 'prismatic' else 'rad'}]" for a in actuators]
+        return _solutions_report(title, "q", columns, 9, solutions, reason)
+
+    out(args, payload, human)
+    return EXIT_OK if reachable else EXIT_NO
+
+
+def _outside(dof: Any, value: float, tol: float = 1e-12) -> bool:
+    """Whether `value` [rad or m] is outside the joint's range: a revolute angle when no angle a
+    whole number of turns from it is inside."""
+    if not (np.isfinite(dof.lower) or np.isfinite(dof.upper)) or dof.kind == "continuous":
+        return False
+    if dof.kind == "revolute" and np.isfinite(dof.lower):
+        value = dof.lower + (value - dof.lower) % (2 * np.pi)
+    return not dof.lower - tol <= value <= dof.upper + tol
 
 
 def actuated_arg(args: argparse.Namespace, robot: Robot) -> np.ndarray:
