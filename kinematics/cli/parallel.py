@@ -147,11 +147,12 @@ def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Ou
 def _outside(dof: Any, value: float, tol: float = 1e-12) -> bool:
     """Whether `value` [rad or m] is outside the joint's range: a revolute angle when no angle a
     whole number of turns from it is inside."""
-    if not (np.isfinite(dof.lower) or np.isfinite(dof.upper)) or dof.kind == "continuous":
+    if dof.kind == "continuous" or dof.lower - tol <= value <= dof.upper + tol:
         return False
     if dof.kind == "revolute" and np.isfinite(dof.lower):
-        value = dof.lower + (value - dof.lower) % (2 * np.pi)
-    return not dof.lower - tol <= value <= dof.upper + tol
+        turned = dof.lower + (value - dof.lower) % (2 * np.pi)  # in [lower, lower + 2 pi)
+        return not (turned <= dof.upper + tol or turned >= dof.lower + 2 * np.pi - tol)
+    return True
 
 
 def actuated_arg(args: argparse.Namespace, robot: Robot) -> np.ndarray:
