@@ -72,7 +72,7 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     limits each breaks and why none reaches."""
     mech = mechanism_of(robot)
     if "pose_ik" not in mech.capabilities:
-        if mech.family == "closed-loop":
+        if mech.closed_loop and {"ik", "joint_values"} <= mech.capabilities:  # the batched solver's
             return _generic_ik(args, robot, mech, out)
         raise UnsupportedRobotError(robot.name, "inverse kinematics is available for planar 2R arms (scara), 3-[P2(US)] "
                                                 "(p2us) and Delta robots (delta) in closed form, and for closed loops "
@@ -113,10 +113,9 @@ def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Ou
     for b, name in enumerate(mech.branches):
         if not res.reachable[0, b]:
             continue
-        values = mech.joint_value_rows(p[None], name)[0]  # type: ignore[attr-defined]
-        violations = [f"{d.name} = {v:.6g} {'m' if d.kind == 'prismatic' else 'rad'} outside "
-                      f"[{d.lower:.6g}, {d.upper:.6g}]" for d, v in zip(robot.dofs, values, strict=True)
-                      if _outside(d, float(v))]
+        values = mech.joint_values(p, name)
+        violations = [f"{d.name} = {values[d.name]:.6g} {'m' if d.kind == 'prismatic' else 'rad'} outside "
+                      f"[{d.lower:.6g}, {d.upper:.6g}]" for d in robot.dofs if _outside(d, values[d.name])]
         within = bool(res.within_limits[0, b])
         if not within and not violations:  # only a spherical joint's other representation is out of range
             violations = ["a spherical joint's angles out of their ranges"]
