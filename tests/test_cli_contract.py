@@ -765,6 +765,9 @@ def command(args):
     if where == "leaves a crash behind":
         half = HalfBuilt()
         press()
+    if where == "with its reader gone":
+        print("the start of a report")  # held in stdout's buffer (a pipe), whose reader is closed
+        press()
     ctypes.CFUNCTYPE(None)(press)()
     if where == "fails":
         raise RuntimeError("no compiled object yet")
@@ -782,6 +785,18 @@ def test_ctrl_c_that_python_loses_is_one_line(where):
     proc = subprocess.run([sys.executable, "-c", CTRL_C_HIDDEN, where], capture_output=True, text=True, timeout=60,
                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert (proc.returncode, proc.stdout, proc.stderr) == (130, "", "kinematics: interrupted\n")
+
+
+def test_ctrl_c_with_stdout_s_reader_gone_is_one_line():
+    # the report's start still buffered when Ctrl-C comes, and the pipe's reader (`| head`) gone:
+    # the entry point's last flush raised BrokenPipeError, a traceback after "interrupted"
+    buffered = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # else the print meets the closed pipe
+    proc = subprocess.Popen([sys.executable, "-c", CTRL_C_HIDDEN, "with its reader gone"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=buffered,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc.stdout.close()  # type: ignore[union-attr]
+    err = proc.stderr.read()  # type: ignore[union-attr]
+    assert (proc.wait(timeout=60), err) == (130, "kinematics: interrupted\n")
 
 
 def test_a_system_error_without_ctrl_c_is_not_an_interrupt(monkeypatch):

@@ -11,6 +11,7 @@ inside the handlers so that `kinematics --help` stays instant.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -231,8 +232,9 @@ def run() -> NoReturn:
     the coal pool's workers and Dask's stop on their own, the viewer's server in its command)."""
     code = main()
     if code == EXIT_INTERRUPTED:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):  # a reader gone meanwhile (`| head`)
+                stream.flush()
         os._exit(code)
     sys.exit(code)
 
