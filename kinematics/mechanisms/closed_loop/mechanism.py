@@ -247,11 +247,11 @@ class GenericClosedLoop(Mechanism):
             InvalidInputError: points or q of the wrong shape, or not finite.
         """
         p = np.atleast_2d(np.asarray(points, dtype=float))
-        sol = self.batch.ik(p)
-        q = self._actuator_rows(q, len(p))
+        q = self._actuator_rows(q, len(p))  # before the solve, which a malformed q would waste
         d, a = self.task_dim, q.shape[1]
         if not len(p):
             return Velocity(np.zeros((0, d, a)), np.zeros((0, a, d)), np.zeros(0), np.zeros(0))
+        sol = self.batch.ik(p)
         qa = sol.x[..., self.batch.actuated]  # (N, B, a)
         dist = np.where(sol.found, np.linalg.norm(qa - q[:, None, :], axis=-1), np.inf)
         pick = np.argmin(dist, axis=1)
