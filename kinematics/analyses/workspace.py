@@ -201,15 +201,15 @@ def measure_workspace(mech: Mechanism, *, step: float = 0.005, rtol: float | Non
     require_volume_task(mech)
     chosen = mech.check_branches(branches) if mech.branches else ()  # a serial arm: the union only
     mech.check_limits(limits)
+    zero = zero_measure_workspace(mech, limits, rtol, step) if engine == "columns" else None
+    if zero is not None:  # before the box, the planes and the margin, which it needs none of
+        return zero
     lo, hi = mech.bounding_box(limits)
     planes = mech.parallel_planes(chosen) if engine == "columns" else ()
     margin = mech.margin(chosen, limits)
     if planes:
         margin = _plane_unions(margin, len(chosen), [idx for _, idx in planes])
     t0 = time.perf_counter()
-    zero = zero_measure_workspace(mech, limits, rtol, step) if engine == "columns" else None
-    if zero is not None:
-        return zero
     res = _measure(margin, lo, hi, step, rtol, engine, progress, max_points, check)
     names = tuple(name for name, _ in planes)
     if planes:
