@@ -216,6 +216,16 @@ def refuse_serial_args(args: argparse.Namespace, why: str) -> None:
             raise InvalidInputError(flag, f"is for a serial arm's joint boxes (the cell engine); {why}")
 
 
+def refuse_pose_args(args: argparse.Namespace, why: str) -> None:
+    """Refuse --position or --mode (which pose the p2us and the Delta) where they pose nothing
+    (`why` says what does), rather than ignore them."""
+    from kinematics.errors import InvalidInputError
+
+    for flag in ("position", "mode"):
+        if getattr(args, flag) is not None:
+            raise InvalidInputError(f"--{flag}", why)
+
+
 def load(args: argparse.Namespace) -> Any:
     """The robot of ROBOT and --range. --range is refused for a mechanism whose limits are design
     parameters (the p2us, the Delta): its closed forms would answer as if it were not given."""

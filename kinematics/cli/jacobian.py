@@ -13,6 +13,7 @@ from kinematics.cli.args import (
     load,
     number,
     q_args,
+    refuse_pose_args,
     robot_arg,
     values,
 )
@@ -42,12 +43,9 @@ def cmd_jacobian(args: argparse.Namespace) -> int:
 
         return parallel_jacobian(args, robot, out)
     from kinematics.cli.report import matrix
-    from kinematics.errors import InvalidInputError
     from kinematics.generic.serial import task_jacobian, task_rows
 
-    for flag in ("position", "mode"):  # they pose the p2us and the Delta; ignored here, they would mislead
-        if getattr(args, flag) is not None:
-            raise InvalidInputError(f"--{flag}", f"{robot.name} is serial: its Jacobian is at its joint values (--q)")
+    refuse_pose_args(args, f"{robot.name} is serial: its Jacobian is at its joint values (--q)")
     v = values(args, robot)
     task = args.task
     J = task_jacobian(robot, robot.configuration(v), args.frame, task)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from kinematics.cli.args import Command, load, mode_of, number, q_args, robot_arg
+from kinematics.cli.args import Command, load, mode_of, number, q_args, refuse_pose_args, robot_arg
 from kinematics.cli.report import emit, fmt, key_values, table, with_plane
 from kinematics.errors import InvalidInputError
 
@@ -44,9 +44,7 @@ def configuration(args: argparse.Namespace, robot: Robot) -> tuple[np.ndarray, s
             from kinematics.errors import UnsupportedRobotError
 
             raise UnsupportedRobotError(robot.name, "has no degree of freedom (every joint is fixed): nothing moves")
-        for flag in ("position", "mode"):  # they pose the p2us and the Delta
-            if getattr(args, flag) is not None:
-                raise InvalidInputError(f"--{flag}", f"{robot.name} is serial: give its joint values with --q")
+        refuse_pose_args(args, f"{robot.name} is serial: give its joint values with --q")
         if args.q is None:
             from kinematics.analyses.mobility import REGULAR_SEED, regular_configuration
 

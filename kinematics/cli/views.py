@@ -15,6 +15,7 @@ from kinematics.cli.args import (
     non_negative,
     number,
     positive,
+    refuse_pose_args,
     refuse_serial_args,
     robot_arg,
     serial_args,
@@ -99,11 +100,9 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
                      if unreachable["position"] is not None else f"actuators at {unreachable['q']} {mech.actuator_unit}")
             out(args, unreachable, lambda: f"{where} is NOT reachable: {unreachable['reason']}")
             return 1
-    if not three_limb:  # they pose the p2us and the Delta; ignored here, they would mislead
-        for flag in ("position", "mode"):
-            if getattr(args, flag) is not None:
-                what = "joint values" if robot.loops is None else "actuator values"
-                raise InvalidInputError(f"--{flag}", f"poses the p2us and the Delta; give {robot.name}'s {what} with --q")
+    if not three_limb:
+        what = "joint values" if robot.loops is None else "actuator values"
+        refuse_pose_args(args, f"poses the p2us and the Delta; give {robot.name}'s {what} with --q")
     elif args.mode is not None and args.position is None:
         raise InvalidInputError("--mode", "the working mode of --position; without it the view is at --q's actuators "
                                           "(they decide the mode) or at the reference pose")
