@@ -36,6 +36,15 @@ MAX_STEPS = 2_000_000
 """Control steps of one guidance simulation (a Python loop: ~ a minute at this length)."""
 
 
+def check_count(name: str, value: object, minimum: int, what: str = "", note: str = "") -> None:
+    """Raise InvalidInputError unless `value` is a whole number (an int, not a bool) >= `minimum`:
+    "must be a whole number{what} >= {minimum}{note}", e.g. what " of slices"."""
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise InvalidInputError(name, f"must be a whole number{what} >= {minimum}{note}, got {value!r}")
+
+
 def check_points(what: str, count: float, *, limit: int = MAX_POINTS, unit: str = "points",
                  hint: str = "") -> int:
     """Return `count` as an int if 1 <= count <= limit, else raise one InvalidInputError that

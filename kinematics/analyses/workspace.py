@@ -18,7 +18,6 @@ kinematics (`Mechanism.ik`), and the SCARA's area by a 1D quadrature over the ra
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -28,9 +27,8 @@ import numpy as np
 
 from kinematics.analyses.cells import VolumeEstimate, adaptive_volume
 from kinematics.analyses.columns import ROOT_TOL, ColumnVolume, column_volume
-from kinematics.errors import InvalidInputError
 from kinematics.mechanisms.base import UNION, Mechanism, check_mechanism
-from kinematics.sizes import MAX_POINTS, check_points
+from kinematics.sizes import MAX_POINTS, check_count, check_points
 
 
 @dataclass(frozen=True)
@@ -278,8 +276,7 @@ def volume_monte_carlo(mech: Mechanism, n: int, rng: np.random.Generator,
     check_mechanism(mech, "volume_monte_carlo")
     mech.require("ik", "a Monte-Carlo volume")
     mech.check_limits(limits)
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
-        raise InvalidInputError("n", f"must be a whole number of samples >= 1, got {n!r}")
+    check_count("n", n, 1, " of samples")
     n = check_points("n", float(n), hint="use fewer samples")
     lo, hi = mech.bounding_box(limits)
     p = lo + (hi - lo) * rng.random((n, mech.task_dim))

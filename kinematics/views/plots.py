@@ -6,15 +6,13 @@ The figures use whatever backend is active (inline in Jupyter); the CLI calls `h
 
 from __future__ import annotations
 
-import numbers
 import os
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from kinematics.errors import InvalidInputError
-from kinematics.sizes import check_points, grid_points
+from kinematics.sizes import check_count, check_points, grid_points
 
 SINGULAR_STYLE = {1: ("tab:blue", "o", "type I"), 2: ("tab:red", "^", "type II"), 3: ("black", "s", "type III")}
 """Singularity type -> (colour, marker, label), shared by every plot and the Meshcat views."""
@@ -63,8 +61,7 @@ def _check_grid(lo: np.ndarray, hi: np.ndarray, step: float, slices_z: int = 1) 
     from kinematics.analyses.cells import check_step
 
     check_step(step)
-    if isinstance(slices_z, bool) or not isinstance(slices_z, numbers.Integral) or slices_z < 1:
-        raise InvalidInputError("slices_z", f"must be a whole number of slices >= 1, got {slices_z!r}")
+    check_count("slices_z", slices_z, 1, " of slices")
     check_points("step", grid_points(lo, hi, step), hint="use a larger step")
 
 
@@ -343,8 +340,7 @@ def conditioning_map(mech: Any, branch: str, limits: str = "all", step: float | 
     the workspace (spatial mechanisms), blank outside it (`analyses.dexterity.conditioning_grid`)."""
     from kinematics.analyses.dexterity import conditioning_grid
 
-    if isinstance(slices_z, bool) or not isinstance(slices_z, numbers.Integral) or slices_z < 1:
-        raise InvalidInputError("slices_z", f"must be a whole number of slices >= 1, got {slices_z!r}")
+    check_count("slices_z", slices_z, 1, " of slices")
     axes, g = conditioning_grid(mech, branch, limits=limits, step=step)
     if len(axes) == 2:
         fig, ax = _figure(1, (6.0, 5.0))

@@ -13,7 +13,7 @@ from functools import partial
 import numpy as np
 
 from kinematics.errors import InvalidInputError, KinematicsWarning
-from kinematics.sizes import MAX_POINTS
+from kinematics.sizes import MAX_POINTS, check_count
 
 from .quadrature import adaptive_1d, piecewise_1d
 from .sampled import ROOT_TOL, Counter, column_lengths
@@ -183,10 +183,9 @@ def column_volume(
     if rtol < RTOL_FLOOR:
         raise InvalidInputError("rtol", f"{rtol:g} is too tight a tolerance: at least {RTOL_FLOOR:g} (the roots are "
                                         f"bracketed to {ROOT_TOL:g} m and the quadrature sums in double precision)")
-    if isinstance(order, bool) or not isinstance(order, numbers.Integral) or order < 1:
-        raise InvalidInputError("order", f"must be a whole number of Gauss-Legendre nodes >= 1, got {order!r}")
-    if pieces is not None and (isinstance(pieces, bool) or not isinstance(pieces, numbers.Integral) or pieces < 0):
-        raise InvalidInputError("pieces", f"must be a whole number >= 0 (0 or None: from the step), got {pieces!r}")
+    check_count("order", order, 1, " of Gauss-Legendre nodes")
+    if pieces is not None:
+        check_count("pieces", pieces, 0, note=" (0 or None: from the step)")
     if axis is not None and not (isinstance(axis, numbers.Integral) and -d <= axis < d):
         raise InvalidInputError("axis", f"must be one of the box's axes 0..{d - 1} (or -{d}..-1), got {axis!r}")
     ax = int(np.argmin(hi - lo)) if axis is None else axis % d
