@@ -500,3 +500,25 @@ def test_a_serial_arms_velocity_and_box_hold_against_its_fk(name):
                    for e in np.eye(robot.nv)], axis=-1)
     assert v.J.shape == (40, mech.task_dim, robot.nv)
     np.testing.assert_allclose(v.J, fd, rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize("name", ["scara", "p2us", "delta", "ur5", str(MODELS / "fivebar_gepetto" / "robot.urdf")])
+def test_every_margin_and_ik_refuse_what_is_no_batch_of_finite_points(name):
+    """A margin is the volume engine's inner loop: the closed forms' (scara, p2us, delta) gave NaN
+    margins for a NaN point, which an engine reads as "outside", while the serial arm's and the
+    generic loop's refused it; text ("0 0 0") was numpy's ValueError in every family's ik. Now one
+    check (`kinematics.inputs`) refuses each, naming the input, and a good batch still passes."""
+    mech = mechanism_of(load_robot(name))
+    d = mech.task_dim
+    margin = mech.margin()
+    good = np.zeros((2, d))
+    assert margin(good).shape == (2, len(mech.branches) + 1)
+    nan = good.copy()
+    nan[1, 0] = np.nan
+    for bad, why in ((nan, "points: must be finite; row 1"), (np.zeros((2, d + 1)), "points: expected shape"),
+                     ("0 0 0", "points: expected numbers")):
+        with pytest.raises(InvalidInputError, match=why):
+            margin(bad)
+    if "ik" in mech.capabilities:
+        with pytest.raises(InvalidInputError, match="expected numbers"):
+            mech.ik("0 0 0")

@@ -18,8 +18,9 @@ import numpy as np
 import pinocchio as pin
 
 from kinematics import jit
-from kinematics.errors import InvalidInputError, UnsupportedRobotError
+from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.loop_batch.compiled import PRISMATIC, REVOLUTE, TOL, eval_kernel, lm_kernel, pack
+from kinematics.inputs import task_points
 from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
@@ -165,14 +166,8 @@ class LoopModel:
         return np.isfinite(lo) & np.isfinite(hi) & ((kind == PRISMATIC) | (hi - lo < 2 * math.pi - 1e-9))
 
     def _points(self, points: np.ndarray) -> np.ndarray:
-        p = np.asarray(points, dtype=float)
-        if p.ndim == 1 and p.shape[0] == self.task_dim:
-            p = p[None]
-        if p.ndim != 2 or p.shape[1] != self.task_dim:
-            raise InvalidInputError("points", f"expected shape (N, {self.task_dim}), got {np.shape(points)}")
-        if not np.all(np.isfinite(p)):
-            raise InvalidInputError("points", "must be finite")
-        return np.ascontiguousarray(p)
+        one = np.ndim(points) == 1 and np.shape(points)[0] == self.task_dim  # a single point
+        return task_points(np.asarray(points)[None] if one else points, self.task_dim)
 
     # -- kernels ---------------------------------------------------------------------------------
     def newton(self, targets: np.ndarray, x0: np.ndarray, iters: int = 40, tol: float = TOL,

@@ -25,6 +25,7 @@ import pinocchio as pin
 
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.manipulability import SINGULAR_RTOL, Ellipses
+from kinematics.inputs import finite_vectors
 from kinematics.model.robot import Robot
 
 ELBOWS = ("up", "down")
@@ -105,11 +106,7 @@ def _joint_axis(model: pin.Model, jid: int) -> np.ndarray:
 
 
 def _angles(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1:] != (2,):
-        raise InvalidInputError("q", f"expected shape (..., 2), got {q.shape}")
-    if not np.all(np.isfinite(q)):  # NaN in is NaN out, a position and Jacobian said to exist
-        raise InvalidInputError("q", "must be finite")
+    q = finite_vectors(q, 2, "q")
     return q[..., 0], q[..., 1]
 
 
@@ -202,11 +199,7 @@ def ik(p: ScaraParams, xy: np.ndarray) -> ScaraIK:
     acos loses half the digits), theta1 = atan2(y, x) - atan2(l2 s2, l1 + l2 c2), wrapped to
     (-pi, pi]. Points within BOUNDARY_TOL (relative) outside the annulus count as on it.
     """
-    xy = np.asarray(xy, dtype=float)
-    if xy.shape[-1:] != (2,):
-        raise InvalidInputError("position", f"expected shape (..., 2), got {xy.shape}")
-    if not np.all(np.isfinite(xy)):
-        raise InvalidInputError("position", "must be finite")
+    xy = finite_vectors(xy, 2, "position")
     x, y = xy[..., 0], xy[..., 1]
     r = np.hypot(x, y)
     inner, outer = p.reach

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.inputs import task_points
 from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, PoseIK, Velocity
 from kinematics.mechanisms.scara import closed_form as cf
 
@@ -35,6 +36,7 @@ def scara_margin(sp: cf.ScaraParams, elbows: Sequence[str] = cf.ELBOWS) -> Margi
     lo, hi = np.asarray(sp.lower), np.asarray(sp.upper)
 
     def margin(points: np.ndarray) -> np.ndarray:
+        points = task_points(points, 2)
         x, y = points[:, 0], points[:, 1]
         r = np.hypot(x, y)
         reach = np.minimum(outer - r, r - inner)

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.generic.batched import compile_frame
+from kinematics.inputs import task_points
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
 from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup, reduced
@@ -464,16 +465,11 @@ class ReachMargin:
                                    reach.origin, reach.basis[2], turn)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        from kinematics.errors import InvalidInputError
 
         # a user's call lands here (mechanism.margin()(points)): say what is wrong before the search
         s = self.reach.setup
         d = 2 if self.on_profile else len(s.rows) if s.mode == "planar" else 3
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != d:
-            raise InvalidInputError("points", f"expected shape (N, {d}), got {np.shape(points)}")
-        if not np.isfinite(pts).all():
-            raise InvalidInputError("points", "must be finite")
+        pts = task_points(points, d)
         return self.reach.profile_margin(pts) if self.on_profile else self.reach.margin(pts)
 
     def for_check(self) -> ReachMargin:

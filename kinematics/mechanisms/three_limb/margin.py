@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.inputs import task_points
 from kinematics.mechanisms.base import MarginFn
 
 
@@ -24,7 +25,7 @@ class ThreeLimbMargin:
         self.exact_columns = exact_columns
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        m = self._scan_margin(points)[:, self.cols]
+        m = self._scan_margin(task_points(points, 3))[:, self.cols]
         return np.concatenate([m, m.max(axis=1, keepdims=True)], axis=1)
 
     def sampled(self) -> MarginFn:

@@ -11,6 +11,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from kinematics.errors import InvalidInputError, UnknownChoiceError
+from kinematics.inputs import finite_vectors
 from kinematics.mechanisms.base import SINGULAR_TOL
 from kinematics.mechanisms.three_limb.closed_form import BOUNDARY_TOL, MODES, mode_index
 
@@ -31,12 +32,7 @@ MODE_ROOTS = np.array([[0 if c == "+" else 1 for c in m] for m in MODES])  # (8,
 
 def points(p: np.ndarray, name: str = "position") -> np.ndarray:
     """Platform positions as floats of shape S + (3,); InvalidInputError if not, or not finite."""
-    p = np.asarray(p, dtype=float)
-    if p.shape[-1:] != (3,):
-        raise InvalidInputError(name, f"expected shape (..., 3), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise InvalidInputError(name, "must be finite")
-    return p
+    return finite_vectors(p, 3, name)
 
 
 def one(v: np.ndarray, name: str) -> np.ndarray:
@@ -49,12 +45,7 @@ def one(v: np.ndarray, name: str) -> np.ndarray:
 
 def actuators(q: np.ndarray, what: str) -> np.ndarray:
     """Actuator values (`what`: "values", "angles") as floats of shape S + (3,); raises if not."""
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1:] != (3,):
-        raise InvalidInputError("q", f"expected 3 actuator {what}, got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise InvalidInputError("q", "must be finite")
-    return q
+    return finite_vectors(q, 3, "q", f"actuator {what}")
 
 
 def real_root(disc: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
