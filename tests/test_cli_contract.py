@@ -322,6 +322,9 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["show", "p2us", "--export", "v.html", "--mode", "+++"], "--mode: the working mode of --position"),
     (["show", FOURBAR, "--export", "v.html", "--position", "0", "0", "0"], "give fourbar's actuator values with --q"),
     (["show", "delta", "--export", "v.html", "--mode", "+++", "--q", "0", "0", "0"], "--mode: the working mode of --position"),
+    # --q's actuators won over --position, which was ignored (exit 0)
+    (["show", "p2us", "--export", "v.html", "--position", "0", "0", "-0.45", "--q", "0.1", "0.1", "0.1"],
+     "--position/--q: give one of them, not both"),
     (["show", "scara", "--export", "v.html", "--q", "0"], SCARA_DOF.format(1)),
     (["show", "ur5", "--export", "v.html", "--workspace", "--max-points", "1e12"], "over the 200,000,000 limit"),
     (["show", "ur5", "--export", "v.html", "--workspace", "--resolution", "x"], "expected a whole number"),

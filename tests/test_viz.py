@@ -57,6 +57,30 @@ def test_parallel_view_is_closed_loop_solved(p2us):
     np.testing.assert_allclose(forward_kinematics(p2us, q).position, p, atol=1e-9)
 
 
+def test_parallel_view_honours_a_mode_and_refuses_one_that_poses_nothing(p2us):
+    """The mode chooses the assembly at a position (the view's actuated joints are that mode's
+    closed-form IK); a mode without a position was ignored (the view stayed at the reference pose
+    or at the actuators, in their own mode), and a position beside actuators lost to them.
+    Tolerance: the closed-loop solve closes to ~1e-12; 1e-9 as above."""
+    from kinematics.errors import InvalidInputError
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(p2us)
+    p = np.array([0.05, -0.02, -0.45])
+    ik = mech.ik(p[None])
+    modes = [b for b in ("---", "+-+") if ik.reachable[0, mech.branches.index(b)]]  # (+-+ beyond its limits)
+    assert len(modes) == 2
+    actuated = [p2us.joint_names.index(n) for n in p2us.loops.actuated]
+    for mode in modes:
+        q = viz.parallel_view(p2us, p, mode).configurations["p2us"]
+        values = p2us.values_from_configuration(q)[actuated]
+        np.testing.assert_allclose(values, ik.q[0, mech.branches.index(mode)], atol=1e-9)
+    with pytest.raises(InvalidInputError, match="mode: the working mode of a position"):
+        viz.parallel_view(p2us, mode="+-+")
+    with pytest.raises(InvalidInputError, match="not both"):
+        viz.parallel_view(p2us, p, actuators=ik.q[0, -1])
+
+
 def test_every_coloured_overlay_has_a_legend_row(scara):
     s = viz.scara_view(scara, [0.3, -1.0], ellipse=True, workspace=True, singularities=True, guide=2)
     labels = [label for label, _ in s.legend]

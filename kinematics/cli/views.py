@@ -94,6 +94,8 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
             raise InvalidInputError("--collisions/--obstacles", "drawn with --workspace")
         checks = collision_checks(args, robot)
     if three_limb:
+        if args.position is not None and actuators is not None:
+            raise InvalidInputError("--position/--q", "give one of them, not both")
         unreachable = _parallel_checks(args, robot, mech, actuators)
         if unreachable is not None:
             where = (f"platform at {unreachable['position']} m in mode {unreachable['mode']}"
@@ -121,7 +123,7 @@ def run(args: argparse.Namespace, robot: Any, out: Out) -> int:
         if three_limb:
             if args.guide is not None:
                 raise InvalidInputError("--guide", GUIDE_ROBOTS.format(robot.name))
-            viz.parallel_view(robot, None if args.position is None else np.array(args.position), mode_of(args, "---"),
+            viz.parallel_view(robot, None if args.position is None else np.array(args.position), args.mode,
                           actuators, ellipsoid=args.ellipsoid, workspace=args.workspace,
                           singularities=args.singularities, limits=args.limits,
                           step=0.02 if args.step is None else args.step, scene=scene, collisions=checks)

@@ -175,7 +175,7 @@ def _mechanism_overlays(scene: Scene, mech: Any, at: np.ndarray, *, workspace: b
                                        f"{int(sel.sum())}")
 
 
-def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "---",
+def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str | None = None,
                   actuators: np.ndarray | None = None, *, ellipsoid: bool = False, workspace: bool = False,
                   singularities: bool = False, limits: str = "all", step: float = 0.02,
                   scene: Scene | None = None, collisions: Any = None) -> Scene:
@@ -184,7 +184,10 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
     solve) or at actuator values, with its velocity ellipsoid (from J), its workspace as a point
     cloud coloured by the conditioning min(iota_I, iota_II) of the best-conditioned branch, and
     its singular points by type; the camera framed on all of it, a warning when the pose is
-    singular. `collisions` (a `CollisionModel`): as `closed_loop_view`'s."""
+    singular. `mode`: the working mode of `position` (default: the reference pose's); without a
+    position there is nothing for it to choose (at `actuators` the assembly decides the mode, with
+    neither the view is at the reference pose) and giving one is an error, as giving both a
+    position and actuators is. `collisions` (a `CollisionModel`): as `closed_loop_view`'s."""
     from kinematics.generic.closedloop import ClosedLoop
     from kinematics.generic.manipulability import ellipsoid as ellipsoid_of
     from kinematics.mechanisms import SINGULARITY_TYPES, mechanism_of
@@ -193,11 +196,16 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
     mech = mechanism_of(robot)
     for need in ("ik", "velocity", "joint_values"):
         mech.require(need, "a view of a parallel robot")
+    if position is not None and actuators is not None:
+        raise InvalidInputError("position", "give a platform position or actuator values, not both")
+    if mode is not None and position is None:
+        raise InvalidInputError("mode", "the working mode of a position; without one the view is at the actuator "
+                                        "values (they decide the mode) or at the reference pose")
     loop = ClosedLoop(robot)
     branches = mech.branches
     if actuators is None:
-        if position is None:
-            position, mode = mech.reference_pose()
+        reference, default = mech.reference_pose()
+        position, mode = (reference, default) if position is None else (position, mode or default)
         p = np.asarray(position, dtype=float)
         m = branches.index(mech.check_branches([mode])[0])
         sol = mech.ik(p[None])
@@ -211,7 +219,7 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str = "-
     scene.add_robot(robot, res.q)
     p = np.asarray(res.pose.translation, dtype=float)
     s = mech.ik(p[None])
-    m = (branches.index(mode) if actuators is None
+    m = (branches.index(str(mode)) if actuators is None
          else int(np.nanargmin(np.abs(s.q[0] - np.asarray(actuators, dtype=float)).sum(axis=-1))))
     vel = mech.velocity(p[None], s.q[0, m][None])
     kind = int(vel.types[0])
