@@ -6,6 +6,7 @@ import json
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -195,6 +196,8 @@ def test_workspace_mesh_help_names_the_delta(capsys, tmp_path):
     ("usable-workspace", "p2us", "--shape", "cube", "--step", "0.05"),
     ("dexterity", "p2us", "--samples", "64", "--replicates", "2"),
     ("show", "p2us", "--workspace", "--step", "0.05", "--export", "{tmp}/v.html"),
+    # a generic closed loop's ik: the batched solver (it was silent for the minutes of its compilation)
+    ("ik", str(Path(__file__).parent / "models" / "fivebar_gepetto" / "robot.urdf"), "--position", "0.1", "0.3"),
 ])
 def test_compile_notice_before_uncached_kernels(capsys, monkeypatch, tmp_path, argv):
     """On a terminal, every command that runs a mechanism's compiled kernels says "compiling kernels

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from kinematics.cli.report import Out, key_values, matrix, table
+from kinematics.cli.report import Out, compile_notice, key_values, matrix, table
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.mechanisms import SINGULAR_TOL, SINGULARITY_TYPES, Mechanism, classify, mechanism_of
 from kinematics.model.robot import Robot
@@ -107,6 +107,7 @@ def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Ou
     the end effector at --position (`Mechanism.ik`, the workspace margin's solver: it can miss a
     mode, docs/closed-loops.md), its actuator values and the joint ranges its joint values break
     (a revolute angle a whole number of turns from its range counts as within)."""
+    compile_notice(args, mech.kernels())  # the task axes already come from the solver
     p = position_arg(args, mech.task_axes)
     res = mech.ik(p[None])
     solutions = []
