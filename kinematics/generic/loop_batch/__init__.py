@@ -15,8 +15,11 @@ With the end effector fixed the equations split into blocks; the sign of the det
 square block that holds an actuated joint labels a working mode (a branch), and the atlas of
 branches is found once, at the reference position. `ik` solves block by block (the default) or
 every unknown of a branch at once (`solver="whole"`, the reference path), from solved neighbours,
-the atlas configurations and quasi-random restarts; a branch that exists at a target can still be
-missed (`solver` says where).
+the atlas configurations and quasi-random restarts. The block solver's restarts at a target are a
+function of the target (not of its row in the batch), and a slot whose start closed on its
+block's other root is restarted longer; the neighbours' starts still depend on the batch and on
+earlier calls, and a branch that exists at a target can still be missed (`solver` says what is
+and is not guaranteed).
 
 One concept per module:
 

@@ -15,12 +15,16 @@ neighbour outside the workspace leaves its end at a fold, from which Newton can 
 angles) where another slot of the block's same assembly (locked joints' half-turn bits) was found
 or the block holds joints of earlier blocks that closed and no neighbour says the slot is absent
 (a start's last entry: the slot's outcome where it came from, `_Slots.record_outcome`; a neighbour
-where it was tried and not found means no restarts). Before the restarts, a slot whose best start
-stalled next to closure, no slot of its assembly found, is started from the roots its fold model
-predicts (`compiled.fold_roots`); where the model predicts none and the target's warm starts came
-from a point within FOLD_SOURCE x the continuation radius (a root refinement's probes, `source` of
-`_solve_slots`), that verdict replaces the restarts. Blocks are solved in a dependency order,
-the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
+where it was tried and not found means no restarts). The restarts are points of a quasi-random
+sequence from an index that the target's coordinates give (`compiled.restart_base`), the same in
+any batch; a slot still missing after them whose start closed on the block's root of the other
+sign in its assembly gets up to RESTART_ROUNDS x `restarts` (its roots exist there in general:
+the audit's five-bar point lost an elbow where 8 restarts all closed on the other one). Before the
+restarts, a slot whose best start stalled next to closure, no slot of its assembly found, is
+started from the roots its fold model predicts (`compiled.fold_roots`); where the model predicts
+none and the target's warm starts came from a point within FOLD_SOURCE x the continuation radius
+(a root refinement's probes, `source` of `_solve_slots`), that verdict replaces the restarts.
+Blocks are solved in a dependency order, the smallest first; a slot that no live branch needs is skipped, so a target that one limb cannot
 reach costs that limb's solves only. A block that later blocks hold values of is solved to
 TOL / 100, so that an over-determined block built on it (a second rod) can still close to TOL.
 A block with a spherical joint behind a 6D closure (`BlockModel.cuts`) is solved with the point

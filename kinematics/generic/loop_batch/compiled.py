@@ -492,6 +492,28 @@ def _lm_row(t, x, gi, gf, m, nzc, nzn, centre, free, roww, iters, tol, pinned, w
     return res, it
 
 
+RESTART_ROUNDS = 4
+"""A slot still missing after its `restarts` quasi-random starts, where a start aimed at it closed
+on a root of the other sign in the slot's assembly (same held joints, same locked-joint code: the
+slot's roots exist there in general, its basin was missed), gets up to this many rounds of
+`restarts` starts in all. On Gepetto's five-bar, chain 2's 8 restarts all closed on the other
+elbow at about 3 % of the sequence's offsets (each elbow's basin about half the starts); 32 make
+that ~1e-9 where the starts are independent. Elsewhere the rounds are not run (iso five-bars,
+Delta, 3-[P2(US)]: the same time as 8 restarts)."""
+
+
+@njit(cache=True, inline="always")
+def restart_base(t, k, K, S, per_slot):  # pragma: no cover - compiled
+    """The index in the quasi-random sequence before block k's first restart at target t (a slot
+    s uses the next per_slot indices after base + s x per_slot): a function of the target's
+    coordinates (rounded to 2^-30 m), not of its row in the batch, so that a target gets the same
+    restarts whatever batch it is solved in."""
+    h = 0
+    for a in range(t.shape[0]):
+        h = (h * 1000003 + math.floor((t[a] % 1024.0) * 1073741824.0)) % 1048576
+    return ((h * K + k) * S) * per_slot
+
+
 FOLD_SINGULAR = 1e-3
 """A stalled start is at a fold when the smallest eigenvalue of J^T J (its free unknowns) is below
 this fraction of their mean (`fold_roots`)."""
@@ -679,8 +701,10 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
     Each slot still needed by a live branch gets one start: its warm start, else its atlas start;
     a warm start that failed less than `near` [m] from closure gets the atlas start too; then,
     where another slot of the block's same assembly (its locked joints' half-turn bits) was found,
-    `restarts` quasi-random starts for each slot still missing, the locked joints held at the
-    slot's atlas angles. A start's held joints come from the earlier blocks' solutions of its slot's
+    `restarts` quasi-random starts for each slot still missing (`restart_base`: a function of the
+    target), the locked joints held at the slot's atlas angles, and up to RESTART_ROUNDS x
+    `restarts` where a start aimed at the slot closed on a root of the other sign in its
+    assembly. A start's held joints come from the earlier blocks' solutions of its slot's
     branch choice; its root (if any) goes to the slot of its label (its determinant's sign and its
     locked joints' half-turn bits), the one nearest the reference kept. A branch dies (`alive`) with the first block slot it needs that is not found.
     (One call site per solver step: every compiled call binds its array arguments with reference
@@ -705,6 +729,7 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
         M = np.empty((nc, nc))
         need = np.empty(S, dtype=np.bool_)
         again = np.empty(S, dtype=np.bool_)  # the slot gets restarts
+        sibling = np.empty(S, dtype=np.bool_)  # a start aimed at the slot closed on another slot's root
         fold = np.zeros(S, dtype=np.int64)  # `fold_roots`'s verdict per slot (0: none)
         fold_x = np.empty((S, n))  # the stalled point
         fold_v = np.empty((S, n))  # its fold direction
@@ -721,8 +746,11 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
             for b in range(B):
                 if alive[i, b]:
                     need[bslot[b, k]] = True
-            idx0 = (i * nslot.shape[0] + k) * S * restarts
-            for attempt in range(S * (4 + restarts)):
+            per_slot = RESTART_ROUNDS * restarts
+            idx0 = restart_base(t, k, nslot.shape[0], S, per_slot)
+            for s in range(S):
+                sibling[s] = False
+            for attempt in range(S * (4 + per_slot)):
                 if S <= attempt < 2 * S:
                     # a warm start that stalled within `near` of closure gets its slot's atlas
                     # start too: the neighbour's end can lie across a fold (the neighbour outside,
@@ -805,9 +833,11 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 if attempt < 2 * S:
                     s = attempt % S
                 elif attempt >= 4 * S:
-                    s = (attempt - 4 * S) // restarts
+                    s = (attempt - 4 * S) // per_slot
                 if not need[s] or found[i, k, s] or (attempt >= 4 * S and not again[s]):
                     continue
+                if attempt >= 4 * S and (attempt - 4 * S) % per_slot >= restarts and not sibling[s]:
+                    continue  # the later rounds only where the slot's basin was missed, not absent
                 # the start: the block's unknowns, then the held joints of this slot's branch choice
                 for j in range(n):
                     x[j] = 0.0
@@ -872,6 +902,11 @@ def block_kernel(k, targets, gi, gf, m, nzc, nzn, centre, free, weights, T, nslo
                 if s2 < 0:
                     counts[i, 0] += 1
                     continue
+                if s2 != s and slot_lock[k, s2] == slot_lock[k, s]:
+                    # a root of the other sign in the slot's assembly: the slot's roots exist too,
+                    # in general (revolute unknowns map a torus, a map of degree 0: at a regular
+                    # target as many roots of each sign)
+                    sibling[s] = True
                 _flip(x, flips, nflip, k)  # one representation per pose (`LoopBatch.canonical`)
                 _wrap(x, gi, centre)
                 d = 0.0

@@ -10,9 +10,22 @@ them (the planar five-bar: x, y; for two actuators and a planar motion, `motion_
 Mechanisms whose actuators drive a rotation of the end effector
 (a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
 
+**What the search guarantees.** With the block solver (the default) the restarts a block slot gets
+at a target are a function of the target's coordinates, the block and the slot (`compiled.
+restart_base`): a target whose slot is restarted gets the same restarts in any batch, at any row,
+after any earlier call. A slot whose start closed on a root of the other sign in the same
+assembly (the five-bar's other elbow) gets up to RESTART_ROUNDS x `restarts` starts instead of
+`restarts`: its roots exist there in general (a block of revolute joints maps a torus of angles,
+a map of degree 0: at a regular target as many roots of each sign).
+Not guaranteed: the first starts (a neighbour's end from the warm cache or the batch's coarser
+levels, whether the atlas start is retried, and the neighbours' verdicts that gate restarts)
+depend on the batch's composition and on earlier calls, so a branch found from a neighbour in one
+call can be missed by a colder one; and every start can miss a basin.
+
 **What the search can miss.** A branch that exists at a target but is reached from none of the
 starts (a block's basin missed by the neighbour's end, the atlas configuration and the restarts)
-is reported absent (margin < 0): most likely in a branch region that does not contain the
+is reported absent (margin < 0: minus the smallest residual of the starts aimed at it, ~0 where
+they all closed on another slot's root): most likely in a branch region that does not contain the
 reference position's branch of the same label and is far from the batch's other points, or next
 to the workspace's boundary where the nearest solved point lies outside, its least-squares point
 leads nowhere and the atlas start lies in another basin (restarts are not spent on a labelling
