@@ -465,7 +465,6 @@ class ReachMargin:
                                    reach.origin, reach.basis[2], turn)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-
         # a user's call lands here (mechanism.margin()(points)): say what is wrong before the search
         s = self.reach.setup
         d = 2 if self.on_profile else len(s.rows) if s.mode == "planar" else 3
