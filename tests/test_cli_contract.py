@@ -376,7 +376,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["usable-workspace", "p2us", "--shape", "cube", "--mode", ""], unknown_mode("", MODES8 + OR_UNION)),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "0"], POSITIVE),
     (["usable-workspace", "p2us", "--shape", "cube", "--step", "1e-9"], "200,000,000"),
-    (["usable-workspace", "scara", "--shape", "cube"], "spatial task space"),
+    (["usable-workspace", "scara", "--shape", "cube"], "a cube needs a 3-D task space"),
     (["usable-workspace", "p2us", "--shape", "cube", "--obstacles", "nofile.yaml"], "obstacle file not found"),
     (["usable-workspace", "delta", "--shape", "cube", "--limits", "some"], "invalid choice"),
     (["workspace-mesh", "p2us"], "required: -o"),

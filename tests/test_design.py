@@ -180,6 +180,86 @@ def test_p2us_usable_cube_is_found_globally(p2us_params):
     assert res.volume <= res.volume_bound and res.optimality_gap < 0.15
 
 
+# -- planar shapes --------------------------------------------------------------------------------
+def _disk_field(c: np.ndarray, r: float):
+    return lambda p: r - np.linalg.norm(p - c, axis=1)
+
+
+def _rectangle_field(lo: np.ndarray, hi: np.ndarray):
+    return lambda p: np.minimum(p - lo, hi - p).min(axis=1)
+
+
+# Tolerances of the planar cases below. Above: a square's corners are membership samples and a
+# square with its corners in a convex region lies inside it, so a square never exceeds the exact
+# edge; a disk's outline is sampled every spacing / 2 of arc (n >= 2 pi r / (spacing / 2) points),
+# so a disk can exceed the exact radius by at most r (1 - cos(pi / n)) ~ r (pi / n)^2 / 2, below
+# 1e-4 r here: 2e-4 relative. Below: the size is bisected to 1e-3 relative at a centre the pattern
+# search leaves within step / 8 of the best (its last move), which costs at most 2 x step / 8 of
+# the size (a centre moved by delta towards the region's boundary loses 2 delta of edge or delta
+# of radius): with step 0.05 m and sizes of 0.5-1.4 m, 1e-3 + 0.025 / 0.5 ~ 1e-2 relative at worst.
+UPPER, LOWER = 2e-4, 1e-2
+
+
+@pytest.mark.parametrize(("field", "box", "shape", "exact"), [
+    (_disk_field(np.array([0.3, -0.2]), 1.0), ([-0.9, -1.4], [1.5, 1.0]), "square", math.sqrt(2.0)),
+    (_disk_field(np.array([0.3, -0.2]), 1.0), ([-0.9, -1.4], [1.5, 1.0]), "disk", 1.0),
+    (_rectangle_field(np.array([0.0, 0.0]), np.array([2.0, 1.0])), ([-0.5, -0.5], [2.5, 1.5]), "square", 1.0),
+    (_rectangle_field(np.array([0.0, 0.0]), np.array([2.0, 1.0])), ([-0.5, -0.5], [2.5, 1.5]), "disk", 0.5),
+])
+def test_largest_square_and_disk_by_hand(field, box, shape, exact):
+    """The largest square in a unit disk has edge sqrt 2, the largest disk radius 1; in a 2 x 1
+    rectangle, edge 1 and radius 0.5. The area bound holds the optimum: every pixel centre inside
+    the optimal shape is usable (the region is sampled exactly), so the distance transforms bound it."""
+    res = largest_shape(field, np.array(box[0]), np.array(box[1]), shape, step=0.05)
+    assert res.planar and res.center.shape == (2,)
+    assert exact * (1 - LOWER) <= res.size[0] <= exact * (1 + UPPER)
+    optimum = exact**2 if shape == "square" else math.pi * exact**2
+    assert res.volume <= optimum * (1 + 2 * UPPER) <= res.volume_bound * (1 + 2 * UPPER)
+    assert res.min_field >= 0 and res.larger_fails
+
+
+def test_scara_usable_disk_is_the_kappa_annulus_by_hand():
+    """A planar 2R arm's Jacobian has singular values that depend on theta2 alone:
+    J^T J = [[l1^2 + l2^2 + 2 l1 l2 c2, l2^2 + l1 l2 c2], [l2^2 + l1 l2 c2, l2^2]], so
+    kappa^2 = (T + sqrt(T^2 - 4 D)) / (T - sqrt(T^2 - 4 D)), T = l1^2 + 2 l2^2 + 2 l1 l2 c2,
+    D = (l1 l2 s2)^2. With kappa <= K and |theta2| within its limit, the reach radius
+    r = sqrt(l1^2 + l2^2 + 2 l1 l2 c2) spans [a, b]: the usable set of an elbow is that annulus cut
+    to the theta1 range (+-110 deg, far wider than the disk's +-22 deg seen from the axis), so the
+    largest disk has radius (b - a) / 2, centred at (a + b) / 2 from the shoulder. Tolerances as
+    `test_largest_square_and_disk_by_hand` (step 0.02 m: 1e-3 + 2 x 0.0025 / 0.19 ~ 3e-2)."""
+    from scipy.optimize import brentq
+
+    from kinematics.mechanisms import mechanism_of
+
+    mech = mechanism_of(load_robot("scara"))
+    l1, l2 = mech.params.l1, mech.params.l2
+    limit = mech.params.upper[1]
+    K = 10.0
+
+    def kappa(t2: float) -> float:
+        T, D = l1**2 + 2 * l2**2 + 2 * l1 * l2 * math.cos(t2), (l1 * l2 * math.sin(t2)) ** 2
+        root = math.sqrt(T * T - 4 * D)
+        return math.sqrt((T + root) / (T - root))
+
+    t_lo = brentq(lambda t: kappa(t) - K, 1e-6, math.pi / 2)  # stretched side
+    t_hi = min(brentq(lambda t: kappa(t) - K, math.pi / 2, math.pi - 1e-6), limit)  # folded side, or the limit
+    r = lambda t: math.sqrt(l1**2 + l2**2 + 2 * l1 * l2 * math.cos(t))
+    a, b = r(t_hi), r(t_lo)
+    res = usable(mech, "disk", branch="up", kappa_max=K, step=0.02)
+    assert (b - a) / 2 * (1 - 3e-2) <= res.size[0] <= (b - a) / 2 * (1 + UPPER)
+    assert abs(float(np.linalg.norm(res.center)) - (a + b) / 2) <= 0.02  # on the annulus' middle circle
+    assert res.volume_bound >= math.pi * ((b - a) / 2) ** 2
+
+
+def test_cli_usable_workspace_planar(capsys):
+    code, d, _ = run_json(capsys, "usable-workspace", "scara", "--shape", "square")
+    assert code == 0 and d["shape"] == "square" and d["task_axes"] == ["x", "y"]
+    assert "volume_m3" not in d and d["area_m2"] == pytest.approx(d["size_m"]["edge_m"] ** 2, rel=1e-12)
+    assert d["check"]["inside"] and d["check"]["area_bound_m2"] >= d["area_m2"]
+    code, out, _ = run(capsys, "usable-workspace", "scara", "--shape", "disk")
+    assert code == 0 and "area" in out and "m^2" in out and "8 neighbours" in out and "(x, y)" in out
+
+
 # -- boundary meshes -----------------------------------------------------------------------------
 def test_ball_mesh_volume():
     h = 0.01
@@ -224,7 +304,9 @@ def test_cli_workspace_mesh(capsys, tmp_path):
 
 def test_cli_usable_workspace_errors(capsys):
     code, _, err = run(capsys, "usable-workspace", "scara", "--shape", "cube")
-    assert code == 2 and "spatial" in err
+    assert code == 2 and "a cube needs a 3-D task space; this one is 2-D (x, y): use square or disk" in err
+    code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "disk")
+    assert code == 2 and "use cube or cylinder or sphere" in err
     code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--mode", "xyz")
     assert code == 2 and "xyz" in err
     code, _, err = run(capsys, "usable-workspace", "p2us", "--shape", "cube", "--kappa-max", "0.5")

@@ -1,5 +1,6 @@
-"""Usable workspace: the largest axis-aligned cube, vertical cylinder and sphere inside a region
-where the robot is both reachable and well conditioned.
+"""Usable workspace: the largest axis-aligned cube, vertical cylinder and sphere (in a plane: the
+largest axis-aligned square and disk) inside a region where the robot is both reachable and well
+conditioned.
 
 The region is {p : u(p) >= 0} for a *usable field* u. For any `Mechanism` in one branch (working
 mode, elbow), `usable_field` builds
@@ -15,7 +16,9 @@ of u is used. The union of the branches is u = max over branches.
 Method (any field, `largest_shape`): (1) sample u on a grid of step h over a box; distance
 transforms of the usable voxels give, at every voxel, the largest sphere (Euclidean), cube
 (chessboard) and vertical cylinder (per-slice 2D Euclidean, sliding minimum along z) centred there,
-and an upper bound on the volume of any such shape whose centre lies in the voxel's cell.
+and an upper bound on the volume of any such shape whose centre lies in the voxel's cell (in a
+plane the same with pixels: the square by the chessboard, the disk by the Euclidean transform, areas
+for volumes).
 (2) Global search: the few best well-separated centres are sized by bisection against the
 membership test; cells whose bound exceeds the best shape found are sampled again at h/2 (three grids
 by default), and again sized; (3) the best is refined by a pattern search of the centre (steps h
@@ -47,8 +50,12 @@ if TYPE_CHECKING:
 Field = Callable[[np.ndarray], np.ndarray]
 MarginOf = Callable[[Sequence[str]], Field]
 """Branches -> their margin (points -> a column per branch, then any others)."""
-Shape = Literal["cube", "cylinder", "sphere"]
-SHAPES: tuple[str, ...] = ("cube", "cylinder", "sphere")
+Shape = Literal["cube", "cylinder", "sphere", "square", "disk"]
+SPATIAL: tuple[str, ...] = ("cube", "cylinder", "sphere")
+"""The shapes of a 3-D task space (volumes, m^3)."""
+PLANAR: tuple[str, ...] = ("square", "disk")
+"""The shapes of a 2-D task space (areas, m^2)."""
+SHAPES: tuple[str, ...] = SPATIAL + PLANAR
 EMPTY = "no grid point is usable (reached, collision-free where checked, non-singular, kappa <= kappa_max) at this step"
 """The problem text of the InvalidInputError `largest_shape` raises when nothing is usable."""
 KAPPA_MAX = 10.0
@@ -60,14 +67,15 @@ class UsableShape:
     """A shape inside the usable region.
 
     Attributes:
-        shape: "cube", "cylinder" or "sphere".
-        center: (3,) its centre [m].
-        size: (edge,) for a cube, (radius, height) for a cylinder, (radius,) for a sphere [m].
+        shape: "cube", "cylinder" or "sphere"; in a plane "square" or "disk".
+        center: (3,) its centre [m] ((2,) in a plane).
+        size: (edge,) for a cube or a square, (radius, height) for a cylinder, (radius,) for a
+            sphere or a disk [m].
         samples: points of the final membership test; spacing: its solid-grid spacing [m].
         min_field: the smallest u over those samples (>= 0).
-        larger_fails: the same shape 1 % larger fails the test at the centre and the 26
-            neighbouring centres (offsets of half a grid step); False when not tested (no search).
-        volume_bound: an upper bound [m^3] on the volume of any such shape inside the region as
+        larger_fails: the same shape 1 % larger fails the test at the centre and the 26 (in a plane
+            8) neighbouring centres (offsets of half a grid step); False when not tested (no search).
+        volume_bound: an upper bound [m^3] (in a plane [m^2]: an area) on the volume of any such shape inside the region as
             sampled on the finest grid (`largest_shape`); the answer is within
             1 - volume / volume_bound of the optimum. Cylinders: among those at least one grid step tall.
     """
@@ -83,8 +91,13 @@ class UsableShape:
 
     @property
     def volume(self) -> float:
-        """Volume [m^3]."""
+        """Volume [m^3] (a square's or a disk's area [m^2])."""
         return shape_volume(self.shape, self.size)
+
+    @property
+    def planar(self) -> bool:
+        """Whether the shape is a square or a disk (its `volume` an area)."""
+        return self.shape in PLANAR
 
     @property
     def optimality_gap(self) -> float:
@@ -93,17 +106,23 @@ class UsableShape:
 
 
 def shape_volume(shape: str, size: Sequence[float]) -> float:
-    """edge^3, pi r^2 h or 4/3 pi r^3 [m^3]."""
+    """edge^3, pi r^2 h or 4/3 pi r^3 [m^3]; a square's edge^2 or a disk's pi r^2 [m^2]."""
     if shape == "cube":
         return float(size[0] ** 3)
     if shape == "cylinder":
         return float(math.pi * size[0] ** 2 * size[1])
+    if shape == "square":
+        return float(size[0] ** 2)
+    if shape == "disk":
+        return float(math.pi * size[0] ** 2)
     return float(4.0 / 3.0 * math.pi * size[0] ** 3)
 
 
-def _check_shape(shape: str) -> str:
-    if shape not in SHAPES:
-        raise UnknownChoiceError(shape, SHAPES)
+def _check_shape(shape: str, d: int | None = None) -> str:
+    """`shape`, one of SHAPES, or of the d-dimensional ones (SPATIAL, PLANAR) when d is given."""
+    valid = SHAPES if d is None else PLANAR if d == 2 else SPATIAL
+    if shape not in valid:
+        raise UnknownChoiceError(shape, valid)
     return shape
 
 
@@ -113,9 +132,23 @@ def _axis(a: float, b: float, spacing: float) -> np.ndarray:
 
 def shape_samples(shape: str, center: np.ndarray, size: Sequence[float], spacing: float) -> np.ndarray:
     """Points of the shape's solid on a grid of `spacing` [m] (boundary included) and of its
-    surface at spacing / 2, shape (N, 3)."""
+    surface at spacing / 2, shape (N, 3) ((N, 2) for a square or a disk: its area and outline)."""
     c = np.asarray(center, dtype=float)
     fine = spacing / 2
+    if shape == "square":
+        a = size[0] / 2
+        g = _axis(-a, a, spacing)
+        solid = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+        f = _axis(-a, a, fine)
+        edges = [np.column_stack([np.full_like(f, sgn * a), f]) for sgn in (-1, 1)]
+        return c + np.concatenate([solid, *edges, *(e[:, ::-1] for e in edges)])
+    if shape == "disk":
+        r = size[0]
+        g = _axis(-r, r, spacing)
+        solid = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+        solid = solid[np.einsum("ij,ij->i", solid, solid) <= r * r]
+        t = np.linspace(0, 2 * math.pi, max(8, math.ceil(2 * math.pi * r / fine)), endpoint=False)
+        return c + np.concatenate([solid, r * np.column_stack([np.cos(t), np.sin(t)])])
     if shape == "cube":
         a = size[0] / 2
         g = _axis(-a, a, spacing)
@@ -186,8 +219,9 @@ def _per_voxel(shape: str, ok: np.ndarray, h: float) -> tuple[np.ndarray, np.nda
     with v the voxel nearest the shape's centre (at most h/2 per axis away), every unusable voxel
     lies outside the shape, so its distance from v exceeds the shape's half-size less the offset:
 
-    * sphere: r < h (e + sqrt(3)/2), e the Euclidean distance transform at v (voxels);
-    * cube: edge < h (2 c + 1), c the chessboard distance transform;
+    * sphere: r < h (e + sqrt(3)/2), e the Euclidean distance transform at v (voxels); a disk
+      (pixels): r < h (e + sqrt(2)/2);
+    * cube, square: edge < h (2 c + 1), c the chessboard distance transform;
     * vertical cylinder at least one step tall: over the 2m + 1 slices centred at v, all inside the
       cylinder's height H < (2m + 3) h, the disk radius r < h (e_m + sqrt(2)/2), e_m the smallest
       per-slice 2-D Euclidean distance transform at v's column over those slices; the bound is the
@@ -195,17 +229,20 @@ def _per_voxel(shape: str, ok: np.ndarray, h: float) -> tuple[np.ndarray, np.nda
     """
     from scipy import ndimage
 
+    d = ok.ndim
     padded = np.pad(ok, 1)  # the box's outside counts as unusable
-    if shape == "sphere":
-        e = ndimage.distance_transform_edt(padded)[1:-1, 1:-1, 1:-1]
+    inner = (slice(1, -1),) * d
+    if shape in ("sphere", "disk"):
+        e = ndimage.distance_transform_edt(padded)[inner]
         size = np.maximum(e - 1.0, 0.0)[..., None] * h
-        r_up = h * (e + math.sqrt(3) / 2)
-        return size, 4 / 3 * math.pi * size[..., 0] ** 3, 4 / 3 * math.pi * r_up**3, r_up
-    if shape == "cube":
-        c = ndimage.distance_transform_cdt(padded, metric="chessboard")[1:-1, 1:-1, 1:-1].astype(float)
+        r_up = h * (e + math.sqrt(d) / 2)
+        ball = 4 / 3 * math.pi if d == 3 else math.pi  # r^d times this
+        return size, ball * size[..., 0] ** d, ball * r_up**d, r_up
+    if shape in ("cube", "square"):
+        c = ndimage.distance_transform_cdt(padded, metric="chessboard")[inner].astype(float)
         size = 2 * np.maximum(c - 1.0, 0.0)[..., None] * h
         s_up = h * (2 * c + 1)
-        return size, size[..., 0] ** 3, s_up**3, s_up / 2 * math.sqrt(3)
+        return size, size[..., 0] ** d, s_up**d, s_up / 2 * math.sqrt(d)
     e2 = np.stack([ndimage.distance_transform_edt(padded[:, :, k]) for k in range(padded.shape[2])], -1)
     e2 = e2[1:-1, 1:-1, 1:-1]
     size = np.zeros((*ok.shape, 2))
@@ -244,17 +281,19 @@ class _Level:
 
 def _level(field: Field, shape: str, origin: np.ndarray, h: float, n: tuple[int, ...],
            region: np.ndarray | None) -> _Level:
-    axes = [origin[k] + h * np.arange(n[k]) for k in range(3)]
+    d = len(n)
+    axes = [origin[k] + h * np.arange(n[k]) for k in range(d)]
     check_points("step", math.prod(n), hint="use a larger step")
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
-    ok = (field(grid.reshape(-1, 3)) >= 0).reshape(n)
+    ok = (field(grid.reshape(-1, d)) >= 0).reshape(n)
     size, vol, bound, reach = _per_voxel(shape, ok, h)
     return _Level(origin, h, ok.copy() if region is None else region, size, vol, bound, reach)
 
 
 def _finer(field: Field, shape: str, lv: _Level, best: float) -> _Level | None:
     """The next level at h/2 over the cells whose bound exceeds `best` (None if none does): each
-    cell holds 2 x 2 x 2 finer voxels (at +-h/4), so a centre in the cell is within h/4 of one."""
+    cell holds 2 x 2 x 2 (in a plane 2 x 2) finer voxels (at +-h/4), so a centre in the cell is
+    within h/4 of one."""
     keep = lv.region & (lv.bound > best)
     if not keep.any():
         return None
@@ -262,8 +301,9 @@ def _finer(field: Field, shape: str, lv: _Level, best: float) -> _Level | None:
     pad = math.ceil(float(lv.reach[keep].max()) / lv.h) + 1  # shapes reach this far from their cells
     lo_j = np.maximum(idx.min(axis=0) - pad, 0)
     hi_j = np.minimum(idx.max(axis=0) + pad + 1, keep.shape)
-    sub = keep[lo_j[0]:hi_j[0], lo_j[1]:hi_j[1], lo_j[2]:hi_j[2]]
-    region = sub.repeat(2, 0).repeat(2, 1).repeat(2, 2)
+    region = keep[tuple(slice(a, b) for a, b in zip(lo_j, hi_j, strict=True))]
+    for k in range(keep.ndim):
+        region = region.repeat(2, k)
     return _level(field, shape, lv.point(lo_j) - lv.h / 4, lv.h / 2, region.shape, region)
 
 
@@ -286,7 +326,8 @@ def _starts(lv: _Level, count: int) -> list[np.ndarray]:
 def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, step: float,
                   spacing: float | None = None, search: bool = True, levels: int = 3,
                   starts: int = 4) -> UsableShape:
-    """The largest `shape` inside {field >= 0} within the box `[lo, hi]` [m] (see the module doc).
+    """The largest `shape` inside {field >= 0} within the box `[lo, hi]` [m] (see the module doc):
+    a cube, cylinder or sphere in a 3-D box, a square or disk in a 2-D one.
 
     Global search: the field sampled every `step`, distance transforms give at every voxel the
     shape centred there and an upper bound on any shape centred in its cell (`_per_voxel`); the
@@ -303,7 +344,11 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
         levels: grids sampled (step, step/2, ...), at least 1.
         starts: centres sized per level.
     """
-    _check_shape(shape)
+    lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
+    if lo_.shape != hi_.shape or lo_.shape not in ((2,), (3,)):
+        raise InvalidInputError("lo, hi", f"expected a 2-D or 3-D box, got shapes {lo_.shape} and {hi_.shape}")
+    d = len(lo_)
+    _check_shape(shape, d)
     if not (step > 0 and math.isfinite(step)):
         raise InvalidInputError("step", f"must be a positive number of metres, got {step!r}")
     if levels < 1 or starts < 1:
@@ -311,7 +356,6 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     spacing = step / 2 if spacing is None else spacing
     if not (spacing > 0 and math.isfinite(spacing)):
         raise InvalidInputError("spacing", f"must be a positive number of metres, got {spacing!r}")
-    lo_, hi_ = np.asarray(lo, float), np.asarray(hi, float)
     check_points("step", grid_points(lo_.tolist(), hi_.tolist(), step), hint="use a larger step")
     n = tuple(len(np.arange(a, b + step / 2, step)) for a, b in zip(lo_, hi_, strict=True))
     lv = _level(field, shape, lo_, step, n, None)
@@ -373,12 +417,12 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
         delta = step if search else 0.0
         while delta >= step / 8 and delta > 0:
             improved = False
-            moves = [(ax, s) for ax in range(3) for s in (-1, 1)]
+            moves = [(ax, s) for ax in range(d) for s in (-1, 1)]
             if shape == "cylinder":
-                moves += [(3, s) for s in (-1, 1)]
+                moves += [(d, s) for s in (-1, 1)]
             for ax, s in moves:
                 c, a = center.copy(), aspect
-                if ax < 3:
+                if ax < d:
                     c[ax] += s * delta
                 else:
                     a *= (1 + delta / max(size0[0], step)) ** s
@@ -396,7 +440,7 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     center, size = max((polish(c, sz) for _, c, sz in firsts), key=lambda r: shape_volume(shape, r[1]))
     final = contains(field, shape, center, size, spacing)
     bigger = [1.01 * s for s in size]
-    offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * 3, indexing="ij"), -1).reshape(-1, 3)
+    offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * d, indexing="ij"), -1).reshape(-1, d)
     # (without the search the result is a lower bound, not claimed near-maximal: not tested)
     larger_fails = search and not any(shape_fits(field, shape, center + o, bigger, spacing) for o in offs)
     n_samples = len(shape_samples(shape, center, size, spacing))
@@ -471,7 +515,9 @@ def usable_field(mech: Mechanism, branch: str, kappa_max: float = KAPPA_MAX, lim
 def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max: float = KAPPA_MAX,
            limits: str = "all", step: float = 0.01, spacing: float | None = None,
            search: bool = True, levels: int = 3, margin_of: MarginOf | None = None) -> UsableShape:
-    """The largest `shape` in the usable workspace of a spatial mechanism (module docstring).
+    """The largest `shape` in the usable workspace of a mechanism (module docstring): a cube,
+    cylinder or sphere for a spatial task space, a square or disk for a planar one (a SCARA, a
+    five-bar: the task coordinates its `task_axes` name).
 
     Args:
         branch: a branch label or "union" (default: "---" where the mechanism has it, else its
@@ -489,9 +535,13 @@ def usable(mech: Mechanism, shape: str, *, branch: str | None = None, kappa_max:
     _check_shape(shape)
     for need in ("margin", "ik", "velocity"):
         mech.require(need, "a usable workspace")
-    if mech.task_dim != 3:
-        raise UnsupportedRobotError(mech.name, "usable shapes (cube, cylinder, sphere) need a spatial task "
-                                    f"space; this mechanism's is {mech.task_dim}-dimensional")
+    if mech.task_dim not in (2, 3):
+        raise UnsupportedRobotError(mech.name, "usable shapes need a planar or spatial task space (square, disk; "
+                                    f"cube, cylinder, sphere); this mechanism's is {mech.task_dim}-dimensional")
+    valid = PLANAR if mech.task_dim == 2 else SPATIAL
+    if shape not in valid:
+        raise UnsupportedRobotError(mech.name, f"a {shape} needs a {5 - mech.task_dim}-D task space; this one is "
+                                    f"{mech.task_dim}-D ({', '.join(mech.task_axes)}): use {' or '.join(valid)}")
     field = usable_field(mech, default_branch(mech) if branch is None else branch, kappa_max, limits, margin_of)
     lo, hi = mech.bounding_box(limits)
     return largest_shape(field, lo, hi, shape, step=step, spacing=spacing, search=search, levels=levels)

@@ -25,11 +25,12 @@ if TYPE_CHECKING:
 
 
 def register(command: Command) -> None:
-    p = command("usable-workspace", cmd_usable_workspace, "p2us, delta (any spatial mechanism with closed forms): "
-                "the largest axis-aligned cube, vertical cylinder or sphere where every point is reachable, "
-                "non-singular and has kappa <= K")
+    p = command("usable-workspace", cmd_usable_workspace, "the largest axis-aligned cube, vertical cylinder or "
+                "sphere (a planar robot: square or disk) where every point is reachable, non-singular and has "
+                "kappa <= K (any mechanism with ik and Jacobians: p2us, delta, scara, a closed loop)")
     robot_arg(p)
-    p.add_argument("--shape", required=True, choices=["cube", "cylinder", "sphere"], help="the shape")
+    p.add_argument("--shape", required=True, choices=["cube", "cylinder", "sphere", "square", "disk"],
+                   help="the shape: cube, cylinder, sphere in a spatial task space; square, disk in a planar one")
     p.add_argument("--kappa-max", type=positive, default=10.0, metavar="K",
                    help="largest condition number sigma_max/sigma_min of the forward Jacobian J (default 10)")
     p.add_argument("--mode", help="working mode such as --- (default), or union")
@@ -135,21 +136,26 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         margin_of = margin_builder(mech, robot, checks, args.limits)
     res = usable(mech, args.shape, branch=mode, kappa_max=args.kappa_max, limits=args.limits, step=args.step,
                  margin_of=margin_of)
-    size_keys = {"cube": ("edge_m",), "cylinder": ("radius_m", "height_m"), "sphere": ("radius_m",)}[res.shape]
+    size_keys = {"cube": ("edge_m",), "cylinder": ("radius_m", "height_m"), "sphere": ("radius_m",),
+                 "square": ("edge_m",), "disk": ("radius_m",)}[res.shape]
+    # a square's or a disk's measure is an area: its own keys, not a volume's in other units
+    measure, unit = ("area", "m2") if res.planar else ("volume", "m3")
     payload = {
         "robot": robot.name,
         "mode": mode,
         "shape": res.shape,
         "center_m": res.center.tolist(),
         "size_m": dict(zip(size_keys, res.size, strict=True)),
-        "volume_m3": res.volume,
+        f"{measure}_{unit}": res.volume,
         "kappa_max": args.kappa_max,
         "limits": args.limits,
         "step_m": args.step,
         "check": {"samples": res.samples, "spacing_m": res.spacing, "min_field": res.min_field,
                   "inside": res.min_field >= 0, "larger_1pct_fails": res.larger_fails,
-                  "volume_bound_m3": res.volume_bound, "optimality_gap": res.optimality_gap},
+                  f"{measure}_bound_{unit}": res.volume_bound, "optimality_gap": res.optimality_gap},
     }
+    if res.planar:
+        payload["task_axes"] = list(mech.task_axes)
     if checks is not None:
         from kinematics.analyses.collisions import summary
 
@@ -159,15 +165,17 @@ def usable_workspace(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         return key_values([
             ("robot", f"{robot.name}, mode {mode}, kappa <= {fmt(args.kappa_max)}, no singularity"
                       + ("" if checks is None else f", no collision ({len(checks.pairs)} pairs)")),
-            ("shape", res.shape), ("centre", f"{[round(c, 6) for c in res.center.tolist()]} m"),
+            ("shape", res.shape),
+            ("centre", f"{[round(c, 6) for c in res.center.tolist()]} m"
+                       + (f" ({', '.join(mech.task_axes)})" if res.planar else "")),
             *((k.removesuffix("_m"), f"{fmt(v)} m") for k, v in payload["size_m"].items()),
-            ("volume", f"{fmt(res.volume)} m^3"),
-            ("inside check", (f"{res.samples} samples at {fmt(res.spacing)} m (surface at half): "
-                             f"{'pass' if res.min_field >= 0 else 'FAIL'}")),
-            ("1 % larger", "fails at the centre and 26 neighbours" if res.larger_fails
+            (measure, f"{fmt(res.volume)} m^{unit[-1]}"),
+            ("inside check", (f"{res.samples} samples at {fmt(res.spacing)} m ({'outline' if res.planar else 'surface'} "
+                              f"at half): {'pass' if res.min_field >= 0 else 'FAIL'}")),
+            ("1 % larger", f"fails at the centre and {3 ** len(res.center) - 1} neighbours" if res.larger_fails
              else "fits somewhere nearby"),
-            ("optimum", (f"at most {fmt(res.volume_bound)} m^3 ({100 * res.optimality_gap:.1f} % more volume), "
-                         "over the region as sampled on the finest grid")),
+            ("optimum", (f"at most {fmt(res.volume_bound)} m^{unit[-1]} ({100 * res.optimality_gap:.1f} % more "
+                         f"{measure}), over the region as sampled on the finest grid")),
         ])
 
     out(args, payload, human)
