@@ -8,7 +8,8 @@ this tree's code, with a time limit (the whole process group is killed at the li
 `info`, `fk`, `jacobian`, `mobility` (no --q: each closed loop at its default closed pose),
 `workspace-volume --rtol 1e-2` (`--rtol`: another; the command's default is 1e-3) with `--range JOINT=-pi:pi` for every actuator (an open tree: every
 joint the URDF gives no range), and `show --export` to a temporary HTML file. `--quick` is a smoke
-run: info, fk and mobility only, 30 s limit, two at a time.
+run: info, fk and mobility only on QUICK_MODELS (those of them in the folder, else its first three),
+30 s limit, two at a time.
 
 A row per (model, command), ROW_KEYS: `status` from the exit code (0 ok, 1 unreachable, 2 error,
 the time limit: timeout; a traceback or any other code: crash), `seconds` (wall time of the
@@ -46,6 +47,7 @@ MODELS = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
 COMMANDS = ("info", "fk", "jacobian", "mobility", "workspace-volume", "show")
 QUICK_COMMANDS = ("info", "fk", "mobility")
 QUICK_MODELS = ("5bar_linkage", "robot_delta", "cassie_like")
+"""`--quick`'s models: a planar five-bar, a planar Delta, a leg with more motors than position coordinates."""
 RTOL = 1e-2
 JSON_KEYS = ("machine", "models_dir", "commands", "timeout_s", "jobs", "quick", "rtol", "skipped", "rows")
 ROW_KEYS = ("model", "command", "status", "seconds", "value", "error_estimate", "figure", "error")
@@ -211,8 +213,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
     ap.add_argument("--markdown", action="store_true", help="print docs/models.md's table")
     ap.add_argument("--from-json", type=Path, metavar="FILE", help="with --markdown: the table of a saved --json run")
-    # the smoke run: three models (tests/test_models_commands.py runs these commands on every one)
-    args = parse(ap, {"commands": list(QUICK_COMMANDS), "only": list(QUICK_MODELS), "timeout": 30.0, "jobs": 2})
+    args = parse(ap, {"commands": list(QUICK_COMMANDS), "timeout": 30.0, "jobs": 2})
     if args.from_json is not None:
         print(markdown(json.loads(args.from_json.read_text())))
         return
@@ -232,6 +233,8 @@ def main() -> None:
         if unknown:
             ap.error(f"no such model folder(s) under {args.models}: {', '.join(unknown)}")
         models = [m for m in models if m in set(args.only)]
+    elif args.quick:  # the smoke run: three models (tests/test_models_commands.py runs its commands on every one)
+        models = [m for m in models if m in QUICK_MODELS] or models[:len(QUICK_MODELS)]
     with tempfile.TemporaryDirectory(prefix="bench_models_") as tmp:
         jobs = [(c, argv_of(c, args.models / m, Path(tmp), args.rtol), m) for m in models for c in args.commands]
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:

@@ -412,6 +412,19 @@ def test_fivebar_point_answer_does_not_depend_on_its_row():
     assert _missed_modes(five, robot, pts, sol) == []
 
 
+def test_restart_windows_spread_over_a_lattice_of_targets():
+    """`restart_base` puts the targets of a grid (a volume's columns, a test's lattice) in different
+    windows of the quasi-random sequence: on 2,500 points of a 1/128 m lattice at most a few share
+    one (2^20 windows: ~3 pairs expected were they random). An integer hash reduced at each
+    coordinate gave all of them one window: every one of its restarts the same."""
+    from kinematics.generic.loop_batch.compiled import restart_base
+
+    g = np.arange(-25, 25) / 128.0
+    pts = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    windows = {restart_base(p, 0, 1, 1, 1) for p in pts}
+    assert len(windows) >= len(pts) - 20
+
+
 def test_bad_input(p2us):
     _, _, lb = p2us
     with pytest.raises(InvalidInputError):

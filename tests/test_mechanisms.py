@@ -506,8 +506,10 @@ def test_a_serial_arms_velocity_and_box_hold_against_its_fk(name):
 def test_every_margin_and_ik_refuse_what_is_no_batch_of_finite_points(name):
     """A margin is the volume engine's inner loop: the closed forms' (scara, p2us, delta) gave NaN
     margins for a NaN point, which an engine reads as "outside", while the serial arm's and the
-    generic loop's refused it; text ("0 0 0") was numpy's ValueError in every family's ik. Now one
-    check (`kinematics.inputs`) refuses each, naming the input, and a good batch still passes."""
+    generic loop's refused it; text ("0 0 0") was numpy's ValueError in every family's ik, complex
+    points lost their imaginary parts with a warning, a ragged list (the generic loop's) and an
+    integer beyond a float's range raised numpy's errors. Now one check (`kinematics.inputs`)
+    refuses each, naming the input, and a good batch still passes."""
     mech = mechanism_of(load_robot(name))
     d = mech.task_dim
     margin = mech.margin()
@@ -515,10 +517,12 @@ def test_every_margin_and_ik_refuse_what_is_no_batch_of_finite_points(name):
     assert margin(good).shape == (2, len(mech.branches) + 1)
     nan = good.copy()
     nan[1, 0] = np.nan
+    ragged = [[0.0] * d, [0.0]]
     for bad, why in ((nan, "points: must be finite; row 1"), (np.zeros((2, d + 1)), "points: expected shape"),
-                     ("0 0 0", "points: expected numbers")):
+                     ("0 0 0", "points: expected real numbers"), (ragged, "points: expected real numbers"),
+                     (good + 1j, "points: expected real numbers"), ([[10**400] * d], "points: expected real numbers")):
         with pytest.raises(InvalidInputError, match=why):
             margin(bad)
     if "ik" in mech.capabilities:
-        with pytest.raises(InvalidInputError, match="expected numbers"):
+        with pytest.raises(InvalidInputError, match="expected real numbers"):
             mech.ik("0 0 0")

@@ -62,7 +62,7 @@ def test_parallel_view_honours_a_mode_and_refuses_one_that_poses_nothing(p2us):
     closed-form IK); a mode without a position was ignored (the view stayed at the reference pose
     or at the actuators, in their own mode), and a position beside actuators lost to them.
     Tolerance: the closed-loop solve closes to ~1e-12; 1e-9 as above."""
-    from kinematics.errors import InvalidInputError
+    from kinematics.errors import InvalidInputError, UnknownModeError
     from kinematics.mechanisms import mechanism_of
 
     mech = mechanism_of(p2us)
@@ -77,6 +77,8 @@ def test_parallel_view_honours_a_mode_and_refuses_one_that_poses_nothing(p2us):
         np.testing.assert_allclose(values, ik.q[0, mech.branches.index(mode)], atol=1e-9)
     with pytest.raises(InvalidInputError, match="mode: the working mode of a position"):
         viz.parallel_view(p2us, mode="+-+")
+    with pytest.raises(UnknownModeError):  # an empty mode is a label to refuse, not the default
+        viz.parallel_view(p2us, p, "")
     with pytest.raises(InvalidInputError, match="not both"):
         viz.parallel_view(p2us, p, actuators=ik.q[0, -1])
 

@@ -497,20 +497,26 @@ RESTART_ROUNDS = 4
 on a root of the other sign in the slot's assembly (same held joints, same locked-joint code: the
 slot's roots exist there in general, its basin was missed), gets up to this many rounds of
 `restarts` starts in all. On Gepetto's five-bar, chain 2's 8 restarts all closed on the other
-elbow at about 3 % of the sequence's offsets (each elbow's basin about half the starts); 32 make
-that ~1e-9 where the starts are independent. Elsewhere the rounds are not run (iso five-bars,
-Delta, 3-[P2(US)]: the same time as 8 restarts)."""
+elbow at about 3 % of the sequence's offsets (each elbow's basin takes about half the starts:
+0.5^8 = 0.4 % were they independent; consecutive points of the sequence are not); 32, in four
+rounds as correlated within and as independent between, ~0.03^4 ~ 1e-6. Elsewhere the rounds are
+not run (iso five-bars, Delta, 3-[P2(US)]: the same time as 8 restarts)."""
 
 
 @njit(cache=True, inline="always")
 def restart_base(t, k, K, S, per_slot):  # pragma: no cover - compiled
     """The index in the quasi-random sequence before block k's first restart at target t (a slot
     s uses the next per_slot indices after base + s x per_slot): a function of the target's
-    coordinates (rounded to 2^-30 m), not of its row in the batch, so that a target gets the same
-    restarts whatever batch it is solved in."""
-    h = 0
+    coordinates, not of its row in the batch, so that a target gets the same restarts whatever
+    batch it is solved in. The window (one of 2^20) is the fractional part of
+    sum_a (t_a mod 1024 m) alpha_a, alpha_a = 7919.618... + 1061.414... a [1/m] (a Weyl sum:
+    equidistributed over lattices of points as over random ones, neighbours 1e-4 m apart in
+    unrelated windows). (An integer hash reduced at each coordinate kept only the low bits: every
+    point of a 2^-10 m lattice shared one window.)"""
+    u = 0.0
     for a in range(t.shape[0]):
-        h = (h * 1000003 + math.floor((t[a] % 1024.0) * 1073741824.0)) % 1048576
+        u += (t[a] % 1024.0) * (7919.618033988749 + 1061.4142135623731 * a)
+    h = int((u - math.floor(u)) * 1048576.0)
     return ((h * K + k) * S) * per_slot
 
 

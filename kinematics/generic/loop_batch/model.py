@@ -166,7 +166,10 @@ class LoopModel:
         return np.isfinite(lo) & np.isfinite(hi) & ((kind == PRISMATIC) | (hi - lo < 2 * math.pi - 1e-9))
 
     def _points(self, points: np.ndarray) -> np.ndarray:
-        one = np.ndim(points) == 1 and np.shape(points)[0] == self.task_dim  # a single point
+        try:  # a single point (ragged input is no point: task_points says what is wrong with it)
+            one = np.ndim(points) == 1 and np.shape(points)[0] == self.task_dim
+        except ValueError:
+            one = False
         return task_points(np.asarray(points)[None] if one else points, self.task_dim)
 
     # -- kernels ---------------------------------------------------------------------------------

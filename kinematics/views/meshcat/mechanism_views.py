@@ -205,7 +205,7 @@ def parallel_view(robot: Any, position: np.ndarray | None = None, mode: str | No
     branches = mech.branches
     if actuators is None:
         reference, default = mech.reference_pose()
-        position, mode = (reference, default) if position is None else (position, mode or default)
+        position, mode = (reference, default) if position is None else (position, default if mode is None else mode)
         p = np.asarray(position, dtype=float)
         m = branches.index(mech.check_branches([mode])[0])
         sol = mech.ik(p[None])
