@@ -228,6 +228,9 @@ def test_obstacle_pairs_join_self_pairs_and_are_never_touching(tmp_path):
     ("h.txt", "", "must be a .urdf or a .yaml"),
     ("i.yaml", "obstacles:\n  - {name: x, sphere: 1, rpy: [0, 0]}\n", "obstacle x: rpy: expected 3"),  # was "size:"
     ("j.yaml", "obstacles:\n  - {name: x, sphere: 1, xyz: [0, .nan, 0]}\n", "obstacle x: xyz: expected 3"),
+    # sizes as a mapping: Python's "float() argument must be ... not 'dict'" before
+    ("k.yaml", "obstacles:\n  - {name: x, cylinder: {radius: 0.05, length: 1}}\n",
+     "obstacle x: size: expected 2 finite numbers, got {'radius'"),
 ])
 def test_bad_obstacle_files_are_refused(tmp_path, name, text, match):
     (tmp_path / name).write_text(text)

@@ -151,7 +151,10 @@ def _from_yaml(path: Path) -> Obstacles:
 
 
 def _floats(value: Any, n: int, what: str = "size") -> list[float]:
-    values = [float(v) for v in (value if isinstance(value, list | tuple) else [value])]
+    try:  # (a mapping such as {radius: 0.05, length: 1.0} is no list of numbers: said as such)
+        values = [float(v) for v in (value if isinstance(value, list | tuple) else [value])]
+    except (TypeError, ValueError):
+        values = []
     if len(values) != n or not all(np.isfinite(values)):
         raise InvalidInputError(what, f"expected {n} finite numbers, got {value!r}")
     return values
