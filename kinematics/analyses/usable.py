@@ -75,9 +75,10 @@ class UsableShape:
         min_field: the smallest u over those samples (>= 0).
         larger_fails: the same shape 1 % larger fails the test at the centre and the 26 (in a plane
             8) neighbouring centres (offsets of half a grid step); False when not tested (no search).
-        volume_bound: an upper bound [m^3] (in a plane [m^2]: an area) on the volume of any such shape inside the region as
-            sampled on the finest grid (`largest_shape`); the answer is within
-            1 - volume / volume_bound of the optimum. Cylinders: among those at least one grid step tall.
+        volume_bound: an upper bound [m^3] (in a plane an area [m^2]) on the volume of any such
+            shape inside the region as sampled on the finest grid (`largest_shape`); the answer is
+            within 1 - volume / volume_bound of the optimum. Cylinders: among those at least one
+            grid step tall.
     """
 
     shape: str
