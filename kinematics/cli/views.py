@@ -32,7 +32,7 @@ def register(command: Command) -> None:
                    help="joint values [rad or m]; closed loops: the actuator values (closed-loop solved)")
     p.add_argument("--degrees", action="store_true", help="revolute joint values are in degrees")
     p.add_argument("--position", nargs=3, type=number, metavar=("X", "Y", "Z"),
-                   help="p2us, delta: platform position [m] (default: the sidecar's reference pose)")
+                   help="p2us, delta: platform position [m] (default: the sidecar's reference pose; not with --q)")
     p.add_argument("--mode", help="p2us, delta: working mode for --position (default ---)")
     p.add_argument("--ellipsoid", action="store_true", help="the manipulability ellipse/ellipsoid at the tool")
     p.add_argument("--workspace", action="store_true",
