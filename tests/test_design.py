@@ -205,7 +205,7 @@ UPPER, LOWER = 2e-4, 1e-2
     (_disk_field(np.array([0.3, -0.2]), 1.0), ([-0.9, -1.4], [1.5, 1.0]), "disk", 1.0),
     (_rectangle_field(np.array([0.0, 0.0]), np.array([2.0, 1.0])), ([-0.5, -0.5], [2.5, 1.5]), "square", 1.0),
     (_rectangle_field(np.array([0.0, 0.0]), np.array([2.0, 1.0])), ([-0.5, -0.5], [2.5, 1.5]), "disk", 0.5),
-])
+], ids=["square-in-disk", "disk-in-disk", "square-in-rectangle", "disk-in-rectangle"])
 def test_largest_square_and_disk_by_hand(field, box, shape, exact):
     """The largest square in a unit disk has edge sqrt 2, the largest disk radius 1; in a 2 x 1
     rectangle, edge 1 and radius 0.5. The area bound holds the optimum: every pixel centre inside
