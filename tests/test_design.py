@@ -218,6 +218,22 @@ def test_largest_square_and_disk_by_hand(field, box, shape, exact):
     assert res.min_field >= 0 and res.larger_fails
 
 
+def test_a_shape_failing_its_final_check_is_said(monkeypatch):
+    """Every size the search keeps passes the membership test, so the final test fails only if the
+    field gave other values between calls (5bar_linkage's unlabelled elbow, docs/design.md; played
+    here by a final test that finds a negative value): the result says so (min_field < 0) and a
+    warning names it, where it passed silently before."""
+    import sys
+
+    from kinematics.errors import KinematicsWarning
+
+    monkeypatch.setattr(sys.modules["kinematics.analyses.usable"], "contains", lambda *args: -0.05)
+    with pytest.warns(KinematicsWarning, match="fails its final inside check"):
+        res = largest_shape(_disk_field(np.zeros(2), 1.0), np.array([-1.2, -1.2]), np.array([1.2, 1.2]), "disk",
+                            step=0.1)
+    assert res.min_field < 0
+
+
 def test_scara_usable_disk_is_the_kappa_annulus_by_hand():
     """A planar 2R arm's Jacobian has singular values that depend on theta2 alone:
     J^T J = [[l1^2 + l2^2 + 2 l1 l2 c2, l2^2 + l1 l2 c2], [l2^2 + l1 l2 c2, l2^2]], so

@@ -440,6 +440,15 @@ def largest_shape(field: Field, lo: ArrayLike, hi: ArrayLike, shape: str, *, ste
     firsts += [r for r in tested[1:] if np.abs(r[1] - tested[0][1]).max() >= step][: 1 if search else 0]
     center, size = max((polish(c, sz) for _, c, sz in firsts), key=lambda r: shape_volume(shape, r[1]))
     final = contains(field, shape, center, size, spacing)
+    if not final >= 0:  # every size the search kept passed this test: the field changed between calls
+        import warnings
+
+        from kinematics.errors import KinematicsWarning
+
+        warnings.warn(KinematicsWarning(
+            f"the {shape} found fails its final inside check (smallest usable field {final:.3g} over its samples): "
+            "the field gave other values during the search (e.g. a closed loop whose solver returns either pose "
+            "of an unlabelled elbow, docs/design.md); the shape is not verified"), stacklevel=2)
     bigger = [1.01 * s for s in size]
     offs = np.stack(np.meshgrid(*[[-step / 2, 0, step / 2]] * d, indexing="ij"), -1).reshape(-1, d)
     # (without the search the result is a lower bound, not claimed near-maximal: not tested)
