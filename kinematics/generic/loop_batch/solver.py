@@ -165,6 +165,12 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         self._find_atlas(seeds, _rng(rng))
         return self
 
+    @property
+    def reference_point(self) -> np.ndarray:
+        """The end effector's task coordinates [m] at the reference configuration (where the atlas
+        of branches was found)."""
+        return self._anchor.copy()
+
     # -- inverse kinematics and margins ----------------------------------------------------------
     def ik(self, points: np.ndarray, *, warm: bool = True, every_block: bool = False) -> BranchSolutions:
         """Every atlas branch at every task point (the search: the modules `blocks` and `whole`; what

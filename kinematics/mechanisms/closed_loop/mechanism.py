@@ -33,6 +33,14 @@ from kinematics.model.robot import Robot
 
 _AXES = "xyz"
 
+QUERY_POINTS = 8
+"""A query of at most this many points (the CLI's `ik`, a pose, a view) where the batched search
+misses a branch is solved again by continuation from the reference position (`_search`); a grid's
+points have their neighbours instead, and most of them lie outside, where it would cost."""
+
+CONTINUATION_STEPS = 16
+"""Points of that continuation along the segment from the reference position to the target."""
+
 MAX_TASK_DIM = 3
 """The batched solver's task: the end effector's position, one coordinate per actuator."""
 
@@ -209,9 +217,32 @@ class GenericClosedLoop(Mechanism):
 
         return margin
 
+    def _search(self, points: np.ndarray) -> Any:
+        """The batched solver's branches at points (N, d); for a query of at most QUERY_POINTS
+        points, each point where a branch is missing is solved again by continuation along the
+        segment from the reference position (CONTINUATION_STEPS targets, each warm-started from the
+        last), and the branches it finds are added. A cold point has no neighbour to start from:
+        the atlas starts and restarts can all miss where the continuation does not (Gepetto's
+        five-bar fixture at (0.2109, -0.2188): none of its four modes cold, all four continued).
+        The continuation can still miss a branch whose region the segment does not cross."""
+        sol = self.batch.ik(points)
+        if len(sol.found) > QUERY_POINTS or sol.found.all():
+            return sol
+        x, found, residual, margin, end = (np.array(a) for a in (sol.x, sol.found, sol.residual, sol.margin, sol.end))
+        start = self.batch.reference_point
+        p = np.atleast_2d(np.asarray(points, dtype=float))  # (checked by the search above)
+        for i in np.flatnonzero(~found.all(axis=1)):
+            for t in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
+                step = self.batch.ik((start + t * (p[i] - start))[None])
+            new = step.found[0] & ~found[i]
+            x[i, new], residual[i, new], margin[i, new], end[i, new] = (
+                step.x[0, new], step.residual[0, new], step.margin[0, new], step.end[0, new])
+            found[i] |= new
+        return sol._replace(x=x, found=found, residual=residual, margin=margin, end=end)
+
     def _solve(self, points: np.ndarray, limits: str) -> tuple[Any, np.ndarray]:
         self.check_limits(limits)
-        sol = self.batch.ik(points)
+        sol = self._search(points)
         x = np.nan_to_num(sol.x)
         within = sol.found & (self.batch.limit_margin(x.reshape(-1, x.shape[-1]), limits).reshape(sol.found.shape) >= 0)
         return sol, within
@@ -237,7 +268,7 @@ class GenericClosedLoop(Mechanism):
         effector at points (N, d) [m] in `branch`: the batched solver's solution (the margin's);
         NaN rows where the branch has none (limits not applied)."""
         b = self.branches.index(self.check_branches([branch])[0])
-        sol = self.batch.ik(np.atleast_2d(np.asarray(points, dtype=float)))
+        sol = self._search(np.atleast_2d(np.asarray(points, dtype=float)))
         return np.where(sol.found[:, b, None], sol.x[:, b], np.nan)
 
     def velocity(self, points: np.ndarray, q: np.ndarray) -> Velocity:
@@ -251,7 +282,7 @@ class GenericClosedLoop(Mechanism):
         d, a = self.task_dim, q.shape[1]
         if not len(p):
             return Velocity(np.zeros((0, d, a)), np.zeros((0, a, d)), np.zeros(0), np.zeros(0))
-        sol = self.batch.ik(p)
+        sol = self._search(p)
         qa = sol.x[..., self.batch.actuated]  # (N, B, a)
         dist = np.where(sol.found, np.linalg.norm(qa - q[:, None, :], axis=-1), np.inf)
         pick = np.argmin(dist, axis=1)
