@@ -127,7 +127,7 @@ def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Ou
         reason = None
     elif not solutions:
         reason = (f"the batched solver closes the loops in no working mode with the end effector there "
-                  f"({', '.join(mech.branches)}; it starts from solved neighbours, the atlas and restarts)")
+                  f"({', '.join(mech.branches)}; it starts from the atlas, restarts and a continuation from the reference position)")
     else:
         reason = f"every working mode breaks a joint range ({len(solutions)} assemble; see violations)"
     actuators = list(robot.loops.actuated) if robot.loops else []
