@@ -65,6 +65,7 @@ class GenericClosedLoop(Mechanism):
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.name = robot.name
+        self._continued: dict[bytes, Any] = {}  # `_continuation`'s last answers, by target
         # the unit of J's columns, one per actuator: one unit when every actuator shares it (as
         # SerialArm), so dexterity notes a mixed J only for a mechanism that has one
         kinds = {d.name: d.kind for d in robot.dofs}
@@ -229,16 +230,29 @@ class GenericClosedLoop(Mechanism):
         if len(sol.found) > QUERY_POINTS or sol.found.all():
             return sol
         x, found, residual, margin, end = (np.array(a) for a in (sol.x, sol.found, sol.residual, sol.margin, sol.end))
-        start = self.batch.reference_point
         p = np.atleast_2d(np.asarray(points, dtype=float))  # (checked by the search above)
         for i in np.flatnonzero(~found.all(axis=1)):
-            for t in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
-                step = self.batch.ik((start + t * (p[i] - start))[None])
+            step = self._continuation(p[i])
             new = step.found[0] & ~found[i]
             x[i, new], residual[i, new], margin[i, new], end[i, new] = (
                 step.x[0, new], step.residual[0, new], step.margin[0, new], step.end[0, new])
             found[i] |= new
         return sol._replace(x=x, found=found, residual=residual, margin=margin, end=end)
+
+    def _continuation(self, point: np.ndarray) -> Any:
+        """The batched solver's branches at `point` (d,) reached by continuation from the reference
+        position (`_search`). The last QUERY_POINTS answers are kept: a query repeated (the CLI's
+        `ik`, then `joint_values` for each mode it found) is not continued again where a mode is
+        absent (16 solves each time)."""
+        key = point.tobytes()
+        if key not in self._continued:
+            start = self.batch.reference_point
+            for t in np.linspace(0.0, 1.0, CONTINUATION_STEPS + 1)[1:]:
+                step = self.batch.ik((start + t * (point - start))[None])
+            if len(self._continued) >= QUERY_POINTS:
+                del self._continued[next(iter(self._continued))]  # the oldest
+            self._continued[key] = step
+        return self._continued[key]
 
     def _solve(self, points: np.ndarray, limits: str) -> tuple[Any, np.ndarray]:
         self.check_limits(limits)
