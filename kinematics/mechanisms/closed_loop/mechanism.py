@@ -342,14 +342,12 @@ class GenericClosedLoop(Mechanism):
     def _actuator_rows(self, q: np.ndarray, n: int | None) -> np.ndarray:
         """q as (N, a) finite actuator values (one (a,) row is N = 1; N = n when given)."""
         from kinematics.errors import InvalidInputError
+        from kinematics.inputs import finite_vectors
 
         names = self.robot.loops.actuated if self.robot.loops else ()
-        a = np.asarray(q, dtype=float)
+        a = finite_vectors(q, len(names), "q", f"actuator values ({', '.join(names)})")
         a = a.reshape(1, -1) if a.ndim <= 1 else a
-        rows = "N" if n is None else str(n)
-        if a.ndim != 2 or a.shape[1] != len(names) or (n is not None and len(a) != n):
-            raise InvalidInputError("q", f"expected shape ({rows}, {len(names)}) actuator values "
+        if a.ndim != 2 or (n is not None and len(a) != n):
+            raise InvalidInputError("q", f"expected shape ({'N' if n is None else n}, {len(names)}) actuator values "
                                          f"({', '.join(names)}), got {np.shape(q)}")
-        if not np.isfinite(a).all():
-            raise InvalidInputError("q", "must be finite")
         return a
