@@ -13,8 +13,8 @@ from kinematics.analyses.workspace import measure_workspace
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.batched import batched_fk, configurations
 from kinematics.mechanisms import mechanism_of
+from kinematics.mechanisms.orientation import ToolOrientation
 from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
-from kinematics.mechanisms.serial.orientation import ToolOrientation
 from kinematics.model.robot import load_robot
 from tests.test_serial_workspace import revolved_volume_closed_form
 

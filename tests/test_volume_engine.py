@@ -134,6 +134,24 @@ def test_thin_interval_shorter_than_the_step_can_be_missed_and_longer_is_found()
     assert missed[0, 0] == 0.0  # the documented blind spot, not a silent success elsewhere
 
 
+
+@pytest.mark.xfail(strict=True, reason=(
+    "known defect (2026-11-28): Gauss nodes never reach an interval's ends, so a jump of the slice "
+    "area between two intervals' outermost nodes (a face normal to a quadrature direction) leaves both "
+    "smooth on their nodes and is charged nothing: 0.023801 +/- 3.1e-6 for 0.024 here"))
+def test_box_faces_normal_to_the_quadrature_directions():
+    """A 0.2 x 0.4 x 0.3 m box (the gantry6 fixture's constant-orientation workspace) in the box its
+    mechanism's bounding box gives: the estimate must hold the exact 0.024 m^3 within its error."""
+    lo_b, hi_b = np.array([-0.05, -0.2, 0.0]), np.array([0.15, 0.2, 0.3])
+
+    def margin(p):
+        s = np.minimum(np.minimum((p - lo_b).min(axis=1), (hi_b - p).min(axis=1)), 0.0409878)
+        return np.stack([s, s], axis=1)
+
+    r = column_volume(margin, np.array([-0.06654366, -0.23888403, -0.03629555]),
+                      np.array([0.16032561, 0.23849294, 0.33515798]), step=0.02, rtol=1e-3, check=True)
+    assert abs(r.estimate[-1] - 0.024) <= r.error[-1]
+
 # -- the five regions: the true error never exceeds the reported one -----------------------------
 @pytest.mark.parametrize("rtol", [1e-3, 1e-4])
 def test_analytic_solids(rtol):

@@ -158,6 +158,10 @@ def robot_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--range", action="append", type=joint_range, metavar="JOINT=LO:HI",
                    help="give or replace a joint's range [rad or m] (repeat per joint; LO and HI numbers "
                         "or multiples of pi: mot1=-pi:pi, q2=0:pi/2): for URDFs whose <limit> has no lower/upper")
+    p.add_argument("--tool-frame", metavar="FRAME",
+                   help="the frame analysed: an open chain's tool, a closed loop's end effector (default: the loop "
+                        "sidecar's end_effector; a Gepetto model's 'effector' frame, else its first closure frame; "
+                        "an open chain's last link)")
 
 
 def q_args(p: argparse.ArgumentParser, required: bool = True, p2us: str = "one per actuated joint",
@@ -232,16 +236,20 @@ def load(args: argparse.Namespace) -> Any:
     from kinematics.model.robot import load_robot
 
     ranges = dict(getattr(args, "range", None) or ())
-    robot = load_robot(args.robot, ranges=ranges)
-    if ranges:
+    tool = getattr(args, "tool_frame", None)
+    robot = load_robot(args.robot, ranges=ranges, tool_frame=tool)
+    if ranges or tool:
         from kinematics.errors import InvalidInputError
         from kinematics.mechanisms import mechanism_of
 
         mech = mechanism_of(robot)
-        if mech.limits_in_design:
+        if mech.limits_in_design and ranges:
             raise InvalidInputError("--range", f"{robot.name}'s limits are design parameters read from its URDF, "
                                     "which a joint range does not change; write a design with other limits "
                                     f"(`kinematics urdf {mech.family} --help`)")
+        if mech.limits_in_design and tool:  # their closed forms answer for the platform
+            raise InvalidInputError("--tool-frame", f"{robot.name}'s closed forms compute its platform's position; "
+                                    "another frame is not analysed")
     return robot
 
 
@@ -284,12 +292,14 @@ def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
 
 
 def orientation_args(p: argparse.ArgumentParser, what: str) -> None:
-    """--orientation / --tool-axis (open chains): `what` is measured with the tool held so."""
+    """--orientation / --tool-axis: `what` is measured with the tool held so (open chains; closed
+    loops with six actuators hold a whole rotation)."""
     orient = p.add_mutually_exclusive_group()
-    orient.add_argument("--orientation", metavar="'rpy R P Y'",
-                        help=f"open chains: {what} with the tool frame at this fixed rotation (roll, pitch, yaw "
-                             "[rad], URDF convention), within the joint limits (--json key orientation: kind, text, "
-                             "tool_z, rotation)")
+    orient.add_argument("--orientation", metavar="'rpy R P Y' | reference",
+                        help=f"{what} with the tool frame at this fixed rotation (roll, pitch, yaw [rad], URDF "
+                             "convention), within the joint limits: open chains, and closed loops with six actuators "
+                             "(their end effector; 'reference': the rotation it has at the loop sidecar's reference "
+                             "configuration) (--json key orientation: kind, text, tool_z, rotation)")
     orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
                         help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
                              "e.g. 0 0 -1 for a tool pointing down")
@@ -299,7 +309,7 @@ def orientation_of(args: argparse.Namespace) -> Any:
     """The fixed tool orientation of --orientation / --tool-axis (a `ToolOrientation`), or None."""
     if not (getattr(args, "orientation", None) or getattr(args, "tool_axis", None)):
         return None
-    from kinematics.mechanisms.serial.orientation import ToolOrientation
+    from kinematics.mechanisms.orientation import ToolOrientation
 
     if getattr(args, "orientation", None):
         return ToolOrientation.parse(args.orientation)

@@ -143,7 +143,8 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
         plots.save(fig, args.plot)
     payload = ws.as_dict()
     payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
-                   orientation=None if orientation is None else orientation.as_dict(),
+                   # the mechanism's: a closed loop's 'reference' is resolved to the rotation held
+                   orientation=None if orientation is None else getattr(mech, "orientation", orientation).as_dict(),
                    seconds=time.perf_counter() - t0, volume_seconds=ws.seconds, **paper)
     if kernels:
         from kinematics import jit

@@ -10,7 +10,8 @@
 4. any other open chain -> `SerialArm`;
 
 and with a fixed tool `orientation` (the reachable set for that orientation) an open chain's
-`SerialArm` that asks for it (`with_fixed_orientation`), whatever the above says.
+`SerialArm` that asks for it (`with_fixed_orientation`), whatever the above says, or a
+`GenericClosedLoop` that holds it (six actuators; the closed-form families' platforms do not turn).
 
 `plane_of(robot)`: planar or spatial, decided once for every command (`info`, `fk`, `jacobian`,
 `show`, `mobility`, `workspace-volume`): the plane the end effector moves in with the loops closed
@@ -28,7 +29,7 @@ from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
     from kinematics.generic.motion_plane import MotionPlane
-    from kinematics.mechanisms.serial.orientation import ToolOrientation
+    from kinematics.mechanisms.orientation import ToolOrientation
 
 
 def _p2us(robot: Robot) -> Mechanism:
@@ -55,7 +56,8 @@ def families() -> dict[str, Callable[[Robot], Mechanism]]:
 
 def mechanism_of(robot: Robot, orientation: ToolOrientation | None = None) -> Mechanism:
     """The robot as a `Mechanism` (see the module docstring); with `orientation`, its reachable set
-    for that tool orientation (open chains only: UnsupportedRobotError otherwise).
+    for that tool orientation (open chains, and closed loops with six actuators: UnsupportedRobotError
+    otherwise, when the mechanism is first used for a closed loop).
 
     Raises:
         InvalidInputError: `robot` is not a `Robot` (a name: load it with `load_robot` first), or
@@ -65,11 +67,18 @@ def mechanism_of(robot: Robot, orientation: ToolOrientation | None = None) -> Me
         hint = f"; load it first: mechanism_of(load_robot({robot!r}))" if isinstance(robot, str) else ""
         raise InvalidInputError("robot", f"expected a Robot (from load_robot), got {type(robot).__name__}{hint}")
     if orientation is not None:
-        from kinematics.mechanisms.serial.orientation import ToolOrientation
+        from kinematics.mechanisms.orientation import ToolOrientation
 
         if not isinstance(orientation, ToolOrientation):
             raise InvalidInputError("orientation", "expected a ToolOrientation (ToolOrientation.parse('rpy R P Y') "
                                                    f"or ToolOrientation.axis(d)), got {orientation!r}")
+        if robot.loops is not None:
+            if robot.loops.mechanism in families():
+                raise UnsupportedRobotError(robot.name, "its platform keeps one orientation (a translational "
+                                                        "mechanism): no orientation can be chosen")
+            from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
+
+            return GenericClosedLoop(robot, orientation)
         from kinematics.mechanisms.serial.mechanism import with_fixed_orientation
 
         return with_fixed_orientation(robot, orientation)

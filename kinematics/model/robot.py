@@ -367,7 +367,8 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
 
     A joint whose `<limit>` gives no `lower`/`upper` has no range on that side (-inf/+inf, see
     `missing_range_sides`), never [0, 0]; `ranges` (joint -> (lower, upper) [rad or m]) gives or
-    replaces ranges, after the sidecar's `ranges:`.
+    replaces ranges, after the sidecar's `ranges:`. `tool_frame` replaces the tool frame (an open
+    chain's) or the end effector (a closed loop's, the sidecar's `end_effector`).
 
     Raises:
         InvalidInputError: `spec` is neither text nor a path.
@@ -416,6 +417,10 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
     given = {**(loops.ranges if loops is not None else {}), **(ranges or {})}
     apply_ranges(model, missing_range_sides(root), given)
     frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
+    if tool_frame is not None and loops is not None and loops.end_effector != tool_frame:
+        import dataclasses
+
+        loops = dataclasses.replace(loops, end_effector=tool_frame)
     robot = Robot(name, Path(path), model, frame, package_dirs, loops)
     robot.frame_id(frame)  # validate
     return robot

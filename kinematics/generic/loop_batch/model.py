@@ -3,7 +3,8 @@ base of `LoopBatch`): the tree and closure arrays packed for the kernels of `com
 residual rows and their sparsity, and the kernels' entry points (`newton`, `evaluate`).
 
 The rows are, in order: every closure (3 rows for a `point` closure, 6 for a `6d` one), the
-end effector's orientation held at R_0 (3 rows, translational mechanisms only), the task position
+end effector's orientation held at R_0 (3 rows: translational mechanisms, or a rotation asked
+for), the task position
 (d rows); `compiled` gives the equations.
 """
 
@@ -52,8 +53,9 @@ class LoopModel:
     """The dataclass under `LoopBatch`: its fields and the compiled model.
 
     Attributes: robot; task_axes, translational and scale (the task and the model's length, chosen
-    by `LoopBatch.from_robot`); labels and atlas (the branches, `atlas`); blocks (`structure`);
-    restarts and solver (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D
+    by `LoopBatch.from_robot`; translational: the end effector's orientation rows are solved, held
+    at R_0, because the actuators never turn it or, `held`, because a rotation was asked for);
+    labels and atlas (the branches, `atlas`); blocks (`structure`); restarts and solver (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D
     closures in closed form (`spheres`); frames, the closure and end-effector frames in the
     kernels' order; _g, the model tuple (`pack` flattens it for the kernels);
     _m, the number of residual rows; _nzc, _nzn, each row's structurally non-zero columns; _centre,
@@ -70,6 +72,7 @@ class LoopModel:
     blocks: tuple[Block, ...] = ()
     restarts: int = 8
     solver: str = "blocks"
+    held: bool = False
     spheres: bool = True
     frames: tuple[str, ...] = ()
     _g: tuple[Any, ...] = ()

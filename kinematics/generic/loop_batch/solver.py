@@ -8,7 +8,13 @@ effector the mechanism is translational (task = position, orientation held at R_
 the Delta); otherwise the task is the d = (number of actuators) position axes best determined by
 them (the planar five-bar: x, y; for two actuators and a planar motion, `motion_plane`'s plane).
 Mechanisms whose actuators drive a rotation of the end effector
-(a task that needs orientation coordinates) raise UnsupportedRobotError: not done yet.
+(a task that needs orientation coordinates) raise UnsupportedRobotError, unless they have six
+actuators and an `orientation` is given: the end effector is then *held* at that rotation (the same
+three orientation rows as a translational mechanism's, `translational` True) and the task is its
+position, the constant-orientation workspace of a 6-DOF leg or platform. The reference
+configuration is first brought to that orientation at the reference position by continuation
+(HOLD_STEPS rotations along the geodesic from the reference orientation, each solved from the
+last); a rotation it cannot reach there is refused.
 
 **What the search guarantees.** With the block solver (the default) the restarts a block slot gets
 at a target are a function of the target's coordinates, the block and the slot (`compiled.
@@ -48,9 +54,13 @@ import pinocchio as pin
 from kinematics.errors import UnsupportedRobotError
 from kinematics.generic.loop_batch.atlas import BranchSolutions
 from kinematics.generic.loop_batch.blocks import BlockSolver
+from kinematics.generic.loop_batch.compiled import TOL
 from kinematics.generic.loop_batch.singular import LoopSingularities
 from kinematics.generic.loop_batch.whole import WholeSolver
 from kinematics.model.robot import Robot
+
+HOLD_STEPS = 32
+"""Rotations of the continuation that brings the reference configuration to a held orientation."""
 
 SOLVERS = ("blocks", "whole")
 """How `LoopBatch.ik` solves: block by block (each block's roots once per branch choice it depends
@@ -87,7 +97,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
     @classmethod
     def from_robot(cls, robot: Robot, *, task_axes: tuple[int, ...] | None = None, seeds: int = 512,
                    restarts: int = 8, rng: int | np.random.Generator | None = 0, solver: str = "blocks",
-                   spheres: bool = True) -> LoopBatch:
+                   spheres: bool = True, orientation: np.ndarray | str | None = None) -> LoopBatch:
         """Compile a closed-loop robot and find its branches at the reference position.
 
         Args:
@@ -99,10 +109,16 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
             solver: one of SOLVERS (`ik`).
             spheres: the block solver solves a spherical triple behind a 6D closure in closed form
                 (the module `spheres`); False solves every block's unknowns by Levenberg-Marquardt.
+            orientation: (3, 3) world rotation of the end effector frame to hold (a mechanism with
+                six actuators that turn it; module docstring), "reference" for its rotation at the
+                reference configuration, or None.
 
         Raises:
-            UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, or a task
-                that needs orientation coordinates.
+            UnsupportedRobotError: no sidecar, a joint with several degrees of freedom, a task that
+                needs orientation coordinates (without `orientation`), an `orientation` for a
+                mechanism without six actuators or whose end effector does not turn, or one the
+                end effector is not brought to at the reference position.
+            InvalidInputError: `orientation` is not a rotation matrix.
         """
         from kinematics.generic.closedloop import ClosedLoop
 
@@ -130,6 +146,16 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         lin, ang = G[:3], G[3:]
         size = max(float(np.linalg.norm(lin)), 1e-300)
         translational = float(np.linalg.norm(ang)) * _length(robot, q) <= 1e-9 * size
+        if isinstance(orientation, str):
+            if orientation != "reference":
+                from kinematics.errors import InvalidInputError
+
+                raise InvalidInputError("orientation", f"expected a (3, 3) rotation or 'reference', got {orientation!r}")
+            pin.framesForwardKinematics(model, robot.data, q)
+            orientation = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].rotation)
+        held = None if orientation is None else _held(robot, orientation, n_act, translational, G, task_axes)
+        if held is not None:
+            task_axes, translational = (0, 1, 2), True
         if task_axes is None and n_act == 2:
             from kinematics.generic.motion_plane import motion_plane
 
@@ -149,12 +175,14 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                                             "the batched solver handles position tasks only")
             task_axes = tuple(axes)
         self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), translational=translational,
-                   scale=_length(robot, q), restarts=restarts, solver=solver, spheres=spheres)
+                   scale=_length(robot, q), restarts=restarts, solver=solver, spheres=spheres, held=held is not None)
         self._compile(q)
         self._reference = robot.values_from_configuration(q)
         pin.framesForwardKinematics(model, robot.data, q)
         ee_pos = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].translation)
         self._anchor = ee_pos[list(self.task_axes)]
+        if held is not None and np.abs(held - self._g[14]).max() > 1e-12:
+            self._reference = self._hold(held, self._reference)
         self.blocks = self._find_blocks()
         if self.solver == "blocks":
             try:
@@ -164,6 +192,34 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                 self.solver = "whole"
         self._find_atlas(seeds, _rng(rng))
         return self
+
+    def _hold(self, R: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The reference joint values x brought, at the reference position, from the end effector's
+        reference orientation (the compiled R_0) to R by continuation (module docstring); R_0 is R
+        afterwards."""
+        from scipy.spatial.transform import Rotation, Slerp
+
+        path = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([self._g[14], R])))
+        res = np.zeros(1)
+        for k, s in enumerate(np.linspace(0.0, 1.0, HOLD_STEPS + 1)[1:], start=1):
+            g = list(self._g)
+            g[14] = path(s).as_matrix() if k < HOLD_STEPS else R
+            self._g = tuple(g)
+            self.__dict__.pop("_packed", None)  # the kernels read R_0 from the packed arrays
+            x_new, res, _ = self.newton(self._anchor[None], x[None], iters=60)
+            if not res[0] <= TOL:
+                raise UnsupportedRobotError(self.robot.name, (
+                    f"its end effector {self.robot.tool_frame!r} was not brought to the orientation asked at "
+                    f"its reference position {np.round(self._anchor, 6).tolist()} m (the continuation from the reference "
+                    f"orientation stalled at step {k} of {HOLD_STEPS}, residual {res[0]:.2e} m): the loops do not close "
+                    "with it there, or only through another assembly"))
+            x = x_new[0]
+        return x
+
+    @property
+    def held_orientation(self) -> np.ndarray | None:
+        """The (3, 3) world rotation the end effector is held at (`from_robot(orientation=...)`), or None."""
+        return np.array(self._g[14]) if self.held else None
 
     @property
     def reference_point(self) -> np.ndarray:
@@ -258,6 +314,31 @@ def _merge(N: int, *parts: tuple[np.ndarray, BranchSolutions]) -> BranchSolution
                            sum(s.conflicts for _, s in parts), end)
 
 
+def _held(robot: Robot, orientation: np.ndarray, n_act: int, translational: bool, G: np.ndarray,
+          task_axes: tuple[int, ...] | None) -> np.ndarray:
+    """`orientation` checked as the rotation `from_robot` holds (its docstring says when it may)."""
+    from kinematics.errors import InvalidInputError
+
+    R = np.asarray(orientation, dtype=float)
+    if R.shape != (3, 3) or not np.isfinite(R).all() or np.abs(R @ R.T - np.eye(3)).max() > 1e-9 \
+            or np.linalg.det(R) <= 0:
+        raise InvalidInputError("orientation", "expected a (3, 3) rotation matrix (orthonormal, determinant +1)")
+    if task_axes is not None and tuple(task_axes) != (0, 1, 2):
+        raise InvalidInputError("task_axes", "with a held orientation the task is the whole position (0, 1, 2)")
+    if translational:
+        raise UnsupportedRobotError(robot.name, "its actuators do not turn the end effector (a translational "
+                                                "mechanism): it keeps one orientation, none can be chosen")
+    if n_act != 6:
+        raise UnsupportedRobotError(robot.name, (
+            f"holding the end effector's orientation leaves its 3 position coordinates to exactly 6 actuators "
+            f"(3 + 3), this robot has {n_act}"))
+    s = np.linalg.svd(G, compute_uv=False)
+    if s[-1] <= 1e-9 * s[0]:
+        raise UnsupportedRobotError(robot.name, "its 6 actuators do not move the end effector's whole pose at "
+                                                "the reference configuration (a singular pose there)")
+    return R
+
+
 def _length(robot: Robot, q: np.ndarray) -> float:
     """Characteristic length [m]: the largest distance of a joint origin from the world origin at q."""
     data = robot.model.createData()
@@ -266,7 +347,14 @@ def _length(robot: Robot, q: np.ndarray) -> float:
     return max(max(d, default=0.0), 1e-3)
 
 
+def loop_batch(robot: Robot, orientation: np.ndarray | str | None = None) -> LoopBatch:
+    """`LoopBatch.from_robot(robot, orientation=orientation)`, cached per robot and orientation."""
+    key = orientation if orientation is None or isinstance(orientation, str) else tuple(
+        np.asarray(orientation, dtype=float).ravel().tolist())
+    return _cached(robot, key)
+
+
 @functools.lru_cache(maxsize=16)
-def loop_batch(robot: Robot) -> LoopBatch:
-    """`LoopBatch.from_robot(robot)`, cached per robot."""
-    return LoopBatch.from_robot(robot)
+def _cached(robot: Robot, orientation: tuple[float, ...] | str | None) -> LoopBatch:
+    held = np.array(orientation).reshape(3, 3) if isinstance(orientation, tuple) else orientation
+    return LoopBatch.from_robot(robot, orientation=held)

@@ -4,8 +4,10 @@ solver (`kinematics.generic.loop_batch.LoopBatch`).
 Branches are the solver's atlas: the working modes found at the sidecar's reference position,
 labelled by the signs of the loop Jacobian's square sub-determinants that contain an actuator
 (docs/closed-loops.md). Task space: the platform position for translational mechanisms, the
-in-plane position for planar ones (mechanisms whose task needs orientation are refused when a
-capability is first used). Margins come from the URDF's joint limits ("all", or "actuators"
+in-plane position for planar ones, and for a mechanism with six actuators that turn its end
+effector, its position with a held rotation (`orientation`: the constant-orientation workspace of a
+6-DOF leg or platform; velocities and singular loci are not done for it). Other mechanisms whose
+task needs orientation are refused when a capability is first used. Margins come from the URDF's joint limits ("all", or "actuators"
 only), minus the least-squares residual where a branch has no solution; where no joint limit
 binds (e.g. the five-bar's continuous joints) the slack is capped at the robot's size, so the
 margin jumps at the reach boundary instead of falling to 0 there (its sign stays right).
@@ -29,6 +31,7 @@ import numpy as np
 
 from kinematics.errors import UnsupportedRobotError
 from kinematics.mechanisms.base import Assemblies, BranchIK, MarginFn, Mechanism, SingularFields, Velocity
+from kinematics.mechanisms.orientation import ToolOrientation
 from kinematics.model.robot import Robot
 
 _AXES = "xyz"
@@ -44,9 +47,17 @@ CONTINUATION_STEPS = 16
 MAX_TASK_DIM = 3
 """The batched solver's task: the end effector's position, one coordinate per actuator."""
 
+HELD_ACTUATORS = 6
+"""Actuators of a mechanism whose end effector is held at a rotation: 3 for its position, 3 for the
+rotation held."""
+
 BATCHED = ("margin", "ik", "velocity", "singular_fields")
 """The capabilities that run on the batched solver (and so need a task of at most MAX_TASK_DIM
-coordinates)."""
+coordinates, or a held orientation)."""
+
+NOT_HELD = frozenset({"velocity", "singular_fields"})
+"""Capabilities a held orientation does not have: its Jacobians relate six actuator rates to the
+whole twist, not to the position alone."""
 
 
 class GenericClosedLoop(Mechanism):
@@ -62,9 +73,12 @@ class GenericClosedLoop(Mechanism):
     limit_sets = ("all", "actuators")
     assembly_modes = ("reached from the reference",)
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, orientation: ToolOrientation | None = None) -> None:
+        """orientation: hold the end effector at this rotation (six actuators; "rotation" or
+        "reference" kind), the task being its position; None: the position alone."""
         self.robot = robot
         self.name = robot.name
+        self.orientation = orientation
         self._continued: dict[bytes, Any] = {}  # `_continuation`'s last answers, by target
         # the unit of J's columns, one per actuator: one unit when every actuator shares it (as
         # SerialArm), so dexterity notes a mixed J only for a mechanism that has one
@@ -87,21 +101,46 @@ class GenericClosedLoop(Mechanism):
         from kinematics.generic.loop_batch import loop_batch
 
         self.check_task()
+        o = self.orientation
         try:
-            return loop_batch(self.robot)
+            batch = loop_batch(self.robot, None if o is None else "reference" if o.kind == "reference" else o.matrix)
         except SingularConfigurationError as exc:
             where = ClosedLoop(self.robot).assembly.description  # cached: the pose the solver used
             raise SingularConfigurationError(
                 f"{self.name}: choosing the task space at {where}",
                 f"{exc} (the batched solver reads what the actuators move from the end effector "
                 f"{self.robot.tool_frame!r} there)") from None
+        if o is not None and o.kind == "reference":  # reports say which rotation was held
+            from scipy.spatial.transform import Rotation
+
+            R = np.asarray(batch.held_orientation)
+            rpy = Rotation.from_matrix(R).as_euler("xyz")
+            self.orientation = ToolOrientation("rotation", R, "reference (rpy " + " ".join(f"{v:.6g}" for v in rpy) + ")")
+        return batch
+
+    @property
+    def capabilities(self) -> frozenset[str]:
+        """As `Mechanism.capabilities`, less NOT_HELD with a held orientation."""
+        caps = super().capabilities
+        return caps - NOT_HELD if self.orientation is not None else caps
 
     def check_task(self) -> None:
         """The batched solver's task is the end effector's position, one coordinate per actuator
-        (at most MAX_TASK_DIM; orientation coordinates are not done): raise UnsupportedRobotError,
-        saying so, for a robot with more actuators, whose end-effector position is redundant."""
+        (at most MAX_TASK_DIM), or with a held orientation HELD_ACTUATORS actuators: raise
+        UnsupportedRobotError, saying so, for a robot with more actuators, whose end-effector
+        position is redundant, and for a held orientation the robot cannot take."""
         loops = self.robot.loops
         n = len(loops.actuated) if loops else 0
+        o = self.orientation
+        if o is not None:
+            if o.kind == "axis":
+                raise UnsupportedRobotError(self.name, "a closed loop's end effector is held at a whole rotation "
+                                                       "('rpy R P Y' or 'reference'), not at a tool axis alone")
+            if n != HELD_ACTUATORS:
+                raise UnsupportedRobotError(self.name, (
+                    f"holding the end effector's orientation leaves its {MAX_TASK_DIM} position coordinates to "
+                    f"exactly {HELD_ACTUATORS} actuators ({MAX_TASK_DIM} + 3); this robot has {n}"))
+            return
         if loops is not None and n > MAX_TASK_DIM:
             shown = ", ".join(loops.actuated[:8]) + (", ..." if n > 8 else "")
             raise UnsupportedRobotError(
@@ -110,7 +149,10 @@ class GenericClosedLoop(Mechanism):
                 f"{self.robot.tool_frame!r}'s position: more actuators than task coordinates, so that position is "
                 f"redundant (up to {n - MAX_TASK_DIM} actuator freedom(s) beyond it), and the batched closed-loop "
                 "solver behind workspaces, IK and singular loci needs exactly one task coordinate per actuator, at "
-                f"most the {MAX_TASK_DIM} of a position (orientation coordinates are not done)")
+                f"most the {MAX_TASK_DIM} of a position (orientation coordinates are not done)"
+                + (f"; with {HELD_ACTUATORS} actuators, hold the end effector's orientation: --orientation "
+                   "'rpy R P Y' or 'reference' (library: mechanism_of(robot, ToolOrientation...))"
+                   if n == HELD_ACTUATORS else ""))
 
     @property
     def branches(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -165,6 +207,8 @@ class GenericClosedLoop(Mechanism):
         loops = self.robot.loops
         out: dict[str, Any] = {"closures": len(loops.closures) if loops else 0,
                                "actuated": list(loops.actuated) if loops else [], "end_effector": self.robot.tool_frame}
+        if self.orientation is not None:
+            out["orientation"] = self.orientation.as_dict()
         if self.plane is not None:
             # an area is measured in this plane; another assembly mode can move in a parallel one
             i, j = (_AXES[a] for a in self.plane.axes)
@@ -291,6 +335,7 @@ class GenericClosedLoop(Mechanism):
         Raises:
             InvalidInputError: points or q of the wrong shape, or not finite.
         """
+        self.require("velocity", "velocities")  # not with a held orientation
         p = np.atleast_2d(np.asarray(points, dtype=float))
         q = self._actuator_rows(q, len(p))  # before the solve, which a malformed q would waste
         d, a = self.task_dim, q.shape[1]
@@ -310,6 +355,7 @@ class GenericClosedLoop(Mechanism):
         """Type I per labelling block and type II per branch, signed (`kinematics.generic.loop_singular`)."""
         from kinematics.generic.loop_singular import loop_fields
 
+        self.require("singular_fields", "singular loci")  # not with a held orientation
         self.check_limits(limits)
         f = loop_fields(self.batch, points, limits)
         return SingularFields(f.margin, f.limb, f.det)

@@ -24,7 +24,7 @@ from kinematics.mechanisms.base import Assemblies, MarginFn, Mechanism, Velocity
 from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
-    from kinematics.mechanisms.serial.orientation import ToolOrientation
+    from kinematics.mechanisms.orientation import ToolOrientation
     from kinematics.mechanisms.serial.reach import Reach
 
 
@@ -144,4 +144,7 @@ def with_fixed_orientation(robot: Robot, orientation: ToolOrientation) -> Serial
     if robot.loops is not None:
         raise UnsupportedRobotError(robot.name, "a fixed tool orientation is measured for open chains only; this "
                                                 "robot has loop closures")
+    if orientation.kind == "reference":
+        raise UnsupportedRobotError(robot.name, "'reference' holds a closed loop's end effector at its reference "
+                                                "rotation; for an open chain give 'rpy R P Y' or 'axis X Y Z'")
     return SerialArm(robot, orientation)

@@ -45,9 +45,10 @@ import numpy as np
 
 from kinematics.generic.batched import compile_frame
 from kinematics.inputs import task_points
+from kinematics.mechanisms.orientation import ToolOrientation
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup, setup
-from kinematics.mechanisms.serial.orientation import ToolOrientation, oriented_setup, reduced
+from kinematics.mechanisms.serial.orientation import oriented_setup, reduced
 from kinematics.mechanisms.serial.turn import partial_turn
 from kinematics.model.robot import Robot
 

@@ -48,9 +48,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from kinematics.mechanisms.orientation import ToolOrientation
 from kinematics.mechanisms.serial import search as kernels
 from kinematics.mechanisms.serial.joint_box import Setup
-from kinematics.mechanisms.serial.orientation import ToolOrientation
 from kinematics.model.robot import Robot
 
 if TYPE_CHECKING:
