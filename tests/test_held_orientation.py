@@ -64,10 +64,10 @@ def test_gantry_volume_is_the_shifted_box() -> None:
     """0.2 x 0.4 x 0.3 = 0.024 m^3 (the prismatic box, shifted by R x the tool offset), within the
     error estimate."""
     mech = mechanism_of(load_robot(MODELS / "gantry6.urdf"), ToolOrientation.rpy(*RPY))
-    ws = measure_workspace(mech, step=0.02, rtol=1e-2, check=True)
+    ws = measure_workspace(mech, step=0.05, rtol=2e-2, check=True)
     assert ws.result.converged
     assert abs(ws.total - 0.024) <= ws.error
-    assert ws.error <= 1e-2 * 0.024
+    assert ws.error <= 2e-2 * 0.024
 
 
 def test_held_orientation_outside_the_wrist_range_is_empty() -> None:
@@ -97,7 +97,7 @@ def test_refusals() -> None:
 
 
 def test_cli_reference_orientation(capsys) -> None:
-    code = main(["workspace-volume", str(MODELS / "gantry6.urdf"), "--orientation", "reference", "--step", "0.05",
+    code = main(["workspace-volume", str(MODELS / "gantry6.urdf"), "--orientation", "reference", "--step", "0.1",
                  "--rtol", "0.05", "--json"])
     out, err = capsys.readouterr()
     assert code == 0, err

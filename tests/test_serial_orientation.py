@@ -105,7 +105,7 @@ def test_orientation_parsing_and_bad_input(tmp_path):
             ToolOrientation.parse(bad)
     with pytest.raises(UnsupportedRobotError, match="loop"):
         with_fixed_orientation(load_robot("p2us"), o)
-    with pytest.raises(UnsupportedRobotError, match="loop"):  # the one dispatch says the same
+    with pytest.raises(UnsupportedRobotError, match="keeps one orientation"):  # a closed loop's platform: the dispatch
         mechanism_of(load_robot("p2us"), o)
     assert mechanism_of(load_robot(MODELS / "planar3r.urdf"), o).orientation is o
 
@@ -122,7 +122,7 @@ def test_cli_tool_axis_and_dexterity_cells(capsys, tmp_path):
     assert d["orientation"]["kind"] == "axis" and d["parameters"]["orientation"]["kind"] == "axis"
     assert abs(d["area_m2"] - planar_fixed_orientation_area()) <= d["error_estimate"]
     code, _, err = run(capsys, "workspace-volume", "p2us", "--tool-axis", "0", "0", "-1")
-    assert code == 2 and "open chains" in err
+    assert code == 2 and "keeps one orientation" in err
     csv = tmp_path / "cells.csv"
     code, d, _ = run_json(capsys, "dexterity", str(MODELS / "planar3r.urdf"), "--samples", "1024", "--cells", "4",
                           "--cells-out", str(csv))

@@ -378,7 +378,7 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
     inner_rtol = 0.25 * rtol  # the slices' errors add up to <= rtol / 4 of the volume
     if d == 2:
         q, e, conv, _ = adaptive_1d(lambda p, x: columns(x[:, None]), lo[others[:1]], hi[others[:1]], rtol, 0.0,
-                                    order=order, pieces=n_pieces(others[0]), max_evals=budget, floor=floor)
+                                    order=order, pieces=n_pieces(others[0]), max_evals=budget, floor=floor, ends=True)
     else:
         k_out, k_in = others
         all_conv = [True]
@@ -398,14 +398,14 @@ def _run_sampled(margin: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi:
                                                   "cost": lambda: counter.points - before}
             a, ea, c, _evals = adaptive_1d(inner, np.full(P, lo[k_in]), np.full(P, hi[k_in]), inner_rtol, atol_in,
                                       order=order, pieces=n_pieces(k_in), **({"max_evals": budget} | priced),
-                                      floor=floor)
+                                      floor=floor, ends=True)
             all_conv[0] &= bool(c.all())
             return a, ea, (a > 0).astype(np.int64)
 
         outer = {"max_evals": budget} if searches is None else {"max_evals": searches,
                                                                 "cost": lambda: counter.points}
         q, e, conv, _ = adaptive_1d(slice_area, lo[[k_out]], hi[[k_out]], rtol, 0.0, order=order,
-                                    pieces=n_pieces(k_out), floor=floor, **outer)
+                                    pieces=n_pieces(k_out), floor=floor, **outer, ends=True)
         conv = conv & all_conv[0]
     if bar is not None:
         bar.close()
