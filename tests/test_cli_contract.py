@@ -184,7 +184,7 @@ CASES: list[tuple[list[str], str | tuple[str, ...]]] = [
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "0"], "not all zero"),
     (["workspace-volume", "ur5", "--tool-axis", "0", "0", "x"], NUMBER),
     (["workspace-volume", "p2us", "--tool-axis", "0", "0", "-1"], "keeps one orientation"),
-    (["workspace-volume", "p2us", "--tool-frame", "platform"], "closed forms compute its platform"),
+    (["workspace-volume", "p2us", "--tool-frame", "base"], "closed forms compute the position of its platform"),
     (["info", "ur5", "--tool-frame", "nosuch"], "unknown frame 'nosuch'"),
     (["workspace-volume", "ur5", "--orientation", "rpy 1 2"], "rpy R P Y"),
     (["workspace-volume", "ur5", "--orientation", "rpy 0 0 0", "--tool-axis", "0", "0", "1"], "not allowed with"),
@@ -818,9 +818,11 @@ def test_a_system_error_without_ctrl_c_is_not_an_interrupt(monkeypatch):
 @pytest.mark.slow
 @pytest.mark.parametrize("cache", ["as it is", "empty"])
 def test_ctrl_c_during_a_serial_arm_volume_is_one_line(cache, tmp_path):
-    # the UR5's volume at rtol 1e-5 runs well over a minute, so the interrupt at 8 s lands inside
-    # the compiled reachability search (it came out as a 76-line SystemError traceback, exit 1) or,
-    # with an empty kernel cache, inside Numba's compilation (4 s; where LLVM's callbacks swallow it)
+    # the UR5's volume at rtol 1e-7 from 2.5 mm runs ~40 s (rtol 1e-5 now ends in ~5 s), so the
+    # interrupt at 8 s lands inside the compiled reachability search (it came out as a 76-line
+    # SystemError traceback, exit 1) or, with an empty kernel cache, inside Numba's compilation
+    # (4 s; where LLVM's callbacks swallow it)
     env = {"NUMBA_CACHE_DIR": str(tmp_path)} if cache == "empty" else {}
-    proc = _interrupt(_kinematics("workspace-volume", "ur5", "--rtol", "1e-5"), 4.0 if env else 8.0, env=env)
+    proc = _interrupt(_kinematics("workspace-volume", "ur5", "--rtol", "1e-7", "--step", "0.0025"), 4.0 if env else 8.0,
+                      env=env)
     assert proc.returncode == 130 and proc.stderr == "kinematics: interrupted\n", proc.stderr

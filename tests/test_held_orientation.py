@@ -5,6 +5,7 @@ gantry6 fixture and to Pinocchio on a Gepetto leg."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,13 +14,14 @@ import pytest
 
 from kinematics.analyses.workspace import measure_workspace
 from kinematics.cli.app import main
-from kinematics.errors import MissingCapabilityError, UnsupportedRobotError
+from kinematics.errors import UnsupportedRobotError
 from kinematics.mechanisms import mechanism_of
 from kinematics.mechanisms.orientation import ToolOrientation
 from kinematics.model.robot import load_robot
 
+from .conftest import GEPETTO
+
 MODELS = Path(__file__).parent / "models"
-GEPETTO = Path(__file__).resolve().parents[2] / "shared" / "models" / "gepetto"
 RPY = (0.1, -0.2, 0.3)
 OFFSET = np.array([0.05, 0.0, 0.0])  # the tool on the platform (gantry6.urdf)
 BOX = (np.array([-0.1, -0.2, 0.0]), np.array([0.1, 0.2, 0.3]))  # the prismatic joints' ranges
@@ -90,8 +92,10 @@ def test_refusals() -> None:
         mechanism_of(load_robot(MODELS / "planar3r.urdf"), ToolOrientation.reference())
     held = mechanism_of(gantry, ToolOrientation.reference())
     assert "velocity" not in held.capabilities and "margin" in held.capabilities
-    with pytest.raises(MissingCapabilityError):
+    with pytest.raises(UnsupportedRobotError, match="held at a rotation"):
         held.velocity(np.array([[0.05, 0.0, 0.1]]), np.zeros((1, 6)))
+    with pytest.raises(UnsupportedRobotError, match="held at a rotation"):  # the solver's own Jacobians too
+        held.batch.jacobians(np.array([[0.05, 0.0, 0.1]]), np.zeros((1, 12)))
     with pytest.raises(UnsupportedRobotError, match="--orientation"):  # the refusal says how
         mechanism_of(gantry).margin()
 
@@ -111,9 +115,16 @@ def test_cli_reference_orientation(capsys) -> None:
 def test_gepetto_leg_foot_held_at_its_reference_rotation() -> None:
     """talos_like's foot (a frame the sidecar does not name): its reference rotation held, points
     around the reference position solved, each pose held to Pinocchio."""
+    from kinematics.generic.closedloop import ClosedLoop
+
     robot = load_robot(GEPETTO / "talos_like", tool_frame="foot")
     mech = mechanism_of(robot, ToolOrientation.reference())
     R = mech.batch.held_orientation
+    # 'reference' is the foot's rotation at the sidecar's closed reference (Pinocchio's own closure)
+    loop = ClosedLoop(robot)
+    q, _, _ = loop.newton(loop.reference, tol=0.0)
+    pin.framesForwardKinematics(robot.model, robot.data, q)
+    np.testing.assert_allclose(R, robot.data.oMf[robot.frame_id("foot")].rotation, atol=1e-12)
     p0 = mech.batch.reference_point
     points = p0 + np.array([[0.0, 0.0, 0.0], [0.02, -0.01, 0.0], [0.0, 0.02, 0.03], [-0.03, 0.0, -0.02]])
     ik = mech.ik(points)
@@ -122,3 +133,35 @@ def test_gepetto_leg_foot_held_at_its_reference_rotation() -> None:
         if found.any():
             _pose_check(robot, mech.joint_value_rows(points[found], name), points[found], R)
     assert ik.reachable.all(axis=1).any() and ik.reachable.any(axis=1).all()
+
+
+def test_fk_of_a_held_mechanism_leaves_the_held_set_out() -> None:
+    """fk at a held pose's actuator values gives its point; with the wrist at zero the tool is not
+    at the held rotation: no point."""
+    robot = load_robot(MODELS / "gantry6.urdf")
+    held = ToolOrientation.rpy(0.2, 0.1, -0.3)
+    mech = mechanism_of(robot, held)
+    platform = np.array([0.02, -0.05, 0.12])
+    point = platform + held.matrix @ OFFSET
+    q = np.array([*platform, -0.3, 0.1, 0.2])  # slides, then the wrist z, y, x: yaw, pitch, roll
+    a = mech.fk(np.stack([q, np.r_[platform, 0.0, 0.0, 0.0]]))
+    assert a.exists[:, 0].tolist() == [True, False]
+    np.testing.assert_allclose(a.p[0, 0], point, atol=1e-9)
+
+
+def test_velocity_where_no_passive_joint_moves_the_end_effector(tmp_path) -> None:
+    """gantry6 with its wrist welded (three slides drive the tool, the passive chain follows): the
+    Jacobians are the identity by hand, and no type II measure (+inf: no passive rate moves the
+    tool; it raised an IndexError before)."""
+    text = (MODELS / "gantry6.urdf").read_text()
+    for joint in ("rz", "ry", "rx"):
+        text = re.sub(f'(<joint name="{joint}" type=")revolute', r"\1fixed", text)
+    (tmp_path / "gantry3.urdf").write_text(text)
+    sidecar = (MODELS / "gantry6.loops.yaml").read_text().replace("[px, py, pz, rz, ry, rx]", "[px, py, pz]")
+    (tmp_path / "gantry3.loops.yaml").write_text(sidecar)
+    mech = mechanism_of(load_robot(tmp_path / "gantry3.urdf"))
+    platform = np.array([[0.02, -0.05, 0.12], [-0.03, 0.1, 0.2]])
+    v = mech.velocity(platform + OFFSET, platform)
+    np.testing.assert_allclose(v.J, np.broadcast_to(np.eye(3), (2, 3, 3)), atol=1e-9)
+    np.testing.assert_allclose(v.J_inverse, np.broadcast_to(np.eye(3), (2, 3, 3)), atol=1e-9)
+    assert np.isinf(v.iota_II).all()

@@ -231,25 +231,27 @@ def refuse_pose_args(args: argparse.Namespace, why: str) -> None:
 
 
 def load(args: argparse.Namespace) -> Any:
-    """The robot of ROBOT and --range. --range is refused for a mechanism whose limits are design
-    parameters (the p2us, the Delta): its closed forms would answer as if it were not given."""
+    """The robot of ROBOT, --range and --tool-frame. --range is refused for a mechanism whose limits
+    are design parameters (the p2us, the Delta): its closed forms would answer as if it were not
+    given; --tool-frame (by the dispatcher) for a frame other than such a mechanism's platform."""
     from kinematics.model.robot import load_robot
 
     ranges = dict(getattr(args, "range", None) or ())
     tool = getattr(args, "tool_frame", None)
     robot = load_robot(args.robot, ranges=ranges, tool_frame=tool)
-    if ranges or tool:
+    if tool:  # a closed-form family refuses a frame other than its platform's at once
+        from kinematics.mechanisms import mechanism_of
+
+        mechanism_of(robot)
+    if ranges:
         from kinematics.errors import InvalidInputError
         from kinematics.mechanisms import mechanism_of
 
         mech = mechanism_of(robot)
-        if mech.limits_in_design and ranges:
+        if mech.limits_in_design:
             raise InvalidInputError("--range", f"{robot.name}'s limits are design parameters read from its URDF, "
                                     "which a joint range does not change; write a design with other limits "
                                     f"(`kinematics urdf {mech.family} --help`)")
-        if mech.limits_in_design and tool:  # their closed forms answer for the platform
-            raise InvalidInputError("--tool-frame", f"{robot.name}'s closed forms compute its platform's position; "
-                                    "another frame is not analysed")
     return robot
 
 
@@ -291,15 +293,16 @@ def collision_checks(args: argparse.Namespace, robot: Any) -> Any:
     return collision_model_of(robot, obstacles, self_collisions=args.collisions)
 
 
-def orientation_args(p: argparse.ArgumentParser, what: str) -> None:
-    """--orientation / --tool-axis: `what` is measured with the tool held so (open chains; closed
-    loops with six actuators hold a whole rotation)."""
+def orientation_args(p: argparse.ArgumentParser, what: str, closed_loops: bool = False) -> None:
+    """--orientation / --tool-axis: `what` is measured with the tool held so (open chains; with
+    `closed_loops`, closed loops with six actuators too, which hold a whole rotation)."""
     orient = p.add_mutually_exclusive_group()
-    orient.add_argument("--orientation", metavar="'rpy R P Y' | reference",
+    loops = (", and closed loops with six actuators (their end effector; 'reference': the rotation it has at the "
+             "loop sidecar's reference configuration)") if closed_loops else ""
+    orient.add_argument("--orientation", metavar="'rpy R P Y' | reference" if closed_loops else "'rpy R P Y'",
                         help=f"{what} with the tool frame at this fixed rotation (roll, pitch, yaw [rad], URDF "
-                             "convention), within the joint limits: open chains, and closed loops with six actuators "
-                             "(their end effector; 'reference': the rotation it has at the loop sidecar's reference "
-                             "configuration) (--json key orientation: kind, text, tool_z, rotation)")
+                             f"convention), within the joint limits: open chains{loops} (--json key orientation: "
+                             "kind, text, tool_z, rotation)")
     orient.add_argument("--tool-axis", nargs=3, type=number, metavar=("X", "Y", "Z"),
                         help="open chains: the same with only the tool frame's z axis fixed along (X, Y, Z), "
                              "e.g. 0 0 -1 for a tool pointing down")

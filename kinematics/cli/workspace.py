@@ -43,7 +43,7 @@ def register(command: Command) -> None:
     p.add_argument("--points", metavar="FILE", help="write the grid points inside the workspace (.npy or CSV)")
     collision_args(p, "; reports the binding pairs and the volume each removes (p2us, delta, scara, closed loops, "
                       "serial arms: the best configuration their search finds, also with --orientation / --tool-axis)")
-    orientation_args(p, "the volume of tool positions reachable")
+    orientation_args(p, "the volume of tool positions reachable", closed_loops=True)
     p.add_argument("--turn", choices=["auto", "envelope", "spatial"], default="auto",
                    help="serial arms with --collisions / --obstacles and a full-turn base: how pairs of a body fixed "
                         "in the world with bodies the base carries are measured: envelope (on the profile, bracketed "
@@ -144,7 +144,7 @@ def workspace_volume(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     payload = ws.as_dict()
     payload.update(family=mech.family, singular_points=singular_points, singularities=sing_summary,
                    # the mechanism's: a closed loop's 'reference' is resolved to the rotation held
-                   orientation=None if orientation is None else getattr(mech, "orientation", orientation).as_dict(),
+                   orientation=None if orientation is None else getattr(mech, "held", orientation).as_dict(),
                    seconds=time.perf_counter() - t0, volume_seconds=ws.seconds, **paper)
     if kernels:
         from kinematics import jit
@@ -339,7 +339,9 @@ def _report(ws: Any, payload: dict[str, Any], paper: dict[str, Any], mech: Mecha
                                        for k, v in payload["singularities"].items()))]
           if payload["singularities"] else
           [("singularities", (f"not scanned for this robot here (`kinematics singularities {ws.robot}` "
-                              "bounds its singular joint boxes)"))]),
+                              "bounds its singular joint boxes)") if "reach_search" in mech.capabilities
+            else "not done with the end effector held at a rotation" if payload.get("orientation")
+            else "not scanned for this robot")]),
         ("time [s]", f"{payload['seconds']:.2f} (volume {payload['volume_seconds']:.2f})"),
     ], digits=None))
     if paper:

@@ -68,9 +68,14 @@ def _normalised_det(M: np.ndarray, axis: int) -> np.ndarray:
 
 def loop_fields(batch: Any, points: np.ndarray, limits: str = "all") -> LoopFields:
     """The signed fields of `batch` (a `kinematics.generic.loop_batch.LoopBatch`) at task points
-    (N, d) [m], joint limits `limits` for the margins."""
+    (N, d) [m], joint limits `limits` for the margins.
+
+    Raises:
+        UnsupportedRobotError: the batch holds its end effector at a rotation (`require_unheld`).
+    """
     from kinematics.generic.loop_batch import TOL
 
+    batch.require_unheld("singular fields")
     p = np.atleast_2d(np.asarray(points, dtype=float))
     sol = batch.ik(p, every_block=True)  # each block's own end outside (the whole-system solver has them anyway)
     N, B = sol.found.shape

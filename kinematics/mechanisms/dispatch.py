@@ -3,7 +3,7 @@
 `mechanism_of(robot)`:
 
 1. a loop sidecar whose `mechanism:` names a family with closed forms (`FAMILIES`) -> that
-   family's mechanism, its design read back from the URDF;
+   family's mechanism, its design read back from the URDF (its platform frame the tool frame);
 2. any other loop sidecar -> `GenericClosedLoop`;
 3. an open chain that is a planar 2R arm with joints about z (`ScaraParams.from_robot` accepts
    it) -> `Scara` (closed forms);
@@ -85,6 +85,10 @@ def mechanism_of(robot: Robot, orientation: ToolOrientation | None = None) -> Me
     if robot.loops is not None:
         build = families().get(robot.loops.mechanism or "")
         if build is not None:
+            if robot.tool_frame != robot.loops.end_effector:  # load_robot(tool_frame=...)
+                raise UnsupportedRobotError(robot.name, (
+                    f"its closed forms compute the position of its platform frame {robot.loops.end_effector!r}; "
+                    f"the tool frame {robot.tool_frame!r} is not analysed"))
             return build(robot)
         from kinematics.mechanisms.closed_loop.mechanism import GenericClosedLoop
 

@@ -27,7 +27,7 @@ class ToolOrientation:
         kind: "rotation" (the frame's whole rotation is `matrix`), "axis" (the frame's z axis is
             `matrix[:, 2]`; the other columns complete a right-handed basis and are not matched)
             or "reference" (a closed loop's: the whole rotation the end effector has at the loop
-            sidecar's reference configuration, which the mechanism reads; `matrix` is not used).
+            sidecar's reference configuration, which the mechanism reads; `matrix` is NaN).
         matrix: (3, 3) rotation, world from tool.
         text: how it was given, for reports.
     """
@@ -35,6 +35,11 @@ class ToolOrientation:
     kind: Literal["rotation", "axis", "reference"]
     matrix: np.ndarray
     text: str
+
+    def __post_init__(self) -> None:
+        m = np.array(self.matrix, dtype=float)  # an own, read-only copy: the dataclass is frozen
+        m.flags.writeable = False
+        object.__setattr__(self, "matrix", m)
 
     @classmethod
     def rpy(cls, roll: float, pitch: float, yaw: float) -> ToolOrientation:
@@ -62,7 +67,7 @@ class ToolOrientation:
     @classmethod
     def reference(cls) -> ToolOrientation:
         """A closed loop's end effector held at its rotation at the reference configuration."""
-        return cls("reference", np.eye(3), "reference")
+        return cls("reference", np.full((3, 3), np.nan), "reference")
 
     @classmethod
     def parse(cls, text: str) -> ToolOrientation:

@@ -368,7 +368,8 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
     A joint whose `<limit>` gives no `lower`/`upper` has no range on that side (-inf/+inf, see
     `missing_range_sides`), never [0, 0]; `ranges` (joint -> (lower, upper) [rad or m]) gives or
     replaces ranges, after the sidecar's `ranges:`. `tool_frame` replaces the tool frame (an open
-    chain's) or the end effector (a closed loop's, the sidecar's `end_effector`).
+    chain's) or the end effector (a closed loop's, the sidecar's `end_effector`; not for a sidecar
+    that names a closed-form `mechanism:`, whose platform frame the dispatcher holds it to).
 
     Raises:
         InvalidInputError: `spec` is neither text nor a path.
@@ -417,7 +418,7 @@ def load_robot(spec: str | os.PathLike[str], *, tool_frame: str | None = None,
     given = {**(loops.ranges if loops is not None else {}), **(ranges or {})}
     apply_ranges(model, missing_range_sides(root), given)
     frame = tool_frame or (loops.end_effector if loops is not None else _default_tool_frame(model))
-    if tool_frame is not None and loops is not None and loops.end_effector != tool_frame:
+    if tool_frame is not None and loops is not None and loops.mechanism is None and loops.end_effector != tool_frame:
         import dataclasses
 
         loops = dataclasses.replace(loops, end_effector=tool_frame)

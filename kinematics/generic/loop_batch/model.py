@@ -218,6 +218,27 @@ class LoopModel:
             eval_kernel(t, x, *self._packed, r, J, pos)
         return r, J, pos
 
+    def require_unheld(self, what: str) -> None:
+        """Raise UnsupportedRobotError for `what` with a held orientation (`held`): its Jacobians
+        relate the actuator rates to the whole twist, which the position task's do not."""
+        if self.held:
+            raise UnsupportedRobotError(self.robot.name, f"{what} are not done with the end effector held at a "
+                                                         "rotation (its six actuators drive the whole pose)")
+
+    def hold_rotation(self, R: np.ndarray) -> None:
+        """Hold the end effector at the world rotation R (3, 3) from now on: R_0 in the compiled
+        model (the kernels read it from the packed arrays, rebuilt here)."""
+        g = list(self._g)
+        g[14] = np.array(R, dtype=float)
+        self._g = tuple(g)
+        self.__dict__.pop("_packed", None)
+
+    @property
+    def held_rotation(self) -> np.ndarray:
+        """The (3, 3) rotation R_0 the orientation rows hold (the reference's for a translational
+        mechanism)."""
+        return np.array(self._g[14])
+
     # -- residual rows ---------------------------------------------------------------------------
     @property
     def can_pin(self) -> bool:

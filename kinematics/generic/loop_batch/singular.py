@@ -8,7 +8,8 @@ task) at a solution, U_a / U_p its actuated / passive columns, and P the task ro
   in [0, 1]; a passive freedom that moves no actuator (a gimbal-locked universal joint) is ignored;
 * type II (locked actuators do not hold the platform): iota_II = min over passive rates v with
   P v != 0 of |A v| / |P v|, A the closure and orientation rows: 0 iff the end effector can move
-  with the actuators locked; dimensionless (rows in metres), not bounded by 1;
+  with the actuators locked; dimensionless (rows in metres), not bounded by 1; +inf where no
+  passive rate moves the end effector (a gantry's slides carry it: nothing to hold);
 * type III: both. A pose is singular when a measure is <= SINGULAR_TOL.
 """
 
@@ -41,6 +42,7 @@ class LoopSingularities(LoopModel):
 
     # -- velocities and singularities -----------------------------------------------------------
     def _split(self, points: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.require_unheld("Jacobians and singularity measures")
         p = self._points(points)
         x = np.asarray(x, dtype=float)
         if x.shape[:1] != (len(p),) or x.shape[-1] != self.n:
@@ -81,13 +83,18 @@ class LoopSingularities(LoopModel):
         proj = Ua - Up @ (np.linalg.pinv(Up, rcond=1e-10) @ Ua)
         iota_I = np.linalg.svd(proj, compute_uv=False)[..., -1]
         A, P = J[..., :c, :][..., pa], J[..., c:, :][..., pa]
-        _, s, Vt = np.linalg.svd(P, full_matrices=True)
-        r = int(np.max(np.sum(s > 1e-10 * np.maximum(s[..., :1], 1e-300), axis=-1)))
-        V = np.swapaxes(Vt, -1, -2)
-        Y, Z = V[..., :r], V[..., r:]
-        AY, AZ = A @ Y, A @ Z
-        QAY = AY - AZ @ (np.linalg.pinv(AZ, rcond=1e-10) @ AY)
-        iota_II = np.linalg.svd(QAY / s[..., None, :r], compute_uv=False)[..., -1]
+        r = 0
+        if len(pa) and P.size:
+            _, s, Vt = np.linalg.svd(P, full_matrices=True)
+            r = int(np.max(np.sum(s > 1e-10 * np.maximum(s[..., :1], 1e-300), axis=-1)))
+        if r == 0:  # no passive rate moves the end effector: locked actuators always hold it
+            iota_II = np.full(ok.shape, np.inf)
+        else:
+            V = np.swapaxes(Vt, -1, -2)
+            Y, Z = V[..., :r], V[..., r:]
+            AY, AZ = A @ Y, A @ Z
+            QAY = AY - AZ @ (np.linalg.pinv(AZ, rcond=1e-10) @ AY)
+            iota_II = np.linalg.svd(QAY / s[..., None, :r], compute_uv=False)[..., -1]
         iota_I = np.where(ok, iota_I, np.nan)
         iota_II = np.where(ok, iota_II, np.nan)
         types = np.where(ok, (iota_I <= tol).astype(np.int8) + 2 * (iota_II <= tol).astype(np.int8), -1)

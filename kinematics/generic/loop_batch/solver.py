@@ -51,7 +51,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pinocchio as pin
 
-from kinematics.errors import UnsupportedRobotError
+from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.generic.loop_batch.atlas import BranchSolutions
 from kinematics.generic.loop_batch.blocks import BlockSolver
 from kinematics.generic.loop_batch.compiled import TOL
@@ -143,13 +143,15 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                                         f"(residual {err:.2e} m)")
         G = loop.constrained_jacobian(q)  # 6 x n_actuated
         n_act = len(loop.actuated_dofs)
+        if not np.abs(G).max(initial=0.0) > 1e-12:
+            raise UnsupportedRobotError(robot.name, f"no actuator moves its end effector {robot.tool_frame!r} (a frame "
+                                                    "on the base or on a part the loops hold still): choose another "
+                                                    "frame (--tool-frame)")
         lin, ang = G[:3], G[3:]
         size = max(float(np.linalg.norm(lin)), 1e-300)
         translational = float(np.linalg.norm(ang)) * _length(robot, q) <= 1e-9 * size
         if isinstance(orientation, str):
             if orientation != "reference":
-                from kinematics.errors import InvalidInputError
-
                 raise InvalidInputError("orientation", f"expected a (3, 3) rotation or 'reference', got {orientation!r}")
             pin.framesForwardKinematics(model, robot.data, q)
             orientation = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].rotation)
@@ -181,7 +183,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         pin.framesForwardKinematics(model, robot.data, q)
         ee_pos = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].translation)
         self._anchor = ee_pos[list(self.task_axes)]
-        if held is not None and np.abs(held - self._g[14]).max() > 1e-12:
+        if held is not None and np.abs(held - self.held_rotation).max() > 1e-12:
             self._reference = self._hold(held, self._reference)
         self.blocks = self._find_blocks()
         if self.solver == "blocks":
@@ -196,16 +198,16 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
     def _hold(self, R: np.ndarray, x: np.ndarray) -> np.ndarray:
         """The reference joint values x brought, at the reference position, from the end effector's
         reference orientation (the compiled R_0) to R by continuation (module docstring); R_0 is R
-        afterwards."""
+        afterwards.
+
+        Raises:
+            UnsupportedRobotError: a step of the continuation does not close (residual > TOL).
+        """
         from scipy.spatial.transform import Rotation, Slerp
 
-        path = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([self._g[14], R])))
-        res = np.zeros(1)
+        path = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([self.held_rotation, R])))
         for k, s in enumerate(np.linspace(0.0, 1.0, HOLD_STEPS + 1)[1:], start=1):
-            g = list(self._g)
-            g[14] = path(s).as_matrix() if k < HOLD_STEPS else R
-            self._g = tuple(g)
-            self.__dict__.pop("_packed", None)  # the kernels read R_0 from the packed arrays
+            self.hold_rotation(path(s).as_matrix() if k < HOLD_STEPS else R)
             x_new, res, _ = self.newton(self._anchor[None], x[None], iters=60)
             if not res[0] <= TOL:
                 raise UnsupportedRobotError(self.robot.name, (
@@ -219,7 +221,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
     @property
     def held_orientation(self) -> np.ndarray | None:
         """The (3, 3) world rotation the end effector is held at (`from_robot(orientation=...)`), or None."""
-        return np.array(self._g[14]) if self.held else None
+        return self.held_rotation if self.held else None
 
     @property
     def reference_point(self) -> np.ndarray:
@@ -316,9 +318,12 @@ def _merge(N: int, *parts: tuple[np.ndarray, BranchSolutions]) -> BranchSolution
 
 def _held(robot: Robot, orientation: np.ndarray, n_act: int, translational: bool, G: np.ndarray,
           task_axes: tuple[int, ...] | None) -> np.ndarray:
-    """`orientation` checked as the rotation `from_robot` holds (its docstring says when it may)."""
-    from kinematics.errors import InvalidInputError
+    """`orientation` checked as the rotation `from_robot` holds (its docstring says when it may).
 
+    Raises:
+        InvalidInputError: not a rotation matrix, or task axes other than the whole position.
+        UnsupportedRobotError: a translational mechanism, not six actuators, or a singular pose.
+    """
     R = np.asarray(orientation, dtype=float)
     if R.shape != (3, 3) or not np.isfinite(R).all() or np.abs(R @ R.T - np.eye(3)).max() > 1e-9 \
             or np.linalg.det(R) <= 0:

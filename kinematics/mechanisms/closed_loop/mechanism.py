@@ -55,6 +55,10 @@ BATCHED = ("margin", "ik", "velocity", "singular_fields")
 """The capabilities that run on the batched solver (and so need a task of at most MAX_TASK_DIM
 coordinates, or a held orientation)."""
 
+HELD_ROTATION_TOL = 1e-8
+"""`fk` with a held orientation: the largest entry of R - R_held (~ the angle [rad]) of a pose on
+the held set (the closed-loop solver closes to ~1e-10)."""
+
 NOT_HELD = frozenset({"velocity", "singular_fields"})
 """Capabilities a held orientation does not have: its Jacobians relate six actuator rates to the
 whole twist, not to the position alone."""
@@ -109,14 +113,21 @@ class GenericClosedLoop(Mechanism):
             raise SingularConfigurationError(
                 f"{self.name}: choosing the task space at {where}",
                 f"{exc} (the batched solver reads what the actuators move from the end effector "
-                f"{self.robot.tool_frame!r} there)") from None
-        if o is not None and o.kind == "reference":  # reports say which rotation was held
-            from scipy.spatial.transform import Rotation
-
-            R = np.asarray(batch.held_orientation)
-            rpy = Rotation.from_matrix(R).as_euler("xyz")
-            self.orientation = ToolOrientation("rotation", R, "reference (rpy " + " ".join(f"{v:.6g}" for v in rpy) + ")")
+                f"{self.robot.tool_frame!r} there; --tool-frame chooses another)") from None
         return batch
+
+    @property
+    def held(self) -> ToolOrientation | None:
+        """The rotation the end effector is held at, a "reference" resolved to its matrix (builds the
+        solver), or None."""
+        o = self.orientation
+        if o is None or o.kind != "reference":
+            return o
+        from scipy.spatial.transform import Rotation
+
+        R = np.asarray(self.batch.held_orientation)
+        rpy = Rotation.from_matrix(R).as_euler("xyz")
+        return ToolOrientation("rotation", R, "reference (rpy " + " ".join(f"{v:.6g}" for v in rpy) + ")")
 
     @property
     def capabilities(self) -> frozenset[str]:
@@ -150,9 +161,9 @@ class GenericClosedLoop(Mechanism):
                 f"redundant (up to {n - MAX_TASK_DIM} actuator freedom(s) beyond it), and the batched closed-loop "
                 "solver behind workspaces, IK and singular loci needs exactly one task coordinate per actuator, at "
                 f"most the {MAX_TASK_DIM} of a position (orientation coordinates are not done)"
-                + (f"; with {HELD_ACTUATORS} actuators, hold the end effector's orientation: --orientation "
-                   "'rpy R P Y' or 'reference' (library: mechanism_of(robot, ToolOrientation...))"
-                   if n == HELD_ACTUATORS else ""))
+                + (f"; with {HELD_ACTUATORS} actuators, `workspace-volume` measures it with the end effector held "
+                   "at a rotation: --orientation 'rpy R P Y' or 'reference' (library: mechanism_of(robot, "
+                   "ToolOrientation...))" if n == HELD_ACTUATORS else ""))
 
     @property
     def branches(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -207,8 +218,9 @@ class GenericClosedLoop(Mechanism):
         loops = self.robot.loops
         out: dict[str, Any] = {"closures": len(loops.closures) if loops else 0,
                                "actuated": list(loops.actuated) if loops else [], "end_effector": self.robot.tool_frame}
-        if self.orientation is not None:
-            out["orientation"] = self.orientation.as_dict()
+        if self.orientation is not None:  # a "reference" once resolved (the solver built)
+            held = self.held if "batch" in self.__dict__ else self.orientation
+            out["orientation"] = held.as_dict() if held is not None else None
         if self.plane is not None:
             # an area is measured in this plane; another assembly mode can move in a parallel one
             i, j = (_AXES[a] for a in self.plane.axes)
@@ -226,7 +238,11 @@ class GenericClosedLoop(Mechanism):
     def require(self, capability: str, purpose: str) -> None:
         """As `Mechanism.require`; what runs on the batched solver also needs at most MAX_TASK_DIM
         actuators, and a margin every actuator's range (both checked here, before the solver is
-        compiled, so either is said at once)."""
+        compiled, so either is said at once). With a held orientation NOT_HELD is refused saying why."""
+        if self.orientation is not None and capability in NOT_HELD:
+            raise UnsupportedRobotError(self.name, f"{purpose} cannot be computed with the end effector held at a "
+                                                   "rotation: its six actuators drive the whole pose, and velocities "
+                                                   "and singular loci of the position alone are not done")
         super().require(capability, purpose)
         if capability in BATCHED:
             try:
@@ -364,7 +380,9 @@ class GenericClosedLoop(Mechanism):
         """The end effector's task point (N, 1, d) [m] at actuator values q (N, a) (one (a,) row
         is N = 1), on the assembly the continuation from the reference reaches; NaN where it finds
         none. d is `task_axes` (the coordinates `ik` and `margin` take) for a robot with at most
-        MAX_TASK_DIM actuators, else the position's three.
+        MAX_TASK_DIM actuators, else the position's three. With a held orientation, also NaN where
+        the end effector's rotation there is not the one held (HELD_ROTATION_TOL): such actuator
+        values leave the held set.
 
         Raises:
             InvalidInputError: q is not (N, a) finite values.
@@ -374,6 +392,8 @@ class GenericClosedLoop(Mechanism):
 
         loop = ClosedLoop(self.robot)
         q = self._actuator_rows(q, None)
+        held = self.held
+        R = None if held is None else held.matrix
         loops = self.robot.loops
         axes = list(self.batch.task_axes) if loops is not None and len(loops.actuated) <= MAX_TASK_DIM else [0, 1, 2]
         p = np.full((len(q), 1, len(axes)), np.nan)
@@ -381,6 +401,8 @@ class GenericClosedLoop(Mechanism):
             try:
                 sol = loop.solve(row)
             except KinematicsError:  # the inputs are checked: no assembly reached there
+                continue
+            if R is not None and np.abs(sol.pose.rotation - R).max() > HELD_ROTATION_TOL:
                 continue
             p[k, 0] = sol.pose.translation[axes]
         return Assemblies(p, np.isfinite(p).all(axis=-1), self.assembly_modes)
