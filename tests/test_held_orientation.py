@@ -46,6 +46,7 @@ def test_gantry_joint_values_by_hand_and_by_pinocchio() -> None:
     held = ToolOrientation.rpy(*RPY)
     mech = mechanism_of(robot, held)
     assert mech.task_axes == ("x", "y", "z")
+    assert mech.batch.held and not mech.batch.translational  # its actuators do turn the tool
     rng = np.random.default_rng(3)
     R = held.matrix
     platform = BOX[0] + rng.random((40, 3)) * (BOX[1] - BOX[0])

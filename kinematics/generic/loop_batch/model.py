@@ -52,9 +52,10 @@ def sparsity(pattern: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class LoopModel:
     """The dataclass under `LoopBatch`: its fields and the compiled model.
 
-    Attributes: robot; task_axes, translational and scale (the task and the model's length, chosen
-    by `LoopBatch.from_robot`; translational: the end effector's orientation rows are solved, held
-    at R_0, because the actuators never turn it or, `held`, because a rotation was asked for);
+    Attributes: robot; task_axes, oriented and scale (the task and the model's length, chosen by
+    `LoopBatch.from_robot`; oriented: the end effector's orientation rows are solved, held at R_0,
+    because the actuators never turn it (`translational`) or, `held`, because a rotation was asked
+    for);
     labels and atlas (the branches, `atlas`); blocks (`structure`); restarts and solver (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D
     closures in closed form (`spheres`); frames, the closure and end-effector frames in the
     kernels' order; _g, the model tuple (`pack` flattens it for the kernels);
@@ -65,7 +66,7 @@ class LoopModel:
 
     robot: Robot
     task_axes: tuple[int, ...]
-    translational: bool
+    oriented: bool
     scale: float
     labels: tuple[tuple[int, ...], ...] = ()
     atlas: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
@@ -125,8 +126,8 @@ class LoopModel:
         R0 = np.array(data.oMf[fids[ee]].rotation, dtype=float)
         self._g = (parent, np.array(kind, dtype=np.int64), np.array(axes, dtype=float).reshape(n, 3), jR, jt,
                    fparent, fR, ft, anc, ctype, cf1, cf2, int(ee), np.array(self.task_axes, dtype=np.int64), R0,
-                   bool(self.translational), float(self.scale))
-        self._m = int(sum(3 if t == 0 else 6 for t in ctype) + (3 if self.translational else 0) + len(self.task_axes))
+                   bool(self.oriented), float(self.scale))
+        self._m = int(sum(3 if t == 0 else 6 for t in ctype) + (3 if self.oriented else 0) + len(self.task_axes))
         lo, hi = robot.lower, robot.upper
         ranged = np.isfinite(lo) & np.isfinite(hi)
         self._centre = np.where(ranged, 0.5 * (np.where(ranged, lo, 0.0) + np.where(ranged, hi, 0.0)), 0.0)
@@ -138,6 +139,12 @@ class LoopModel:
         return pack(self._g)
 
     # -- basic properties ------------------------------------------------------------------------
+    @property
+    def translational(self) -> bool:
+        """The actuators never turn the end effector (its orientation rows hold the reference's),
+        as opposed to a rotation held by request (`held`)."""
+        return self.oriented and not self.held
+
     @property
     def task_dim(self) -> int:
         """Dimension d of the task space (platform position coordinates)."""
@@ -183,16 +190,17 @@ class LoopModel:
 
         free: (n,) bool, the unknowns that may move (default: all); rows: (m,) bool, the equations
         solved (default: all); pinned: place the end effector's body at each target (orientation
-        R_0) whatever its ancestors' values (translational mechanisms with a 3D task only): the
+        R_0) whatever its ancestors' values (`oriented`, with a 3D task, only): the
         other closures are then solved against the platform where it must be, even where the
         chain that carries it in the tree cannot put it there.
 
         Raises:
-            UnsupportedRobotError: pinned on a mechanism that is not translational with a 3D task.
+            UnsupportedRobotError: pinned on a mechanism whose orientation is not held, or without a 3D task.
         """
         if pinned and not self.can_pin:
-            raise UnsupportedRobotError(self.robot.name, "pinning the end effector needs a translational "
-                                                         "mechanism with a 3D position task")
+            raise UnsupportedRobotError(self.robot.name, "pinning the end effector needs its orientation held "
+                                                         "(a translational mechanism or a held rotation) and a 3D "
+                                                         "position task")
         free = np.ones(self.n, dtype=np.bool_) if free is None else np.asarray(free, dtype=np.bool_)
         roww = np.ones(self._m) if rows is None else np.asarray(rows, dtype=float)
         t = np.ascontiguousarray(targets, dtype=float)
@@ -242,13 +250,13 @@ class LoopModel:
     # -- residual rows ---------------------------------------------------------------------------
     @property
     def can_pin(self) -> bool:
-        """`newton(pinned=True)` applies: translational, with every position axis as the task."""
-        return self.translational and self.task_dim == 3
+        """`newton(pinned=True)` applies: the orientation held, every position axis the task."""
+        return self.oriented and self.task_dim == 3
 
     @functools.cached_property
     def task_rows(self) -> tuple[int, ...]:
         """Residual rows of the task: the end effector's orientation (if held) and position."""
-        k = len(self.task_axes) + (3 if self.translational else 0)
+        k = len(self.task_axes) + (3 if self.oriented else 0)
         return tuple(range(self._m - k, self._m))
 
     def row_dependencies(self, pinned: bool = False) -> np.ndarray:
@@ -274,7 +282,7 @@ class LoopModel:
             size = 3 if t == 0 else 6
             groups.append(tuple(range(k, k + size)))
             k += size
-        if self.translational:
+        if self.oriented:
             groups.append(tuple(range(k, k + 3)))
             k += 3
         groups.append(tuple(range(k, k + self.task_dim)))

@@ -10,7 +10,7 @@ them (the planar five-bar: x, y; for two actuators and a planar motion, `motion_
 Mechanisms whose actuators drive a rotation of the end effector
 (a task that needs orientation coordinates) raise UnsupportedRobotError, unless they have six
 actuators and an `orientation` is given: the end effector is then *held* at that rotation (the same
-three orientation rows as a translational mechanism's, `translational` True) and the task is its
+three orientation rows as a translational mechanism's: `oriented` and `held`) and the task is its
 position, the constant-orientation workspace of a 6-DOF leg or platform. The reference
 configuration is first brought to that orientation at the reference position by continuation
 (HOLD_STEPS rotations along the geodesic from the reference orientation, each solved from the
@@ -176,7 +176,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                 raise UnsupportedRobotError(robot.name, "its actuators drive the end effector's orientation; "
                                             "the batched solver handles position tasks only")
             task_axes = tuple(axes)
-        self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), translational=translational,
+        self = cls(robot=robot, task_axes=tuple(int(a) for a in task_axes), oriented=translational,
                    scale=_length(robot, q), restarts=restarts, solver=solver, spheres=spheres, held=held is not None)
         self._compile(q)
         self._reference = robot.values_from_configuration(q)
