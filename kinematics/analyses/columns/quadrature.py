@@ -44,9 +44,9 @@ def adaptive_1d(f: Batch, a: np.ndarray, b: np.ndarray, rtol: float, atol: float
     the gap between them (h t_min, ~3.5 % of the width), charged gap x |f(end) - f(node)|. Gauss
     nodes never reach an interval's ends, so without them a jump in the last ~7 % of a half,
     between two intervals' outermost nodes, leaves both intervals smooth on their nodes and is
-    charged nothing (an indicator of [0, 0.3] over [-0.0363, 0.3352] in 5
-    pieces: 0.05983 for 0.06, an error estimate of 7.8e-6 for 1.7e-4). The nodes' own errors (an
-    inner integral's) are carried along, weighted. Per problem the intervals with the largest estimates are halved until
+    charged nothing (an indicator of [0, 0.3] over [-0.0363, 0.3352] in 5 pieces: 0.05983 for
+    0.06, an error estimate of 7.8e-6 for 1.7e-4). The nodes' own errors (an inner integral's) are
+    carried along, weighted. Per problem the intervals with the largest estimates are halved until
     the sum is <= max(rtol |integral|, atol) for every target.
 
     With `group` (P,) (integers 0..G-1) the problems of a group share one tolerance, on the sum

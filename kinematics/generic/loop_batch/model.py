@@ -4,8 +4,7 @@ residual rows and their sparsity, and the kernels' entry points (`newton`, `eval
 
 The rows are, in order: every closure (3 rows for a `point` closure, 6 for a `6d` one), the
 end effector's orientation held at R_0 (3 rows: translational mechanisms, or a rotation asked
-for), the task position
-(d rows); `compiled` gives the equations.
+for), the task position (d rows); `compiled` gives the equations.
 """
 
 from __future__ import annotations
@@ -55,9 +54,9 @@ class LoopModel:
     Attributes: robot; task_axes, oriented and scale (the task and the model's length, chosen by
     `LoopBatch.from_robot`; oriented: the end effector's orientation rows are solved, held at R_0,
     because the actuators never turn it (`translational`) or, `held`, because a rotation was asked
-    for);
-    labels and atlas (the branches, `atlas`); blocks (`structure`); restarts and solver (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D
-    closures in closed form (`spheres`); frames, the closure and end-effector frames in the
+    for); labels and atlas (the branches, `atlas`); blocks (`structure`); restarts and solver
+    (`LoopBatch.ik`); spheres, the block solver solves spherical triples behind 6D closures in
+    closed form (`spheres`); frames, the closure and end-effector frames in the
     kernels' order; _g, the model tuple (`pack` flattens it for the kernels);
     _m, the number of residual rows; _nzc, _nzn, each row's structurally non-zero columns; _centre,
     the middle of each joint's limits (0 without); _reference, the sidecar's closed reference

@@ -7,8 +7,9 @@ labelled by the signs of the loop Jacobian's square sub-determinants that contai
 in-plane position for planar ones, and for a mechanism with six actuators that turn its end
 effector, its position with a held rotation (`orientation`: the constant-orientation workspace of a
 6-DOF leg or platform; velocities and singular loci are not done for it). Other mechanisms whose
-task needs orientation are refused when a capability is first used. Margins come from the URDF's joint limits ("all", or "actuators"
-only), minus the least-squares residual where a branch has no solution; where no joint limit
+task needs orientation are refused when a capability is first used. Margins come from the URDF's
+joint limits ("all", or "actuators" only), minus the least-squares residual where a branch has no
+solution; where no joint limit
 binds (e.g. the five-bar's continuous joints) the slack is capped at the robot's size, so the
 margin jumps at the reach boundary instead of falling to 0 there (its sign stays right).
 
