@@ -159,3 +159,18 @@ def test_velocity_where_no_passive_joint_moves_the_end_effector(tmp_path) -> Non
     np.testing.assert_allclose(v.J, np.broadcast_to(np.eye(3), (2, 3, 3)), atol=1e-9)
     np.testing.assert_allclose(v.J_inverse, np.broadcast_to(np.eye(3), (2, 3, 3)), atol=1e-9)
     assert np.isinf(v.iota_II).all()
+
+
+def test_cli_ik_with_the_tool_held(capsys) -> None:
+    """`ik --orientation`: the one working mode within the limits, its actuator values the hand
+    solution (slides at the target less R x the tool offset, the wrist at yaw, pitch, roll)."""
+    held = ToolOrientation.rpy(*RPY)
+    target = np.array([0.05, 0.1, 0.2])
+    code = main(["ik", str(MODELS / "gantry6.urdf"), "--orientation", "rpy " + " ".join(map(str, RPY)), "--position",
+                 *map(str, target), "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    payload = json.loads(out)
+    assert payload["orientation"]["kind"] == "rotation"
+    (inside,) = [s for s in payload["solutions"] if s["within_limits"]]
+    np.testing.assert_allclose(inside["q"], [*(target - held.matrix @ OFFSET), RPY[2], RPY[1], RPY[0]], atol=1e-9)

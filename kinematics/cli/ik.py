@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from kinematics.cli.args import Command, load, number, robot_arg
+from kinematics.cli.args import Command, load, number, orientation_args, robot_arg
 from kinematics.cli.report import emit
 
 
@@ -17,6 +17,7 @@ def register(command: Command) -> None:
     p.add_argument("--position", nargs="+", type=number, required=True, metavar="X",
                    help="target position [m]: X Y for a planar arm, X Y Z for p2us and delta, a closed loop's "
                         "task coordinates (the report names them; e.g. Y Z for a five-bar in the y-z plane)")
+    orientation_args(p, "the working modes", closed_loops=True)
 
 
 def cmd_ik(args: argparse.Namespace) -> int:

@@ -69,8 +69,11 @@ def _solutions_report(title: str, key: str, columns: list[str], digits: int,
 def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     """`kinematics ik ROBOT --position ...`: every branch (the SCARA's elbows, the 3-[P2(US)]'s and
     the Delta's working modes) from the mechanism's closed forms (`Mechanism.pose_ik`), with the
-    limits each breaks and why none reaches."""
-    mech = mechanism_of(robot)
+    limits each breaks and why none reaches; with --orientation a closed loop's end effector held
+    at that rotation."""
+    from kinematics.cli.args import orientation_of
+
+    mech = mechanism_of(robot, orientation_of(args))
     if "pose_ik" not in mech.capabilities:
         if mech.closed_loop and {"ik", "joint_values"} <= mech.capabilities:  # the batched solver's
             return _generic_ik(args, robot, mech, out)
@@ -131,10 +134,13 @@ def _generic_ik(args: argparse.Namespace, robot: Robot, mech: Mechanism, out: Ou
     else:
         reason = f"every working mode breaks a joint range ({len(solutions)} assemble; see violations)"
     actuators = list(robot.loops.actuated) if robot.loops else []
-    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "actuators": actuators}
+    held = getattr(mech, "held", None)
+    payload = {"position": p, "reachable": reachable, "reason": reason, "solutions": solutions, "actuators": actuators,
+               "orientation": None if held is None else held.as_dict()}
 
     def human() -> str:
-        title = (f"position {p.tolist()} m ({', '.join(mech.task_axes)}): "
+        title = (f"position {p.tolist()} m ({', '.join(mech.task_axes)})"
+                 + ("" if held is None else f", end effector held at {held.text}") + ": "
                  + ("reachable" if reachable else "NOT reachable"))
         kinds = {d.name: d.kind for d in robot.dofs}
         columns = [f"{a} [{'m' if kinds[a] == 'prismatic' else 'rad'}]" for a in actuators]

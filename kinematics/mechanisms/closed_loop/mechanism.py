@@ -162,8 +162,8 @@ class GenericClosedLoop(Mechanism):
                 f"redundant (up to {n - MAX_TASK_DIM} actuator freedom(s) beyond it), and the batched closed-loop "
                 "solver behind workspaces, IK and singular loci needs exactly one task coordinate per actuator, at "
                 f"most the {MAX_TASK_DIM} of a position (orientation coordinates are not done)"
-                + (f"; with {HELD_ACTUATORS} actuators, `workspace-volume` measures it with the end effector held "
-                   "at a rotation: --orientation 'rpy R P Y' or 'reference' (library: mechanism_of(robot, "
+                + (f"; with {HELD_ACTUATORS} actuators, `workspace-volume` and `ik` take the end effector held at a "
+                   "rotation: --orientation 'rpy R P Y' or 'reference' (library: mechanism_of(robot, "
                    "ToolOrientation...))" if n == HELD_ACTUATORS else ""))
 
     @property
