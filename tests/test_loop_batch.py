@@ -328,15 +328,9 @@ def test_fivebar_branches_and_joint_values():
     assert lb.task_dim == 2 and not lb.translational and len(lb.labels) == 4
     pts = np.random.default_rng(5).uniform([-0.05, 0.22], [0.25, 0.45], (40, 2))
     sol = lb.ik(pts, warm=False)
-    modes = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
     hits = np.zeros((4, 4), dtype=int)
     for i, P in enumerate(pts):
-        for k, m in enumerate(modes):
-            theta = five.ik(P, m)
-            if theta is None or min(five.singularity_indices(theta, P)) < 0.05:
-                continue
-            jv = five.joint_values(theta, P)
-            want = np.array([jv[n] for n in robot.joint_names])
+        for k, _, want in _closed_form_modes(five, robot, P, 0.05):
             d = np.abs(wrap(sol.x[i] - want)).max(axis=1)
             assert np.nanmin(d) <= JOINT_TOL
             hits[k, int(np.nanargmin(d))] += 1
@@ -364,17 +358,23 @@ def test_fivebar_cold_grid_finds_every_reachable_branch():
     assert np.sum(~s.found[reach]) <= 1e-4 * 4 * reach.sum()
 
 
+def _closed_form_modes(five: FiveBar, robot, P: np.ndarray, clear: float):
+    """(index, mode, every joint's value in URDF order) of each closed-form mode that reaches P
+    with its singularity indices >= `clear`."""
+    for k, m in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
+        theta = five.ik(P, m)
+        if theta is None or min(five.singularity_indices(theta, P)) < clear:
+            continue
+        jv = five.joint_values(theta, P)
+        yield k, m, np.array([jv[n] for n in robot.joint_names])
+
+
 def _missed_modes(five: FiveBar, robot, pts: np.ndarray, sol) -> list[tuple[int, tuple[int, int]]]:
     """(point, mode) pairs the closed form reaches, clear of singularities (indices >= 0.02: joint
     errors <= 5e-11 rad, module docstring), that no found branch of `sol` matches to JOINT_TOL."""
     missed = []
     for i, P in enumerate(pts):
-        for m in [(1, 1), (1, -1), (-1, 1), (-1, -1)]:
-            theta = five.ik(P, m)
-            if theta is None or min(five.singularity_indices(theta, P)) < 0.02:
-                continue
-            jv = five.joint_values(theta, P)
-            want = np.array([jv[n] for n in robot.joint_names])
+        for _, m, want in _closed_form_modes(five, robot, P, 0.02):
             d = np.abs(wrap(sol.x[i] - want)).max(axis=1)
             if not np.any(sol.found[i] & (d <= JOINT_TOL)):
                 missed.append((i, m))
