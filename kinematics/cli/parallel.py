@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.cli.args import orientation_of
 from kinematics.cli.report import Out, compile_notice, key_values, matrix, table
 from kinematics.errors import InvalidInputError, UnsupportedRobotError
 from kinematics.mechanisms import SINGULAR_TOL, SINGULARITY_TYPES, Mechanism, classify, mechanism_of
@@ -71,8 +72,6 @@ def ik(args: argparse.Namespace, robot: Robot, out: Out) -> int:
     the Delta's working modes) from the mechanism's closed forms (`Mechanism.pose_ik`), with the
     limits each breaks and why none reaches; with --orientation a closed loop's end effector held
     at that rotation."""
-    from kinematics.cli.args import orientation_of
-
     mech = mechanism_of(robot, orientation_of(args))
     if "pose_ik" not in mech.capabilities:
         if mech.closed_loop and {"ik", "joint_values"} <= mech.capabilities:  # the batched solver's

@@ -150,11 +150,12 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
         lin, ang = G[:3], G[3:]
         size = max(float(np.linalg.norm(lin)), 1e-300)
         translational = float(np.linalg.norm(ang)) * _length(robot, q) <= 1e-9 * size
+        pin.framesForwardKinematics(model, robot.data, q)
+        ee = pin.SE3(robot.data.oMf[robot.frame_id(robot.loops.end_effector)])  # the reference pose (a copy)
         if isinstance(orientation, str):
             if orientation != "reference":
                 raise InvalidInputError("orientation", f"expected a (3, 3) rotation or 'reference', got {orientation!r}")
-            pin.framesForwardKinematics(model, robot.data, q)
-            orientation = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].rotation)
+            orientation = np.array(ee.rotation)
         held = None if orientation is None else _held(robot, orientation, n_act, translational, G, task_axes)
         if held is not None:
             task_axes, translational = (0, 1, 2), True
@@ -180,9 +181,7 @@ class LoopBatch(BlockSolver, WholeSolver, LoopSingularities):
                    scale=_length(robot, q), restarts=restarts, solver=solver, spheres=spheres, held=held is not None)
         self._compile(q)
         self._reference = robot.values_from_configuration(q)
-        pin.framesForwardKinematics(model, robot.data, q)
-        ee_pos = np.array(robot.data.oMf[robot.frame_id(robot.loops.end_effector)].translation)
-        self._anchor = ee_pos[list(self.task_axes)]
+        self._anchor = np.array(ee.translation)[list(self.task_axes)]
         if held is not None and np.abs(held - self.held_rotation).max() > 1e-12:
             self._reference = self._hold(held, self._reference)
         self.blocks = self._find_blocks()
